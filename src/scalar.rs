@@ -15,7 +15,7 @@
 //!   the NaN that `sqrt` gives.
 
 use nalgebra::{Matrix3, SVector, Vector3};
-use num_dual::{Derivative, Dual64, DualNum, DualSVec64, DualStruct};
+use num_dual::{Derivative, Dual64, DualNum, DualSVec64};
 
 /// Scalar type of every kernel: `f64`, [`Dual64`] or [`DualSVec64<N>`].
 ///

@@ -1,0 +1,352 @@
+//! Global assembly: element loop (parallel over chunks of elements, deterministic scatter),
+//! springs, external loads; generic over the scalar so the same loop gives the primal residual
+//! and tangent (`f64`), SDM's perturbed unbalance force (`f64` at a perturbed design) and DDM's
+//! exact pseudo-load (dual numbers).
+//!
+//! The residual is `R(z) = f_int(z) + f_spring(z) - f_ext(t)` over every unknown, including the
+//! constrained ones (where it is the reaction). Dirichlet conditions are applied by the solver.
+
+use crate::element::hex8::{self, ElementFailure, Hex8Input, Hex8Output, MAX_DOF, MAX_GEN};
+use crate::linalg::{LinalgError, SparseMatrix, SparsePattern};
+use crate::material::Branch;
+use crate::model::{DofMap, Lifted, Model};
+use crate::scalar::Scalar;
+use crate::with_material;
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+/// Elements evaluated per parallel chunk (bounds the scratch memory of the tangent buffers).
+const CHUNK: usize = 512;
+
+/// The fixed structure of the global system: unknown numbering and sparsity pattern.
+pub struct Assembler {
+    pub dofs: DofMap,
+    pub pattern: std::sync::Arc<SparsePattern>,
+    /// Global unknowns of each element (nodal, then internal), flattened with `elem_ndof`.
+    elem_dofs: Vec<[usize; MAX_DOF]>,
+    elem_ndof: Vec<usize>,
+    /// History scalars of each element (8 x per-point length).
+    elem_hist: Vec<usize>,
+    /// Pattern block of each spring.
+    spring_block: Vec<usize>,
+}
+
+/// An element that failed during assembly.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("element {element}: {failure}")]
+pub struct AssemblyFailure {
+    pub element: usize,
+    pub failure: ElementFailure,
+}
+
+/// Everything an evaluation produces besides the tangent.
+#[derive(Clone, Debug)]
+pub struct Evaluation<S: Scalar> {
+    /// `f_int + f_spring - f_ext` over every unknown.
+    pub residual: Vec<S>,
+    /// Updated history (trial values until the increment is committed).
+    pub hist_new: Vec<S>,
+    /// Branch at each Gauss point (8 per element).
+    pub branches: Vec<Branch>,
+    /// Trial yield ratio at each Gauss point.
+    pub yield_ratio: Vec<f64>,
+    /// Volume-averaged Cauchy stress per element (real parts).
+    pub cauchy: Vec<Matrix3<f64>>,
+    /// Smallest det F over the model.
+    pub min_det_f: f64,
+}
+
+impl<S: Scalar> Evaluation<S> {
+    /// An empty evaluation sized for a model.
+    pub fn new(dofs: &DofMap, n_elements: usize) -> Self {
+        Evaluation {
+            residual: vec![S::zero(); dofs.n_total],
+            hist_new: vec![S::zero(); dofs.n_history],
+            branches: vec![Branch::Elastic; 8 * n_elements],
+            yield_ratio: vec![-1.0; 8 * n_elements],
+            cauchy: vec![Matrix3::zeros(); n_elements],
+            min_det_f: f64::INFINITY,
+        }
+    }
+}
+
+/// Per-element scratch filled in parallel.
+struct Local<S: Scalar> {
+    force: [S; MAX_DOF],
+    tangent: Vec<f64>,
+    branches: [Branch; 8],
+    yield_ratio: [f64; 8],
+    cauchy: Matrix3<f64>,
+    min_det_f: f64,
+    failure: Option<ElementFailure>,
+    hist: [S; MAX_HISTORY],
+}
+
+/// Largest element history (8 Gauss points x 16 scalars).
+pub const MAX_HISTORY: usize = 8 * 16;
+
+impl Assembler {
+    /// Number the unknowns and build the sparsity pattern (once per model).
+    pub fn new(model: &Model, extra: &[(usize, usize)]) -> Result<Self, LinalgError> {
+        let dofs = model.dof_map();
+        let ne = model.mesh.elements.len();
+        let mut elem_dofs = vec![[0usize; MAX_DOF]; ne];
+        let mut elem_ndof = vec![0usize; ne];
+        let mut elem_hist = vec![0usize; ne];
+        for (e, conn) in model.mesh.elements.iter().enumerate() {
+            if dofs.element_body[e] == usize::MAX {
+                continue; // element of a block without a body: not assembled
+            }
+            let d = &mut elem_dofs[e];
+            for (a, &n) in conn.iter().enumerate() {
+                for i in 0..3 {
+                    d[3 * a + i] = 3 * n + i;
+                }
+            }
+            let mut nd = 24;
+            let body = &model.bodies[dofs.element_body[e]];
+            if let Some(first) = dofs.element_internal[e] {
+                for k in 0..body.formulation.internal_dofs() {
+                    d[24 + k] = first + k;
+                }
+                nd += body.formulation.internal_dofs();
+            }
+            elem_ndof[e] = nd;
+            elem_hist[e] = 8 * body.material.history_len();
+        }
+        let mut blocks: Vec<Vec<usize>> = (0..ne)
+            .filter(|e| elem_ndof[*e] > 0)
+            .map(|e| elem_dofs[e][..elem_ndof[e]].to_vec())
+            .collect();
+        let mut spring_block = Vec::new();
+        for s in &model.springs {
+            spring_block.push(blocks.len());
+            let mut d: Vec<usize> = (0..3).map(|i| 3 * s.a + i).collect();
+            if let Some(b) = s.b {
+                d.extend((0..3).map(|i| 3 * b + i));
+            }
+            blocks.push(d);
+        }
+        let refs: Vec<&[usize]> = blocks.iter().map(|b| b.as_slice()).collect();
+        let pattern = std::sync::Arc::new(SparsePattern::new(dofs.n_total, &refs, extra)?);
+        Ok(Assembler {
+            dofs,
+            pattern,
+            elem_dofs,
+            elem_ndof,
+            elem_hist,
+            spring_block,
+        })
+    }
+
+    /// Pattern block index of element `e` (elements come first, in order, skipping unassembled
+    /// ones).
+    fn element_block(&self) -> Vec<usize> {
+        let mut v = vec![usize::MAX; self.elem_ndof.len()];
+        let mut k = 0;
+        for (e, nd) in self.elem_ndof.iter().enumerate() {
+            if *nd > 0 {
+                v[e] = k;
+                k += 1;
+            }
+        }
+        v
+    }
+
+    /// Global unknowns of element `e`.
+    pub fn element_dofs(&self, e: usize) -> &[usize] {
+        &self.elem_dofs[e][..self.elem_ndof[e]]
+    }
+
+    /// Evaluate the residual (and, if `tangent` is given, the tangent) at unknowns `z`, time `t`,
+    /// with committed history `hist_old`. `frozen` imposes the Gauss-point branches.
+    #[allow(clippy::too_many_arguments)]
+    pub fn evaluate<S: Scalar>(
+        &self,
+        model: &Model,
+        lifted: &Lifted<S>,
+        z: &[S],
+        hist_old: &[S],
+        time: f64,
+        frozen: Option<&[Branch]>,
+        mut tangent: Option<&mut SparseMatrix>,
+        out: &mut Evaluation<S>,
+    ) -> Result<(), AssemblyFailure> {
+        for r in out.residual.iter_mut() {
+            *r = S::zero();
+        }
+        if let Some(k) = tangent.as_deref_mut() {
+            k.zero();
+        }
+        out.min_det_f = f64::INFINITY;
+        let want_k = tangent.is_some();
+        let ne = model.mesh.elements.len();
+        let block_of = self.element_block();
+        let mut locals: Vec<Local<S>> = Vec::new();
+        let mut start = 0;
+        while start < ne {
+            let end = (start + CHUNK).min(ne);
+            // evaluate the chunk in parallel
+            let range: Vec<usize> = (start..end).collect();
+            range
+                .par_iter()
+                .map(|&e| self.element_local(model, lifted, z, hist_old, frozen, e, want_k))
+                .collect_into_vec(&mut locals);
+            // scatter sequentially in element order (bit-identical whatever the thread count)
+            for (off, loc) in locals.iter().enumerate() {
+                let e = start + off;
+                let nd = self.elem_ndof[e];
+                if nd == 0 {
+                    continue;
+                }
+                if let Some(f) = &loc.failure {
+                    return Err(AssemblyFailure {
+                        element: e,
+                        failure: f.clone(),
+                    });
+                }
+                for (l, &g) in self.element_dofs(e).iter().enumerate() {
+                    out.residual[g] += loc.force[l];
+                }
+                out.branches[8 * e..8 * e + 8].copy_from_slice(&loc.branches);
+                out.yield_ratio[8 * e..8 * e + 8].copy_from_slice(&loc.yield_ratio);
+                out.cauchy[e] = loc.cauchy;
+                let h0 = self.dofs.history_offset[e];
+                let nh8 = self.elem_hist[e];
+                out.hist_new[h0..h0 + nh8].copy_from_slice(&loc.hist[..nh8]);
+                out.min_det_f = out.min_det_f.min(loc.min_det_f);
+                if let Some(k) = tangent.as_deref_mut() {
+                    k.add_block(block_of[e], &loc.tangent[..nd * nd])
+                        .expect("element block of this pattern");
+                }
+            }
+            start = end;
+        }
+        // springs
+        for (s, spring) in model.springs.iter().enumerate() {
+            let ua = Vector3::new(z[3 * spring.a], z[3 * spring.a + 1], z[3 * spring.a + 2]);
+            let ub = match spring.b {
+                Some(b) => Vector3::new(z[3 * b], z[3 * b + 1], z[3 * b + 2]),
+                None => Vector3::zeros(),
+            };
+            let f = spring.force(&ua, &ub, S::one());
+            for i in 0..3 {
+                out.residual[3 * spring.a + i] += f[i];
+                if let Some(b) = spring.b {
+                    out.residual[3 * b + i] -= f[i];
+                }
+            }
+            if let Some(k) = tangent.as_deref_mut() {
+                let ks = spring.stiffness;
+                let n = if spring.b.is_some() { 6 } else { 3 };
+                let mut local = vec![0.0; n * n];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        local[i * n + j] = ks[i][j];
+                        if n == 6 {
+                            local[(i + 3) * n + j + 3] = ks[i][j];
+                            local[i * n + j + 3] = -ks[i][j];
+                            local[(i + 3) * n + j] = -ks[i][j];
+                        }
+                    }
+                }
+                k.add_block(self.spring_block[s], &local)
+                    .expect("spring block of this pattern");
+            }
+        }
+        // external loads
+        for (l, load) in model.loads.iter().enumerate() {
+            let f = lifted.loads[l] * load.amplitude.at(time);
+            for &n in &load.nodes {
+                out.residual[3 * n + load.component] -= f;
+            }
+        }
+        Ok(())
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn element_local<S: Scalar>(
+        &self,
+        model: &Model,
+        lifted: &Lifted<S>,
+        z: &[S],
+        hist_old: &[S],
+        frozen: Option<&[Branch]>,
+        e: usize,
+        want_k: bool,
+    ) -> Local<S> {
+        let mut loc = Local {
+            force: [S::zero(); MAX_DOF],
+            tangent: Vec::new(),
+            branches: [Branch::Elastic; 8],
+            yield_ratio: [-1.0; 8],
+            cauchy: Matrix3::zeros(),
+            min_det_f: f64::INFINITY,
+            failure: None,
+            hist: [S::zero(); MAX_HISTORY],
+        };
+        let nd = self.elem_ndof[e];
+        if nd == 0 {
+            return loc;
+        }
+        let b = self.dofs.element_body[e];
+        let body = &model.bodies[b];
+        let conn = &model.mesh.elements[e];
+        let x_ref: [Vector3<S>; 8] = std::array::from_fn(|a| lifted.coords[conn[a]]);
+        let gdofs = self.element_dofs(e);
+        let mut d = [Vector3::<S>::zeros(); MAX_GEN];
+        for (a, da) in d.iter_mut().enumerate().take(nd / 3) {
+            *da = Vector3::new(z[gdofs[3 * a]], z[gdofs[3 * a + 1]], z[gdofs[3 * a + 2]]);
+        }
+        let nh = body.material.history_len();
+        let h0 = self.dofs.history_offset[e];
+        let hist = &hist_old[h0..h0 + 8 * nh];
+        if want_k {
+            loc.tangent = vec![0.0; nd * nd];
+        }
+        let mut k_s: Vec<S> = if want_k {
+            vec![S::zero(); nd * nd]
+        } else {
+            Vec::new()
+        };
+        let fr: Option<&[Branch; 8]> =
+            frozen.map(|f| (&f[8 * e..8 * e + 8]).try_into().expect("8 branches"));
+        let result = with_material!(&body.material, m => {
+            let input = Hex8Input {
+                x_ref: &x_ref,
+                dofs: &d[..nd / 3],
+                kinematics: body.kinematics,
+                formulation: body.formulation,
+                material: m,
+                params: &lifted.material[b],
+                hist_old: hist,
+                frozen: fr,
+            };
+            let mut out = Hex8Output {
+                force: &mut loc.force[..nd],
+                tangent: if want_k { Some(&mut k_s[..]) } else { None },
+                hist_new: &mut loc.hist[..8 * nh],
+                branches: [Branch::Elastic; 8],
+                yield_ratio: [-1.0; 8],
+                cauchy: Matrix3::zeros(),
+                min_det_f: f64::INFINITY,
+            };
+            let r = hex8::evaluate(&input, &mut out);
+            loc.branches = out.branches;
+            loc.yield_ratio = out.yield_ratio;
+            loc.cauchy = out.cauchy.map(|c| c.value());
+            loc.min_det_f = out.min_det_f;
+            r
+        });
+        if let Err(f) = result {
+            loc.failure = Some(f);
+            return loc;
+        }
+        if want_k {
+            for (t, k) in loc.tangent.iter_mut().zip(&k_s) {
+                *t = k.value();
+            }
+        }
+        loc
+    }
+}

@@ -1,0 +1,401 @@
+//! Eight-node hexahedron, total Lagrangian, generic over the scalar.
+//!
+//! ## Kinematics
+//! Reference coordinates `X`, displacements `u`, deformation gradient
+//! `F = I + sum_A d_A (x) g_A`, where the sum runs over the eight nodes (`d_A = u_a`,
+//! `g_A = grad_X N_a`) and, for the enhanced variant, over three incompatible modes
+//! (`d_A = alpha_k`, `g_A = Gtilde_k`).
+//!
+//! * `Large`: Green-Lagrange strain `E = (F^T F - I)/2`, second Piola-Kirchhoff `S = S(E)`,
+//!   internal force `f_Ai = int B_Ai^T S dV0` with `B_Ai = dE/dd_Ai = sym(F^T e_i (x) g_A)`.
+//! * `Small`: linear strain `eps = sym(F - I)`, `sigma = sigma(eps)`, `B_Ai = sym(e_i (x) g_A)`.
+//!
+//! Tangent (hand-coded, consistent): `K_AiBj = int B_Ai^T C B_Bj + delta_ij g_A^T S g_B dV0`
+//! (the geometric term only under `Large`). It is checked against the dual-number derivative of
+//! the internal force in the tests.
+//!
+//! ## Incompatible modes (the bending-capable variant)
+//! Wilson's bubble modes `phi_k = 1 - xi_k^2` with Taylor's correction (Simo & Armero 1992):
+//! `Gtilde_k(xi) = (j0 / j(xi)) J0^-T dphi_k/dxi`, `J0` the Jacobian at the element centre.
+//! `int Gtilde_k dV0 = 0`, so the patch test is passed. Their nine amplitudes `alpha` are
+//! element-internal unknowns of the global system (not condensed here): the sparse LU eliminates
+//! them as it would any interior DOF, and the sensitivity engine treats them like any other
+//! unknown. Plain full integration locks in bending; this variant does not.
+//!
+//! | symbol | meaning |
+//! |---|---|
+//! | `xi` | natural coordinates in `[-1, 1]^3` |
+//! | `N_a` | trilinear shape functions |
+//! | `J = dX/dxi`, `j = det J` | reference Jacobian |
+//! | `F`, `E`, `S` | deformation gradient, Green-Lagrange strain, PK2 stress |
+//! | `g_A`, `B_A` | generalised shape gradient, strain-displacement row |
+
+use crate::material::{stress_to_voigt, Branch, MaterialLaw, Voigt};
+use crate::scalar::{det3, inv3, re, Scalar};
+use nalgebra::{Matrix3, Vector3};
+
+/// Strain measure used by an element.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kinematics {
+    /// Total Lagrangian, Green-Lagrange strain and PK2 stress.
+    Large,
+    /// Linear strain (geometrically linear).
+    Small,
+}
+
+/// Hex8 formulation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Hex8Formulation {
+    /// Plain 2x2x2 full integration (locks in bending).
+    Full,
+    /// Nine incompatible modes (Wilson-Taylor, Simo-Armero): accurate in bending.
+    IncompatibleModes,
+}
+
+impl Hex8Formulation {
+    /// Number of element-internal unknowns.
+    pub fn internal_dofs(self) -> usize {
+        match self {
+            Hex8Formulation::Full => 0,
+            Hex8Formulation::IncompatibleModes => 9,
+        }
+    }
+}
+
+/// Natural coordinates of the nodes, in the usual order (bottom face counter-clockwise, then top).
+pub const NODE_XI: [[f64; 3]; 8] = [
+    [-1.0, -1.0, -1.0],
+    [1.0, -1.0, -1.0],
+    [1.0, 1.0, -1.0],
+    [-1.0, 1.0, -1.0],
+    [-1.0, -1.0, 1.0],
+    [1.0, -1.0, 1.0],
+    [1.0, 1.0, 1.0],
+    [-1.0, 1.0, 1.0],
+];
+
+/// Local node numbers of the six faces, ordered counter-clockwise seen from outside
+/// (so the face normal `t1 x t2` points out of the element). Order: -x, +x, -y, +y, -z, +z.
+pub const FACE_NODES: [[usize; 4]; 6] = [
+    [0, 4, 7, 3],
+    [1, 2, 6, 5],
+    [0, 1, 5, 4],
+    [3, 7, 6, 2],
+    [0, 3, 2, 1],
+    [4, 5, 6, 7],
+];
+
+const GP: f64 = 0.577_350_269_189_625_8; // 1/sqrt(3)
+
+/// The eight 2x2x2 Gauss points.
+pub fn gauss_points() -> [[f64; 3]; 8] {
+    let mut p = [[0.0; 3]; 8];
+    for (g, x) in NODE_XI.iter().enumerate() {
+        p[g] = [x[0] * GP, x[1] * GP, x[2] * GP];
+    }
+    p
+}
+
+/// Derivatives of the shape functions with respect to the natural coordinates at `xi`.
+#[inline]
+pub fn shape_derivatives(xi: [f64; 3]) -> [[f64; 3]; 8] {
+    let mut d = [[0.0; 3]; 8];
+    for (a, n) in NODE_XI.iter().enumerate() {
+        let f0 = 1.0 + n[0] * xi[0];
+        let f1 = 1.0 + n[1] * xi[1];
+        let f2 = 1.0 + n[2] * xi[2];
+        d[a] = [
+            0.125 * n[0] * f1 * f2,
+            0.125 * f0 * n[1] * f2,
+            0.125 * f0 * f1 * n[2],
+        ];
+    }
+    d
+}
+
+/// Shape functions at `xi`.
+#[inline]
+pub fn shape_functions(xi: [f64; 3]) -> [f64; 8] {
+    let mut n = [0.0; 8];
+    for (a, x) in NODE_XI.iter().enumerate() {
+        n[a] = 0.125 * (1.0 + x[0] * xi[0]) * (1.0 + x[1] * xi[1]) * (1.0 + x[2] * xi[2]);
+    }
+    n
+}
+
+/// Maximum number of generalised nodes (8 nodes + 3 incompatible modes).
+pub const MAX_GEN: usize = 11;
+/// Maximum number of element unknowns.
+pub const MAX_DOF: usize = 3 * MAX_GEN;
+
+/// Element failure that the solver recovers from by cutting the increment back.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ElementFailure {
+    /// The reference Jacobian is singular or negative: a bad mesh (not recoverable).
+    #[error("reference Jacobian determinant {det:.3e} at Gauss point {gauss_point}: the element is degenerate or inverted in the mesh")]
+    BadReferenceGeometry { gauss_point: usize, det: f64 },
+    /// det F <= 0 at a Gauss point: the element turned inside out (recoverable by cutback).
+    #[error("det F = {det_f:.3e} at Gauss point {gauss_point}: element inverted")]
+    Inverted { gauss_point: usize, det_f: f64 },
+    /// A non-finite number appeared in the stress.
+    #[error("non-finite stress at Gauss point {gauss_point}")]
+    NonFinite { gauss_point: usize },
+}
+
+/// Everything one element evaluation needs besides its unknowns.
+pub struct Hex8Input<'a, S: Scalar, M: MaterialLaw> {
+    /// Reference coordinates of the 8 nodes.
+    pub x_ref: &'a [Vector3<S>; 8],
+    /// Unknowns: 8 nodal displacements, then the incompatible-mode amplitudes if any.
+    pub dofs: &'a [Vector3<S>],
+    pub kinematics: Kinematics,
+    pub formulation: Hex8Formulation,
+    pub material: &'a M,
+    /// Material parameters lifted to `S`.
+    pub params: &'a [S],
+    /// Committed history, `8 * material.history_len()` scalars.
+    pub hist_old: &'a [S],
+    /// Branch per Gauss point to impose (SDM's frozen evaluation), or `None`.
+    pub frozen: Option<&'a [Branch; 8]>,
+}
+
+/// What one element evaluation returns.
+pub struct Hex8Output<'a, S: Scalar> {
+    /// Internal force, `3 * n_gen` entries (node-major, component-minor).
+    pub force: &'a mut [S],
+    /// Tangent, row-major `(3 n_gen)^2`, if wanted.
+    pub tangent: Option<&'a mut [S]>,
+    /// Updated history, `8 * history_len` scalars.
+    pub hist_new: &'a mut [S],
+    /// Branch taken at each Gauss point.
+    pub branches: [Branch; 8],
+    /// Trial yield ratio at each Gauss point (see `PointResponse::yield_ratio`).
+    pub yield_ratio: [f64; 8],
+    /// Volume-averaged Cauchy stress (for output).
+    pub cauchy: Matrix3<S>,
+    /// Smallest det F over the Gauss points (real part).
+    pub min_det_f: f64,
+}
+
+/// Reference geometry at one Gauss point: generalised gradients and the volume weight.
+struct GaussGeometry<S: Scalar> {
+    grads: [Vector3<S>; MAX_GEN],
+    weight: S,
+}
+
+fn reference_geometry<S: Scalar>(
+    x_ref: &[Vector3<S>; 8],
+    xi: [f64; 3],
+    gp: usize,
+    formulation: Hex8Formulation,
+    centre: &Option<(Matrix3<S>, S)>,
+) -> Result<GaussGeometry<S>, ElementFailure> {
+    let dn = shape_derivatives(xi);
+    // J_ij = dX_i / dxi_j
+    let mut jac = Matrix3::<S>::zeros();
+    for a in 0..8 {
+        for i in 0..3 {
+            for j in 0..3 {
+                jac[(i, j)] += x_ref[a][i] * dn[a][j];
+            }
+        }
+    }
+    let (jinv, det) = match inv3(&jac) {
+        Some(v) if re(v.1) > 0.0 => v,
+        other => {
+            return Err(ElementFailure::BadReferenceGeometry {
+                gauss_point: gp,
+                det: other.map(|v| re(v.1)).unwrap_or(0.0),
+            })
+        }
+    };
+    let mut grads = [Vector3::<S>::zeros(); MAX_GEN];
+    // grad_X N = J^-T dN/dxi
+    let jinv_t = jinv.transpose();
+    for a in 0..8 {
+        let dxi = Vector3::new(S::lift(dn[a][0]), S::lift(dn[a][1]), S::lift(dn[a][2]));
+        grads[a] = jinv_t * dxi;
+    }
+    if formulation == Hex8Formulation::IncompatibleModes {
+        let (j0inv_t, j0) = centre.as_ref().expect("centre Jacobian computed for enhanced");
+        let scale = *j0 / det;
+        for k in 0..3 {
+            let mut dphi = Vector3::<S>::zeros();
+            dphi[k] = S::lift(-2.0 * xi[k]);
+            grads[8 + k] = (j0inv_t * dphi) * scale;
+        }
+    }
+    Ok(GaussGeometry {
+        grads,
+        weight: det,
+    })
+}
+
+fn centre_jacobian<S: Scalar>(x_ref: &[Vector3<S>; 8]) -> Result<(Matrix3<S>, S), ElementFailure> {
+    let dn = shape_derivatives([0.0; 3]);
+    let mut jac = Matrix3::<S>::zeros();
+    for a in 0..8 {
+        for i in 0..3 {
+            for j in 0..3 {
+                jac[(i, j)] += x_ref[a][i] * dn[a][j];
+            }
+        }
+    }
+    match inv3(&jac) {
+        Some((inv, det)) if re(det) > 0.0 => Ok((inv.transpose(), det)),
+        other => Err(ElementFailure::BadReferenceGeometry {
+            gauss_point: usize::MAX,
+            det: other.map(|v| re(v.1)).unwrap_or(0.0),
+        }),
+    }
+}
+
+/// Number of generalised nodes of a formulation.
+#[inline]
+pub fn generalised_nodes(formulation: Hex8Formulation) -> usize {
+    8 + formulation.internal_dofs() / 3
+}
+
+/// Evaluate internal force (and optionally the tangent), the updated history and the
+/// per-Gauss-point branches of one hex8.
+pub fn evaluate<S: Scalar, M: MaterialLaw>(
+    input: &Hex8Input<'_, S, M>,
+    out: &mut Hex8Output<'_, S>,
+) -> Result<(), ElementFailure> {
+    let n_gen = generalised_nodes(input.formulation);
+    let ndof = 3 * n_gen;
+    debug_assert_eq!(input.dofs.len(), n_gen);
+    debug_assert!(out.force.len() >= ndof);
+    let nh = input.material.history_len();
+    for f in out.force[..ndof].iter_mut() {
+        *f = S::zero();
+    }
+    if let Some(k) = out.tangent.as_deref_mut() {
+        for v in k[..ndof * ndof].iter_mut() {
+            *v = S::zero();
+        }
+    }
+    let centre = if input.formulation == Hex8Formulation::IncompatibleModes {
+        Some(centre_jacobian(input.x_ref)?)
+    } else {
+        None
+    };
+    let large = input.kinematics == Kinematics::Large;
+    let mut cauchy = Matrix3::<S>::zeros();
+    let mut volume = S::zero();
+    out.min_det_f = f64::INFINITY;
+    let mut b = [[Voigt::<S>::zeros(); 3]; MAX_GEN];
+    for (gp, xi) in gauss_points().iter().enumerate() {
+        let geo = reference_geometry(input.x_ref, *xi, gp, input.formulation, &centre)?;
+        // H = grad_X u (with the enhanced part)
+        let mut h = Matrix3::<S>::zeros();
+        for a in 0..n_gen {
+            let d = &input.dofs[a];
+            let g = &geo.grads[a];
+            for i in 0..3 {
+                for j in 0..3 {
+                    h[(i, j)] += d[i] * g[j];
+                }
+            }
+        }
+        let f = h + Matrix3::identity();
+        let det_f = det3(&f);
+        out.min_det_f = out.min_det_f.min(re(det_f));
+        if large && re(det_f) <= 0.0 {
+            return Err(ElementFailure::Inverted {
+                gauss_point: gp,
+                det_f: re(det_f),
+            });
+        }
+        let strain = if large {
+            (f.transpose() * f - Matrix3::identity()) * S::lift(0.5)
+        } else {
+            (h + h.transpose()) * S::lift(0.5)
+        };
+        let frozen = input.frozen.map(|fr| fr[gp]);
+        let resp = input.material.update(
+            input.params,
+            &strain,
+            &input.hist_old[gp * nh..(gp + 1) * nh],
+            &mut out.hist_new[gp * nh..(gp + 1) * nh],
+            frozen,
+        );
+        if !resp.stress.iter().all(|s| re(*s).is_finite()) {
+            return Err(ElementFailure::NonFinite { gauss_point: gp });
+        }
+        out.branches[gp] = resp.branch;
+        out.yield_ratio[gp] = resp.yield_ratio;
+        let sv = stress_to_voigt(&resp.stress);
+        let w = geo.weight;
+        // B rows: dE_voigt / d(d_Ai)
+        for a in 0..n_gen {
+            let g = &geo.grads[a];
+            for (i, bai) in b[a].iter_mut().enumerate() {
+                // F^T e_i = row i of F (or e_i for small kinematics)
+                let fr: Vector3<S> = if large {
+                    Vector3::new(f[(i, 0)], f[(i, 1)], f[(i, 2)])
+                } else {
+                    let mut e = Vector3::zeros();
+                    e[i] = S::one();
+                    e
+                };
+                *bai = Voigt::from([
+                    fr[0] * g[0],
+                    fr[1] * g[1],
+                    fr[2] * g[2],
+                    fr[0] * g[1] + fr[1] * g[0],
+                    fr[1] * g[2] + fr[2] * g[1],
+                    fr[0] * g[2] + fr[2] * g[0],
+                ]);
+                out.force[3 * a + i] += bai.dot(&sv) * w;
+            }
+        }
+        if let Some(k) = out.tangent.as_deref_mut() {
+            let c = &resp.tangent;
+            for a in 0..n_gen {
+                for i in 0..3 {
+                    let cb = c * b[a][i] * w; // C B_Ai w
+                    let row = 3 * a + i;
+                    for bb in 0..n_gen {
+                        for j in 0..3 {
+                            k[row * ndof + 3 * bb + j] += b[bb][j].dot(&cb);
+                        }
+                    }
+                }
+            }
+            if large {
+                for a in 0..n_gen {
+                    let sg = resp.stress * geo.grads[a] * w;
+                    for bb in 0..n_gen {
+                        let v = geo.grads[bb].dot(&sg);
+                        for i in 0..3 {
+                            k[(3 * a + i) * ndof + 3 * bb + i] += v;
+                        }
+                    }
+                }
+            }
+        }
+        let sigma = if large {
+            f * resp.stress * f.transpose() / det_f
+        } else {
+            resp.stress
+        };
+        let dv = if large { w * det_f } else { w };
+        cauchy += sigma * dv;
+        volume += dv;
+    }
+    out.cauchy = cauchy / volume;
+    Ok(())
+}
+
+/// Element volume in the reference configuration (for tributary areas, mass checks).
+pub fn reference_volume<S: Scalar>(x_ref: &[Vector3<S>; 8]) -> Result<S, ElementFailure> {
+    let mut v = S::zero();
+    for (gp, xi) in gauss_points().iter().enumerate() {
+        let g = reference_geometry(x_ref, *xi, gp, Hex8Formulation::Full, &None)?;
+        v += g.weight;
+    }
+    Ok(v)
+}

@@ -1,0 +1,145 @@
+//! Constitutive laws at a Gauss point, generic over the scalar.
+//!
+//! A material maps a strain tensor (Green-Lagrange `E` under large kinematics, the linear strain
+//! `eps` under small kinematics) and the history of the point to the stress conjugate to it
+//! (second Piola-Kirchhoff `S`, or Cauchy `sigma` under small kinematics) and the material tangent
+//! `C = dS/dE`.
+//!
+//! ## Conventions
+//! * Voigt order `(11, 22, 33, 12, 23, 13)`.
+//! * Strain vectors carry engineering shears (`2 E12`); stress vectors carry tensor components.
+//! * The tangent is the 6x6 matrix `C` with `dS_voigt = C dE_voigt` in those conventions.
+//! * History is a flat slice of scalars per Gauss point, laid out by the material
+//!   ([`MaterialLaw::history_len`]). It is generic: `f64` for values, a dual number for values
+//!   with their design sensitivities.
+//! * Branches (elastic/plastic) are decided on real parts; `frozen` forces the branch of a
+//!   converged state (SDM's perturbed evaluation must not flip a branch).
+//!
+//! | symbol | meaning |
+//! |---|---|
+//! | `E`, `eps` | Green-Lagrange / linear strain |
+//! | `S` | second Piola-Kirchhoff stress (Cauchy under small kinematics) |
+//! | `C` | material tangent dS/dE (6x6 Voigt) |
+//! | `lambda`, `mu` | Lame constants, `lambda = E nu / ((1+nu)(1-2nu))`, `mu = E / (2(1+nu))` |
+
+pub mod svk;
+
+pub use svk::StVenantKirchhoff;
+
+use crate::scalar::Scalar;
+use nalgebra::{Matrix3, SMatrix, SVector};
+
+/// 6-vector in Voigt order `(11, 22, 33, 12, 23, 13)`.
+pub type Voigt<S> = SVector<S, 6>;
+/// 6x6 material tangent in Voigt form.
+pub type Tangent<S> = SMatrix<S, 6, 6>;
+
+/// Which side of a transition a Gauss point (or a friction point) is on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum Branch {
+    Elastic,
+    Plastic,
+}
+
+/// What a material update returns at one Gauss point.
+#[derive(Clone, Debug)]
+pub struct PointResponse<S: Scalar> {
+    /// Stress conjugate to the strain that was given (PK2 or Cauchy).
+    pub stress: Matrix3<S>,
+    /// Material tangent dS/dE, Voigt form (consistent/algorithmic for inelastic laws).
+    pub tangent: Tangent<S>,
+    /// Branch taken (or imposed by `frozen`).
+    pub branch: Branch,
+    /// Trial yield function over the current flow stress, real part: `f_trial / k`. Zero means
+    /// the point sits exactly on the elastic/plastic transition; elastic laws return `-1`.
+    pub yield_ratio: f64,
+}
+
+/// A constitutive law: parameters as plain values (scene data), evaluated with parameters lifted
+/// to the scalar type so any of them can be a design parameter.
+pub trait MaterialLaw: Send + Sync + std::fmt::Debug {
+    /// Short name used in scene files and reports.
+    fn name(&self) -> &'static str;
+    /// Names of the parameters, in the order of [`MaterialLaw::params`].
+    fn param_names(&self) -> &'static [&'static str];
+    /// Parameter values.
+    fn params(&self) -> &[f64];
+    /// Number of history scalars per Gauss point (0 for elastic laws: they pay for none).
+    fn history_len(&self) -> usize {
+        0
+    }
+    /// Stress update. `p` are the parameters lifted to `S` (same order as `params`),
+    /// `hist_old` the committed history, `hist_new` receives the updated history.
+    fn update<S: Scalar>(
+        &self,
+        p: &[S],
+        strain: &Matrix3<S>,
+        hist_old: &[S],
+        hist_new: &mut [S],
+        frozen: Option<Branch>,
+    ) -> PointResponse<S>;
+}
+
+/// Symmetric tensor to Voigt strain (engineering shears).
+#[inline]
+pub fn strain_to_voigt<S: Scalar>(e: &Matrix3<S>) -> Voigt<S> {
+    Voigt::from([
+        e[(0, 0)],
+        e[(1, 1)],
+        e[(2, 2)],
+        e[(0, 1)] + e[(1, 0)],
+        e[(1, 2)] + e[(2, 1)],
+        e[(0, 2)] + e[(2, 0)],
+    ])
+}
+
+/// Symmetric tensor to Voigt stress (tensor components).
+#[inline]
+pub fn stress_to_voigt<S: Scalar>(s: &Matrix3<S>) -> Voigt<S> {
+    Voigt::from([s[(0, 0)], s[(1, 1)], s[(2, 2)], s[(0, 1)], s[(1, 2)], s[(0, 2)]])
+}
+
+/// Voigt stress (tensor components) to a symmetric tensor.
+#[inline]
+pub fn voigt_to_stress<S: Scalar>(v: &Voigt<S>) -> Matrix3<S> {
+    Matrix3::new(v[0], v[3], v[5], v[3], v[1], v[4], v[5], v[4], v[2])
+}
+
+/// Voigt strain (engineering shears) to a symmetric tensor.
+#[inline]
+pub fn voigt_to_strain<S: Scalar>(v: &Voigt<S>) -> Matrix3<S> {
+    let h = 0.5;
+    Matrix3::new(
+        v[0],
+        v[3] * h,
+        v[5] * h,
+        v[3] * h,
+        v[1],
+        v[4] * h,
+        v[5] * h,
+        v[4] * h,
+        v[2],
+    )
+}
+
+/// Isotropic elasticity tensor in Voigt form from Lame constants.
+#[inline]
+pub fn isotropic_tangent<S: Scalar>(lambda: S, mu: S) -> Tangent<S> {
+    let mut c = Tangent::<S>::zeros();
+    for i in 0..3 {
+        for j in 0..3 {
+            c[(i, j)] = lambda;
+        }
+        c[(i, i)] = lambda + mu * 2.0;
+        c[(i + 3, i + 3)] = mu;
+    }
+    c
+}
+
+/// Lame constants `(lambda, mu)` from Young's modulus and Poisson's ratio.
+#[inline]
+pub fn lame<S: Scalar>(young: S, poisson: S) -> (S, S) {
+    let mu = young / ((poisson + 1.0) * 2.0);
+    let lambda = young * poisson / ((poisson + 1.0) * (-(poisson * 2.0) + 1.0));
+    (lambda, mu)
+}

@@ -1,0 +1,285 @@
+//! The analysis model: mesh, bodies with their materials and element formulations, springs,
+//! prescribed displacements, nodal loads, the load history, and the unknowns' numbering.
+//!
+//! The model holds plain values. Evaluation lifts them to a scalar type through [`Lifted`], with
+//! any design parameter replaced by a value of that type (seeded dual for DDM, perturbed `f64`
+//! for SDM), so that every kernel sees its parameters as `S`.
+
+use crate::element::{Hex8Formulation, Kinematics, Spring};
+use crate::material::{MaterialLaw, StVenantKirchhoff};
+use crate::mesh::{BlockGeometry, Mesh};
+use crate::scalar::Scalar;
+use nalgebra::Vector3;
+
+
+/// The constitutive law of a body (enum dispatch over the shipped laws).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "law", rename_all = "kebab-case")]
+pub enum Material {
+    /// St Venant-Kirchhoff elasticity.
+    Svk(StVenantKirchhoff),
+}
+
+/// Call `$body` with `$m` bound to the concrete law inside a [`Material`].
+#[macro_export]
+macro_rules! with_material {
+    ($mat:expr, $m:ident => $body:expr) => {
+        match $mat {
+            $crate::model::Material::Svk($m) => $body,
+        }
+    };
+}
+
+impl Material {
+    /// Parameter values.
+    pub fn params(&self) -> &[f64] {
+        with_material!(self, m => m.params())
+    }
+    /// Parameter names.
+    pub fn param_names(&self) -> &'static [&'static str] {
+        with_material!(self, m => m.param_names())
+    }
+    /// History scalars per Gauss point.
+    pub fn history_len(&self) -> usize {
+        with_material!(self, m => m.history_len())
+    }
+    /// Short name.
+    pub fn name(&self) -> &'static str {
+        with_material!(self, m => m.name())
+    }
+}
+
+/// A deformable body: one generated block of hex8 elements with one material.
+#[derive(Clone, Debug)]
+pub struct Body {
+    pub name: String,
+    /// Index of the mesh block (elements `mesh.block_elements[block]`).
+    pub block: usize,
+    pub material: Material,
+    pub kinematics: Kinematics,
+    pub formulation: Hex8Formulation,
+}
+
+/// Piecewise-linear amplitude of pseudo-time, constant beyond its ends.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Amplitude {
+    /// `(time, value)` pairs with increasing times.
+    pub points: Vec<(f64, f64)>,
+}
+
+impl Amplitude {
+    /// Linear ramp from 0 at t = 0 to 1 at t = 1.
+    pub fn ramp() -> Self {
+        Amplitude {
+            points: vec![(0.0, 0.0), (1.0, 1.0)],
+        }
+    }
+
+    /// Value at time `t`.
+    pub fn at(&self, t: f64) -> f64 {
+        let p = &self.points;
+        if p.is_empty() {
+            return 0.0;
+        }
+        if t <= p[0].0 {
+            return p[0].1;
+        }
+        for w in p.windows(2) {
+            let (t0, v0) = w[0];
+            let (t1, v1) = w[1];
+            if t <= t1 {
+                if t1 == t0 {
+                    return v1;
+                }
+                return v0 + (v1 - v0) * (t - t0) / (t1 - t0);
+            }
+        }
+        p[p.len() - 1].1
+    }
+}
+
+/// A prescribed displacement on some nodes: `u_c(t) = value * amplitude(t)`.
+#[derive(Clone, Debug)]
+pub struct Prescribed {
+    pub name: String,
+    pub nodes: Vec<usize>,
+    pub component: usize,
+    pub value: f64,
+    pub amplitude: Amplitude,
+}
+
+/// A nodal force on each node of a set: `f_c(t) = value * amplitude(t)` per node.
+#[derive(Clone, Debug)]
+pub struct NodalLoad {
+    pub name: String,
+    pub nodes: Vec<usize>,
+    pub component: usize,
+    pub value: f64,
+    pub amplitude: Amplitude,
+}
+
+/// Newton-Raphson settings.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverSettings {
+    /// Relative force residual: `|R_free| <= force_tol * F_ref`.
+    pub force_tol: f64,
+    /// Relative energy norm: `|du . R| <= energy_tol * |du_0 . R_0|`.
+    pub energy_tol: f64,
+    /// Newton iterations per attempt.
+    pub max_iterations: usize,
+    /// Successive halvings of an increment before giving up.
+    pub max_cutbacks: usize,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        SolverSettings {
+            force_tol: 1e-9,
+            energy_tol: 1e-20,
+            max_iterations: 30,
+            max_cutbacks: 10,
+        }
+    }
+}
+
+/// Where each unknown lives in the global vector.
+#[derive(Clone, Debug)]
+pub struct DofMap {
+    /// Number of nodal unknowns (3 per node).
+    pub n_nodal: usize,
+    /// First internal unknown of each element (incompatible modes), if any.
+    pub element_internal: Vec<Option<usize>>,
+    /// Total number of unknowns.
+    pub n_total: usize,
+    /// Body of each element.
+    pub element_body: Vec<usize>,
+    /// First history scalar of each element (`8 * history_len` per element).
+    pub history_offset: Vec<usize>,
+    /// Total history length.
+    pub n_history: usize,
+}
+
+/// A complete analysis model.
+#[derive(Clone, Debug, Default)]
+pub struct Model {
+    pub mesh: Mesh,
+    pub bodies: Vec<Body>,
+    pub springs: Vec<Spring>,
+    pub prescribed: Vec<Prescribed>,
+    pub loads: Vec<NodalLoad>,
+    /// End times of the load increments, increasing.
+    pub times: Vec<f64>,
+    /// Responses recorded at every increment.
+    pub responses: Vec<crate::response::Response>,
+    pub solver: SolverSettings,
+}
+
+/// A design parameter: something the responses can be differentiated with respect to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum DesignParam {
+    /// Material parameter number `index` of body `body` (e.g. 0 = E, 1 = nu).
+    Material { body: usize, index: usize },
+    /// Length of mesh block `block` along `axis` (a shape parameter).
+    BlockLength { block: usize, axis: usize },
+    /// Origin component of mesh block `block` (a shape parameter).
+    BlockOrigin { block: usize, axis: usize },
+    /// Magnitude of prescribed displacement number `index`.
+    Prescribed { index: usize },
+    /// Magnitude of nodal load number `index`.
+    Load { index: usize },
+}
+
+/// Model data lifted to a scalar type, design parameters substituted.
+#[derive(Clone, Debug)]
+pub struct Lifted<S: Scalar> {
+    /// Reference coordinates of every node.
+    pub coords: Vec<Vector3<S>>,
+    /// Material parameters of every body.
+    pub material: Vec<Vec<S>>,
+    /// Magnitudes of the prescribed displacements.
+    pub prescribed: Vec<S>,
+    /// Magnitudes of the nodal loads.
+    pub loads: Vec<S>,
+}
+
+impl Model {
+    /// Number the unknowns and the history.
+    pub fn dof_map(&self) -> DofMap {
+        let n_nodal = 3 * self.mesh.n_nodes();
+        let ne = self.mesh.elements.len();
+        let mut element_internal = vec![None; ne];
+        let mut element_body = vec![usize::MAX; ne];
+        let mut history_offset = vec![0; ne];
+        let mut next = n_nodal;
+        let mut hist = 0;
+        for (b, body) in self.bodies.iter().enumerate() {
+            let nh = body.material.history_len();
+            for e in self.mesh.block_elements[body.block].clone() {
+                element_body[e] = b;
+                let ni = body.formulation.internal_dofs();
+                if ni > 0 {
+                    element_internal[e] = Some(next);
+                    next += ni;
+                }
+                history_offset[e] = hist;
+                hist += 8 * nh;
+            }
+        }
+        DofMap {
+            n_nodal,
+            element_internal,
+            n_total: next,
+            element_body,
+            history_offset,
+            n_history: hist,
+        }
+    }
+
+    /// Current value of a design parameter.
+    pub fn param_value(&self, p: DesignParam) -> Option<f64> {
+        match p {
+            DesignParam::Material { body, index } => self
+                .bodies
+                .get(body)
+                .and_then(|b| b.material.params().get(index).copied()),
+            DesignParam::BlockLength { block, axis } => {
+                let b = self.mesh.blocks.get(block)?;
+                [&b.x, &b.y, &b.z].get(axis).map(|a| a.length)
+            }
+            DesignParam::BlockOrigin { block, axis } => {
+                self.mesh.blocks.get(block)?.origin.get(axis).copied()
+            }
+            DesignParam::Prescribed { index } => self.prescribed.get(index).map(|p| p.value),
+            DesignParam::Load { index } => self.loads.get(index).map(|l| l.value),
+        }
+    }
+
+    /// Lift the model to `S`, replacing the listed design parameters by the given values.
+    pub fn lifted<S: Scalar>(&self, overrides: &[(DesignParam, S)]) -> Lifted<S> {
+        let mut geometry: Vec<BlockGeometry<S>> = self.mesh.block_geometry();
+        let mut material: Vec<Vec<S>> = self
+            .bodies
+            .iter()
+            .map(|b| b.material.params().iter().map(|v| S::lift(*v)).collect())
+            .collect();
+        let mut prescribed: Vec<S> = self.prescribed.iter().map(|p| S::lift(p.value)).collect();
+        let mut loads: Vec<S> = self.loads.iter().map(|l| S::lift(l.value)).collect();
+        for (p, v) in overrides {
+            match *p {
+                DesignParam::Material { body, index } => material[body][index] = *v,
+                DesignParam::BlockLength { block, axis } => geometry[block].lengths[axis] = *v,
+                DesignParam::BlockOrigin { block, axis } => geometry[block].origin[axis] = *v,
+                DesignParam::Prescribed { index } => prescribed[index] = *v,
+                DesignParam::Load { index } => loads[index] = *v,
+            }
+        }
+        Lifted {
+            coords: self.mesh.coordinates(&geometry),
+            material,
+            prescribed,
+            loads,
+        }
+    }
+}

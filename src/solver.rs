@@ -1,0 +1,474 @@
+//! Newton-Raphson with load increments, automatic cutback, and a hook for the sensitivity
+//! engine after every converged increment.
+//!
+//! ## One increment
+//! 1. Prescribed unknowns are set to their values at the target time; free unknowns start from
+//!    the last converged state.
+//! 2. Iterate: assemble `R(z)` and `K = dR/dz`; the increment has converged when
+//!    `|R_free| <= force_tol * F_ref` (force criterion, `F_ref` = the larger of the external
+//!    load and the reaction norms) or `|dz_{k-1} . R_{k-1}| <= energy_tol * |dz_0 . R_0|`
+//!    (energy criterion). Otherwise `K` (with identity rows and columns at the prescribed
+//!    unknowns) is factored on the symbolic analysis done once per run, and `z -= K^-1 R`.
+//! 3. On convergence the history is committed and the [`Observer`] is called with the
+//!    converged state and the *last* factorization (that of the iterate before convergence —
+//!    the tangent the paper's semi-analytical method reuses).
+//!
+//! An increment whose Newton iterations diverge (residual growth, iteration limit, a non-finite
+//! value) or in which an element inverts is halved and retried from the last converged state,
+//! up to `max_cutbacks` times; then the analysis stops with [`AnalysisError::Diverged`], which
+//! carries the results computed so far.
+
+use crate::assembly::{Assembler, AssemblyFailure, Evaluation};
+use crate::linalg::{LinalgError, LinearSolver, SparseMatrix};
+use crate::material::Branch;
+use crate::model::{Lifted, Model};
+use std::time::Instant;
+
+/// Newton record of one converged increment.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct IncrementRecord {
+    /// Increment number (counting converged sub-increments after cutbacks).
+    pub index: usize,
+    /// Pseudo-time at the end of the increment.
+    pub time: f64,
+    /// Newton iterations (factorizations) used by the converged attempt.
+    pub iterations: usize,
+    /// `|R_free|` at each iteration of the converged attempt.
+    pub residuals: Vec<f64>,
+    /// `|dz . R|` at each iteration.
+    pub energies: Vec<f64>,
+    /// Reference force of the force criterion.
+    pub reference_force: f64,
+    /// Cutbacks taken before this increment converged.
+    pub cutbacks: usize,
+}
+
+/// A converged increment: what the sensitivity engine and the output writers see.
+pub struct Converged<'a> {
+    pub model: &'a Model,
+    pub assembler: &'a Assembler,
+    pub lifted: &'a Lifted<f64>,
+    pub index: usize,
+    pub time: f64,
+    /// Time at the start of the increment.
+    pub time_prev: f64,
+    /// Converged unknowns.
+    pub z: &'a [f64],
+    /// History committed at the end of the previous increment (`h_{n-1}`).
+    pub hist_prev: &'a [f64],
+    /// The evaluation at the converged state (residual = reactions at prescribed unknowns,
+    /// `hist_new` = `h_n`, branches, stresses).
+    pub eval: &'a Evaluation<f64>,
+    /// Prescribed unknowns (identity rows in the factored tangent).
+    pub constrained: &'a [bool],
+    /// The last factorization of this increment, if Newton factored at all.
+    pub last_factor: Option<&'a LinearSolver>,
+    pub record: &'a IncrementRecord,
+}
+
+/// Called after every converged increment.
+pub trait Observer {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError>;
+}
+
+/// An observer that does nothing.
+pub struct NoObserver;
+impl Observer for NoObserver {
+    fn converged(&mut self, _c: &Converged<'_>) -> Result<(), AnalysisError> {
+        Ok(())
+    }
+}
+
+/// What a primal analysis returns.
+#[derive(Clone, Debug, Default)]
+pub struct Results {
+    /// Time of each converged increment (index 0 is the initial state).
+    pub times: Vec<f64>,
+    /// Converged unknowns per increment (index 0: the initial state).
+    pub states: Vec<Vec<f64>>,
+    /// Residual per increment (reactions at prescribed unknowns).
+    pub residuals: Vec<Vec<f64>>,
+    /// Volume-averaged Cauchy stress per element, per increment.
+    pub stresses: Vec<Vec<nalgebra::Matrix3<f64>>>,
+    /// Gauss-point branches per increment.
+    pub branches: Vec<Vec<Branch>>,
+    /// Newton records of the converged increments.
+    pub records: Vec<IncrementRecord>,
+    /// Committed history after the last converged increment.
+    pub history: Vec<f64>,
+    /// Cost counters.
+    pub cost: PrimalCost,
+}
+
+/// Work done by a primal run.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct PrimalCost {
+    pub wall_seconds: f64,
+    pub assemblies: usize,
+    pub factorizations: usize,
+    pub solves: usize,
+    pub assembly_seconds: f64,
+    pub factor_seconds: f64,
+    pub solve_seconds: f64,
+}
+
+/// Why an analysis stopped.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum AnalysisError {
+    #[error("increment {increment} (t = {time:.6}): Newton failed after {cutbacks} cutbacks, last step {step:.3e}; residual history of the last attempt: {residuals:?}; reason: {reason}")]
+    Diverged {
+        increment: usize,
+        time: f64,
+        step: f64,
+        cutbacks: usize,
+        residuals: Vec<f64>,
+        reason: String,
+        /// Everything computed up to the last converged increment.
+        partial: Box<Results>,
+    },
+    #[error("mesh: {0}")]
+    Mesh(#[from] AssemblyFailure),
+    #[error("linear algebra: {0}")]
+    Linalg(#[from] LinalgError),
+    #[error("model: {0}")]
+    Model(String),
+    #[error("sensitivity: {0}")]
+    Sensitivity(String),
+}
+
+impl AnalysisError {
+    /// Results computed before the failure, where the error keeps them.
+    pub fn partial(&self) -> Option<&Results> {
+        match self {
+            AnalysisError::Diverged { partial, .. } => Some(partial),
+            _ => None,
+        }
+    }
+}
+
+/// Options of a run.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    /// Keep the full state vector of every increment in the results.
+    pub keep_states: bool,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions { keep_states: true }
+    }
+}
+
+/// Why an attempt failed (recoverable by cutback).
+enum AttemptFailure {
+    Element(AssemblyFailure),
+    Diverged(&'static str),
+}
+
+/// The primal solver of one model.
+pub struct Solver<'m> {
+    pub model: &'m Model,
+    pub assembler: Assembler,
+    pub lifted: Lifted<f64>,
+    linear: LinearSolver,
+    matrix: SparseMatrix,
+    constrained: Vec<bool>,
+}
+
+impl<'m> Solver<'m> {
+    /// Number the unknowns, build the pattern and its symbolic factorization.
+    pub fn new(model: &'m Model) -> Result<Self, AnalysisError> {
+        let assembler = Assembler::new(model, &[])?;
+        let n = assembler.dofs.n_total;
+        let mut constrained = vec![false; n];
+        for p in &model.prescribed {
+            for &node in &p.nodes {
+                let d = 3 * node + p.component;
+                if d >= assembler.dofs.n_nodal {
+                    return Err(AnalysisError::Model(format!(
+                        "prescribed '{}': node {node} does not exist",
+                        p.name
+                    )));
+                }
+                if constrained[d] {
+                    return Err(AnalysisError::Model(format!(
+                        "prescribed '{}': node {node} component {} is prescribed twice",
+                        p.name, p.component
+                    )));
+                }
+                constrained[d] = true;
+            }
+        }
+        // unknowns no element or spring touches (e.g. nodes of unassembled blocks) are pinned
+        let mut touched = vec![false; n];
+        for e in 0..model.mesh.elements.len() {
+            for &d in assembler.element_dofs(e) {
+                touched[d] = true;
+            }
+        }
+        for s in &model.springs {
+            for i in 0..3 {
+                touched[3 * s.a + i] = true;
+                if let Some(b) = s.b {
+                    touched[3 * b + i] = true;
+                }
+            }
+        }
+        for (d, t) in touched.iter().enumerate() {
+            if !t {
+                constrained[d] = true;
+            }
+        }
+        let matrix = SparseMatrix::new(assembler.pattern.clone());
+        let linear = LinearSolver::new(assembler.pattern.clone())?;
+        let lifted = model.lifted::<f64>(&[]);
+        Ok(Solver {
+            model,
+            assembler,
+            lifted,
+            linear,
+            matrix,
+            constrained,
+        })
+    }
+
+    /// Prescribed unknowns.
+    pub fn constrained(&self) -> &[bool] {
+        &self.constrained
+    }
+
+    fn set_prescribed(&self, z: &mut [f64], t: f64) {
+        for (i, p) in self.model.prescribed.iter().enumerate() {
+            let v = self.lifted.prescribed[i] * p.amplitude.at(t);
+            for &node in &p.nodes {
+                z[3 * node + p.component] = v;
+            }
+        }
+    }
+
+    /// Run the whole load history.
+    pub fn run(
+        &mut self,
+        opts: &RunOptions,
+        observer: &mut dyn Observer,
+    ) -> Result<Results, AnalysisError> {
+        let start = Instant::now();
+        let model = self.model;
+        let n = self.assembler.dofs.n_total;
+        let ne = model.mesh.elements.len();
+        let mut res = Results::default();
+        let mut z = vec![0.0; n];
+        let mut hist = vec![0.0; self.assembler.dofs.n_history];
+        let mut eval = Evaluation::<f64>::new(&self.assembler.dofs, ne);
+        res.times.push(0.0);
+        res.states.push(z.clone());
+        res.residuals.push(vec![0.0; n]);
+        res.stresses.push(vec![nalgebra::Matrix3::zeros(); ne]);
+        res.branches.push(vec![Branch::Elastic; 8 * ne]);
+        let mut t_prev = 0.0;
+        let mut index = 0;
+        for &t_end in &model.times {
+            let mut step = t_end - t_prev;
+            let mut cutbacks = 0;
+            while t_prev < t_end - 1e-14 * t_end.abs().max(1.0) {
+                let t = (t_prev + step).min(t_end);
+                let mut z_try = z.clone();
+                self.set_prescribed(&mut z_try, t);
+                let mut record = IncrementRecord {
+                    index: index + 1,
+                    time: t,
+                    iterations: 0,
+                    residuals: Vec::new(),
+                    energies: Vec::new(),
+                    reference_force: 0.0,
+                    cutbacks,
+                };
+                match self.attempt(&mut z_try, &hist, t, &mut eval, &mut record, &mut res.cost) {
+                    Ok(factored) => {
+                        index += 1;
+                        let conv = Converged {
+                            model,
+                            assembler: &self.assembler,
+                            lifted: &self.lifted,
+                            index,
+                            time: t,
+                            time_prev: t_prev,
+                            z: &z_try,
+                            hist_prev: &hist,
+                            eval: &eval,
+                            constrained: &self.constrained,
+                            last_factor: if factored { Some(&self.linear) } else { None },
+                            record: &record,
+                        };
+                        observer.converged(&conv)?;
+                        z = z_try;
+                        hist.copy_from_slice(&eval.hist_new);
+                        res.times.push(t);
+                        if opts.keep_states {
+                            res.states.push(z.clone());
+                            res.residuals.push(eval.residual.clone());
+                        }
+                        res.stresses.push(eval.cauchy.clone());
+                        res.branches.push(eval.branches.clone());
+                        res.records.push(record);
+                        t_prev = t;
+                        cutbacks = 0;
+                    }
+                    Err(why) => {
+                        if cutbacks >= model.solver.max_cutbacks {
+                            let reason = match why {
+                                AttemptFailure::Element(f) => f.to_string(),
+                                AttemptFailure::Diverged(s) => s.to_string(),
+                            };
+                            res.history = hist;
+                            res.cost.wall_seconds = start.elapsed().as_secs_f64();
+                            return Err(AnalysisError::Diverged {
+                                increment: index + 1,
+                                time: t,
+                                step,
+                                cutbacks,
+                                residuals: record.residuals,
+                                reason,
+                                partial: Box::new(res),
+                            });
+                        }
+                        if let AttemptFailure::Element(AssemblyFailure {
+                            failure: crate::element::hex8::ElementFailure::BadReferenceGeometry { .. },
+                            ..
+                        }) = why
+                        {
+                            // a bad mesh does not improve with a smaller step
+                            if let AttemptFailure::Element(f) = why {
+                                return Err(AnalysisError::Mesh(f));
+                            }
+                        }
+                        cutbacks += 1;
+                        step *= 0.5;
+                    }
+                }
+            }
+        }
+        if !opts.keep_states {
+            res.states.push(z);
+        }
+        res.history = hist;
+        res.cost.wall_seconds = start.elapsed().as_secs_f64();
+        Ok(res)
+    }
+
+    /// Newton iterations of one attempt. Returns whether a factorization was made.
+    fn attempt(
+        &mut self,
+        z: &mut [f64],
+        hist: &[f64],
+        t: f64,
+        eval: &mut Evaluation<f64>,
+        record: &mut IncrementRecord,
+        cost: &mut PrimalCost,
+    ) -> Result<bool, AttemptFailure> {
+        let model = self.model;
+        let s = &model.solver;
+        let mut energy0 = f64::NAN;
+        let mut last_energy = f64::INFINITY;
+        let mut first_residual = f64::NAN;
+        let mut factored = false;
+        for k in 0..=s.max_iterations {
+            let t0 = Instant::now();
+            self.assembler
+                .evaluate(
+                    model,
+                    &self.lifted,
+                    z,
+                    hist,
+                    t,
+                    None,
+                    Some(&mut self.matrix),
+                    eval,
+                )
+                .map_err(AttemptFailure::Element)?;
+            cost.assemblies += 1;
+            cost.assembly_seconds += t0.elapsed().as_secs_f64();
+            let mut r_free = 0.0;
+            let mut r_fixed = 0.0;
+            for (d, r) in eval.residual.iter().enumerate() {
+                if self.constrained[d] {
+                    r_fixed += r * r;
+                } else {
+                    r_free += r * r;
+                }
+            }
+            let r_free = r_free.sqrt();
+            let mut f_ext = 0.0;
+            for (l, load) in model.loads.iter().enumerate() {
+                let f = self.lifted.loads[l] * load.amplitude.at(t);
+                f_ext += f * f * load.nodes.len() as f64;
+            }
+            let f_ref = r_fixed.sqrt().max(f_ext.sqrt());
+            record.residuals.push(r_free);
+            record.reference_force = f_ref;
+            if !r_free.is_finite() {
+                return Err(AttemptFailure::Diverged("non-finite residual"));
+            }
+            if k == 0 {
+                first_residual = r_free;
+            }
+            let force_ok = r_free <= s.force_tol * f_ref || r_free == 0.0;
+            let energy_ok = k > 0 && last_energy <= s.energy_tol * energy0;
+            if force_ok || energy_ok {
+                record.iterations = k;
+                return Ok(factored);
+            }
+            if k == s.max_iterations {
+                return Err(AttemptFailure::Diverged("iteration limit"));
+            }
+            if k >= 4 && r_free > 1e4 * first_residual.max(f_ref) {
+                return Err(AttemptFailure::Diverged("residual growing"));
+            }
+            for (d, c) in self.constrained.iter().enumerate() {
+                if *c {
+                    self.matrix
+                        .set_identity_row_col(d)
+                        .expect("constrained unknown in range");
+                }
+            }
+            let t1 = Instant::now();
+            if self.linear.factor(&self.matrix).is_err() {
+                return Err(AttemptFailure::Diverged("singular tangent"));
+            }
+            factored = true;
+            cost.factorizations += 1;
+            cost.factor_seconds += t1.elapsed().as_secs_f64();
+            let mut dz: Vec<f64> = eval
+                .residual
+                .iter()
+                .enumerate()
+                .map(|(d, r)| if self.constrained[d] { 0.0 } else { -r })
+                .collect();
+            let t2 = Instant::now();
+            if self.linear.solve_in_place(&mut dz).is_err() {
+                return Err(AttemptFailure::Diverged("solve failed"));
+            }
+            cost.solves += 1;
+            cost.solve_seconds += t2.elapsed().as_secs_f64();
+            let energy: f64 = dz
+                .iter()
+                .zip(&eval.residual)
+                .map(|(a, b)| a * b)
+                .sum::<f64>()
+                .abs();
+            record.energies.push(energy);
+            if k == 0 {
+                energy0 = energy;
+            }
+            last_energy = energy;
+            if !energy.is_finite() {
+                return Err(AttemptFailure::Diverged("non-finite correction"));
+            }
+            for (zi, d) in z.iter_mut().zip(&dz) {
+                *zi += d;
+            }
+        }
+        Err(AttemptFailure::Diverged("iteration limit"))
+    }
+}
