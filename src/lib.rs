@@ -32,6 +32,7 @@ pub mod linalg;
 pub mod material;
 pub mod mesh;
 pub mod model;
+pub mod output;
 pub mod response;
 pub mod scalar;
 pub mod scene;

@@ -2,17 +2,17 @@
 //!
 //! (module docs written at the end)
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::ldlt::factor::{LdltError, LdltRegularization};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::cholesky::{
-    SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering,
 };
-use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
+use faer::sparse::linalg::lu::{factorize_symbolic_lu, NumericLu, SymbolicLu};
 use faer::sparse::linalg::LuError;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
@@ -645,7 +645,9 @@ impl SparseMatrix {
             return Ok(());
         }
         let maxlen = (0..nchunks)
-            .map(|c| pat.block_slot_ptr[pat.chunk_ptr[c + 1]] - pat.block_slot_ptr[pat.chunk_ptr[c]])
+            .map(|c| {
+                pat.block_slot_ptr[pat.chunk_ptr[c + 1]] - pat.block_slot_ptr[pat.chunk_ptr[c]]
+            })
             .max()
             .unwrap_or(0);
         let mut buffer = std::mem::take(&mut self.buffer);
@@ -704,18 +706,20 @@ impl SparseMatrix {
         let ptr = SharedMut(self.values.as_mut_ptr());
         for c in 0..pat.num_colours() {
             let blocks = &pat.colour_blocks[pat.colour_ptr[c]..pat.colour_ptr[c + 1]];
-            blocks.par_iter().for_each_init(Vec::new, |local: &mut Vec<f64>, &b| {
-                let slots = pat.block_slots(b);
-                local.clear();
-                local.resize(slots.len(), 0.0);
-                f(b, local);
-                let p = ptr;
-                for (&s, &v) in slots.iter().zip(local.iter()) {
-                    // SAFETY: blocks of one colour share no DOF, hence no slot; slots are
-                    // < nnz = values.len().
-                    unsafe { *p.0.add(s as usize) += v };
-                }
-            });
+            blocks
+                .par_iter()
+                .for_each_init(Vec::new, |local: &mut Vec<f64>, &b| {
+                    let slots = pat.block_slots(b);
+                    local.clear();
+                    local.resize(slots.len(), 0.0);
+                    f(b, local);
+                    let p = ptr;
+                    for (&s, &v) in slots.iter().zip(local.iter()) {
+                        // SAFETY: blocks of one colour share no DOF, hence no slot; slots are
+                        // < nnz = values.len().
+                        unsafe { *p.0.add(s as usize) += v };
+                    }
+                });
         }
     }
 }
@@ -958,7 +962,9 @@ impl LinearSolver {
                     Default::default(),
                 )
                 .map_err(|e| match e {
-                    LuError::SymbolicSingular { index } => LinalgError::Singular { index: Some(index) },
+                    LuError::SymbolicSingular { index } => {
+                        LinalgError::Singular { index: Some(index) }
+                    }
                     e => faer_err(e),
                 })?;
                 (NumericFactor::Lu(lu), mem)
@@ -1012,7 +1018,10 @@ impl LinearSolver {
         self.factor_mem = Some(mem);
         if self.options.check_finite {
             let mut ones = vec![1.0; self.pattern.n];
-            self.solve_raw(MatMut::from_column_major_slice_mut(&mut ones, self.pattern.n, 1), false)?;
+            self.solve_raw(
+                MatMut::from_column_major_slice_mut(&mut ones, self.pattern.n, 1),
+                false,
+            )?;
             if !ones.iter().all(|v| v.is_finite()) {
                 self.numeric = NumericFactor::None;
                 return Err(LinalgError::Singular { index: None });
@@ -1097,7 +1106,10 @@ impl LinearSolver {
         check_len(n * ncols, rhs.len())?;
         // Cholesky factors are of symmetric matrices: A^T = A.
         let transpose = matches!(self.symbolic, SymbolicFactor::Lu(_));
-        self.solve_raw(MatMut::from_column_major_slice_mut(rhs, n, ncols), transpose)?;
+        self.solve_raw(
+            MatMut::from_column_major_slice_mut(rhs, n, ncols),
+            transpose,
+        )?;
         self.count(ncols);
         Ok(())
     }
@@ -1136,7 +1148,11 @@ impl LinearSolver {
                     rr += *ri * *ri;
                     bb += bi * bi;
                 }
-                let rel = if bb > 0.0 { (rr / bb).sqrt() } else { rr.sqrt() };
+                let rel = if bb > 0.0 {
+                    (rr / bb).sqrt()
+                } else {
+                    rr.sqrt()
+                };
                 worst = worst.max(rel);
             }
             Ok(worst)

@@ -184,15 +184,13 @@ impl Mesh {
             if !(a.length.is_finite() && a.length > 0.0) {
                 return Err(bad("length must be positive and finite"));
             }
-            if a
-                .zones
+            if a.zones
                 .iter()
                 .any(|z| !(z.fraction.is_finite() && z.fraction > 0.0))
             {
                 return Err(bad("zone fractions must be positive and finite"));
             }
-            if a
-                .zones
+            if a.zones
                 .iter()
                 .any(|z| !(z.ratio.is_finite() && z.ratio > 0.0))
             {
@@ -348,7 +346,8 @@ impl Mesh {
             .enumerate()
             .filter_map(|(n, p)| match p {
                 NodePlace::Block { block: b, t: tn } if *b == block => {
-                    let d = (tn[0] - t[0]).powi(2) + (tn[1] - t[1]).powi(2) + (tn[2] - t[2]).powi(2);
+                    let d =
+                        (tn[0] - t[0]).powi(2) + (tn[1] - t[1]).powi(2) + (tn[2] - t[2]).powi(2);
                     Some((n, d))
                 }
                 _ => None,

@@ -11,7 +11,6 @@ use crate::mesh::{BlockGeometry, Mesh};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
 
-
 /// The constitutive law of a body (enum dispatch over the shipped laws).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "law", rename_all = "kebab-case")]

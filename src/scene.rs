@@ -8,8 +8,8 @@
 use crate::element::{Hex8Formulation, Kinematics, Spring};
 use crate::material::StVenantKirchhoff;
 use crate::mesh::{Axis, BlockSpec, Mesh, Zone};
-use crate::response::{Response, ResponseKind};
 use crate::model::{Amplitude, Body, Material, Model, NodalLoad, Prescribed, SolverSettings};
+use crate::response::{Response, ResponseKind};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -332,7 +332,11 @@ impl Scene {
                     field,
                     format!(
                         "no node set named '{name}' (sets: {})",
-                        mesh.node_sets.keys().cloned().collect::<Vec<_>>().join(", ")
+                        mesh.node_sets
+                            .keys()
+                            .cloned()
+                            .collect::<Vec<_>>()
+                            .join(", ")
                     ),
                 )),
             }
@@ -432,14 +436,20 @@ impl Scene {
             if s.end <= t0 {
                 return Err(invalid(
                     &format!("{at}.end"),
-                    format!("step ends at {} which is not after {t0} (zero or negative increment)", s.end),
+                    format!(
+                        "step ends at {} which is not after {t0} (zero or negative increment)",
+                        s.end
+                    ),
                 ));
             }
             if s.increments == 0 {
                 return Err(invalid(&format!("{at}.increments"), "must be at least 1"));
             }
             if s.increments > 1_000_000 {
-                return Err(invalid(&format!("{at}.increments"), "more than 10^6 increments"));
+                return Err(invalid(
+                    &format!("{at}.increments"),
+                    "more than 10^6 increments",
+                ));
             }
             for k in 1..=s.increments {
                 times.push(t0 + (s.end - t0) * k as f64 / s.increments as f64);
@@ -450,16 +460,18 @@ impl Scene {
         for (i, r) in self.responses.iter().enumerate() {
             let field = format!("responses[{i}].set");
             let kind = match r {
-                ResponseSpec::Reaction { set: s, component, .. } => ResponseKind::Reaction {
+                ResponseSpec::Reaction {
+                    set: s, component, ..
+                } => ResponseKind::Reaction {
                     nodes: set(s, &field)?,
                     component: component.index(),
                 },
-                ResponseSpec::Displacement { set: s, component, .. } => {
-                    ResponseKind::Displacement {
-                        nodes: set(s, &field)?,
-                        component: component.index(),
-                    }
-                }
+                ResponseSpec::Displacement {
+                    set: s, component, ..
+                } => ResponseKind::Displacement {
+                    nodes: set(s, &field)?,
+                    component: component.index(),
+                },
             };
             responses.push(Response {
                 name: r.name().to_string(),

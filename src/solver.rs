@@ -334,7 +334,8 @@ impl<'m> Solver<'m> {
                             });
                         }
                         if let AttemptFailure::Element(AssemblyFailure {
-                            failure: crate::element::hex8::ElementFailure::BadReferenceGeometry { .. },
+                            failure:
+                                crate::element::hex8::ElementFailure::BadReferenceGeometry { .. },
                             ..
                         }) = why
                         {

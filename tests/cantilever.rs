@@ -8,7 +8,8 @@ fn run(spec: &CantileverSpec) -> (fricsens::model::Model, Results) {
     let model = cantilever(spec).build().expect("scene builds");
     let res = {
         let mut s = Solver::new(&model).expect("solver");
-        s.run(&RunOptions::default(), &mut NoObserver).expect("converges")
+        s.run(&RunOptions::default(), &mut NoObserver)
+            .expect("converges")
     };
     (model, res)
 }
@@ -56,7 +57,11 @@ fn small_deflection_plain_full_integration_locks() {
 #[test]
 fn large_deflection_elastica() {
     // oracles.md section 3, alpha = 1, 2, 5: w/L and u/L
-    let table = [(1.0, 0.30172, 0.05643), (2.0, 0.49346, 0.16064), (5.0, 0.71379, 0.38763)];
+    let table = [
+        (1.0, 0.30172, 0.05643),
+        (2.0, 0.49346, 0.16064),
+        (5.0, 0.71379, 0.38763),
+    ];
     let spec = CantileverSpec {
         alpha: 5.0,
         increments: 10,
@@ -68,8 +73,14 @@ fn large_deflection_elastica() {
         let w = -response(&model, &res, "tip-deflection", inc) / spec.length;
         let u = -response(&model, &res, "tip-shortening", inc) / spec.length;
         println!("alpha {alpha}: w/L {w:.5} (elastica {w_l}), u/L {u:.5} (elastica {u_l})");
-        assert!((w - w_l).abs() / w_l < 0.03, "alpha {alpha}: w/L {w} vs {w_l}");
-        assert!((u - u_l).abs() / u_l < 0.03, "alpha {alpha}: u/L {u} vs {u_l}");
+        assert!(
+            (w - w_l).abs() / w_l < 0.03,
+            "alpha {alpha}: w/L {w} vs {w_l}"
+        );
+        assert!(
+            (u - u_l).abs() / u_l < 0.03,
+            "alpha {alpha}: u/L {u} vs {u_l}"
+        );
     }
     let _ = Kinematics::Large;
 }

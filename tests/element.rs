@@ -59,7 +59,8 @@ fn prescribe(model: &mut Model, node: usize, c: usize, v: f64) {
 /// A 2x2x2 block whose interior node and some surface nodes are moved off the grid.
 fn distorted_mesh() -> Mesh {
     let mut mesh = Mesh::default();
-    mesh.add_block(block("b", [2, 2, 2], [2.0, 2.0, 2.0])).unwrap();
+    mesh.add_block(block("b", [2, 2, 2], [2.0, 2.0, 2.0]))
+        .unwrap();
     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
     for (n, p) in mesh.places.iter_mut().enumerate() {
         let c = x[n];
@@ -90,7 +91,9 @@ fn boundary_nodes(mesh: &Mesh) -> Vec<usize> {
 fn patch_test(kinematics: Kinematics, formulation: Hex8Formulation) {
     let mesh = distorted_mesh();
     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
-    let grad_u = Matrix3::new(0.010, 0.004, -0.002, 0.003, -0.006, 0.005, -0.001, 0.002, 0.008);
+    let grad_u = Matrix3::new(
+        0.010, 0.004, -0.002, 0.003, -0.006, 0.005, -0.001, 0.002, 0.008,
+    );
     let mut model = one_body_model(
         mesh.clone(),
         Material::Svk(StVenantKirchhoff::new(1000.0, 0.3)),
@@ -183,7 +186,11 @@ fn rigid_motion_force(x_ref: [Vector3<f64>; 8], q: Matrix3<f64>, c: Vector3<f64>
 fn unit_cube() -> [Vector3<f64>; 8] {
     std::array::from_fn(|a| {
         let xi = hex8::NODE_XI[a];
-        Vector3::new(0.5 * (xi[0] + 1.0), 0.5 * (xi[1] + 1.0), 0.5 * (xi[2] + 1.0))
+        Vector3::new(
+            0.5 * (xi[0] + 1.0),
+            0.5 * (xi[1] + 1.0),
+            0.5 * (xi[2] + 1.0),
+        )
     })
 }
 
@@ -221,7 +228,8 @@ proptest! {
 /// One unit cube in uniaxial stress: x fixed on xmin, y on ymin, z on zmin, stretch on xmax.
 fn uniaxial_model(stretch: f64, nu: f64, increments: usize) -> (Model, Vec<usize>) {
     let mut mesh = Mesh::default();
-    mesh.add_block(block("b", [1, 1, 1], [1.0, 1.0, 1.0])).unwrap();
+    mesh.add_block(block("b", [1, 1, 1], [1.0, 1.0, 1.0]))
+        .unwrap();
     let mut model = one_body_model(
         mesh.clone(),
         Material::Svk(StVenantKirchhoff::new(200.0, nu)),
@@ -245,7 +253,9 @@ fn uniaxial_model(stretch: f64, nu: f64, increments: usize) -> (Model, Vec<usize
         value: stretch - 1.0,
         amplitude: Amplitude::ramp(),
     });
-    model.times = (1..=increments).map(|k| k as f64 / increments as f64).collect();
+    model.times = (1..=increments)
+        .map(|k| k as f64 / increments as f64)
+        .collect();
     (model, pulled)
 }
 
@@ -263,7 +273,11 @@ fn uniaxial_stretch_nominal_stress_matches_oracle() {
             assert_relative_eq!(reaction, p11, max_relative = 1e-10, epsilon = 1e-12);
             let lateral = (1.0 - nu * (l * l - 1.0)).sqrt();
             let top = model.mesh.node_sets["b.ymax"][0];
-            assert_relative_eq!(1.0 + res.states[k][3 * top + 1], lateral, max_relative = 1e-10);
+            assert_relative_eq!(
+                1.0 + res.states[k][3 * top + 1],
+                lateral,
+                max_relative = 1e-10
+            );
         }
     }
 }
@@ -284,7 +298,11 @@ fn uniaxial_compression_through_the_limit_point() {
         }
     }
     // the most compressive nominal stress sits next to lambda = 1/sqrt(3) = 0.577
-    assert!((min.0 - 1.0 / 3f64.sqrt()).abs() < 0.05 + 1e-12, "min at {}", min.0);
+    assert!(
+        (min.0 - 1.0 / 3f64.sqrt()).abs() < 0.05 + 1e-12,
+        "min at {}",
+        min.0
+    );
 }
 
 /// A deformed state of the large-deflection cantilever and its model.
@@ -351,8 +369,17 @@ fn real_part_of_seeded_dual_evaluation_equals_f64() {
     let asm = Assembler::new(&model, &[]).unwrap();
     let ne = model.mesh.elements.len();
     let mut ev = Evaluation::<f64>::new(&asm.dofs, ne);
-    asm.evaluate(&model, &model.lifted::<f64>(&[]), &z, &[], 0.5, None, None, &mut ev)
-        .unwrap();
+    asm.evaluate(
+        &model,
+        &model.lifted::<f64>(&[]),
+        &z,
+        &[],
+        0.5,
+        None,
+        None,
+        &mut ev,
+    )
+    .unwrap();
     for p in [
         DesignParam::Material { body: 0, index: 0 },
         DesignParam::BlockLength { block: 0, axis: 0 },
@@ -366,19 +393,31 @@ fn real_part_of_seeded_dual_evaluation_equals_f64() {
             .unwrap();
         let scale = ev.residual.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         for (a, b) in evd.residual.iter().zip(&ev.residual) {
-            assert!((a.re - b).abs() <= 1e-14 * scale, "{p:?}: {} vs {}", a.re, b);
+            assert!(
+                (a.re - b).abs() <= 1e-14 * scale,
+                "{p:?}: {} vs {}",
+                a.re,
+                b
+            );
         }
     }
 }
 
 #[test]
 fn newton_converges_quadratically_on_the_large_deflection_cantilever() {
-    let model = cantilever(&CantileverSpec::large_deflection()).build().unwrap();
+    let model = cantilever(&CantileverSpec::large_deflection())
+        .build()
+        .unwrap();
     let mut solver = Solver::new(&model).unwrap();
     let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
     let mut checked = 0;
     for rec in &res.records {
-        assert!(rec.iterations <= 8, "increment {}: {} iterations", rec.index, rec.iterations);
+        assert!(
+            rec.iterations <= 8,
+            "increment {}: {} iterations",
+            rec.index,
+            rec.iterations
+        );
         // residuals relative to the increment's initial residual
         let r0 = rec.residuals[0];
         let r: Vec<f64> = rec.residuals.iter().map(|x| x / r0).collect();
@@ -389,12 +428,20 @@ fn newton_converges_quadratically_on_the_large_deflection_cantilever() {
         for w in r.windows(2) {
             // in the asymptotic range and above round-off: r_{k+1} <= C r_k^2
             if w[0] < 1e-2 && w[1] > floor {
-                assert!(w[1] <= 1e3 * w[0] * w[0], "increment {}: {:?}", rec.index, r);
+                assert!(
+                    w[1] <= 1e3 * w[0] * w[0],
+                    "increment {}: {:?}",
+                    rec.index,
+                    r
+                );
                 checked += 1;
             }
         }
     }
-    assert!(checked >= 3, "too few asymptotic iterations seen to judge ({checked})");
+    assert!(
+        checked >= 3,
+        "too few asymptotic iterations seen to judge ({checked})"
+    );
 }
 
 #[test]

@@ -219,7 +219,9 @@ fn reference_geometry<S: Scalar>(
         grads[a] = jinv_t * dxi;
     }
     if formulation == Hex8Formulation::IncompatibleModes {
-        let (j0inv_t, j0) = centre.as_ref().expect("centre Jacobian computed for enhanced");
+        let (j0inv_t, j0) = centre
+            .as_ref()
+            .expect("centre Jacobian computed for enhanced");
         let scale = *j0 / det;
         for k in 0..3 {
             let mut dphi = Vector3::<S>::zeros();
@@ -227,10 +229,7 @@ fn reference_geometry<S: Scalar>(
             grads[8 + k] = (j0inv_t * dphi) * scale;
         }
     }
-    Ok(GaussGeometry {
-        grads,
-        weight: det,
-    })
+    Ok(GaussGeometry { grads, weight: det })
 }
 
 fn centre_jacobian<S: Scalar>(x_ref: &[Vector3<S>; 8]) -> Result<(Matrix3<S>, S), ElementFailure> {
@@ -330,9 +329,8 @@ pub fn evaluate<S: Scalar, M: MaterialLaw>(
         let sv = stress_to_voigt(&resp.stress);
         let w = geo.weight;
         // B rows: dE_voigt / d(d_Ai)
-        for a in 0..n_gen {
-            let g = &geo.grads[a];
-            for (i, bai) in b[a].iter_mut().enumerate() {
+        for (a, (ba, g)) in b.iter_mut().zip(&geo.grads).enumerate().take(n_gen) {
+            for (i, bai) in ba.iter_mut().enumerate() {
                 // F^T e_i = row i of F (or e_i for small kinematics)
                 let fr: Vector3<S> = if large {
                     Vector3::new(f[(i, 0)], f[(i, 1)], f[(i, 2)])

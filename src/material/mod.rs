@@ -96,7 +96,14 @@ pub fn strain_to_voigt<S: Scalar>(e: &Matrix3<S>) -> Voigt<S> {
 /// Symmetric tensor to Voigt stress (tensor components).
 #[inline]
 pub fn stress_to_voigt<S: Scalar>(s: &Matrix3<S>) -> Voigt<S> {
-    Voigt::from([s[(0, 0)], s[(1, 1)], s[(2, 2)], s[(0, 1)], s[(1, 2)], s[(0, 2)]])
+    Voigt::from([
+        s[(0, 0)],
+        s[(1, 1)],
+        s[(2, 2)],
+        s[(0, 1)],
+        s[(1, 2)],
+        s[(0, 2)],
+    ])
 }
 
 /// Voigt stress (tensor components) to a symmetric tensor.

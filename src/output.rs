@@ -1,0 +1,199 @@
+//! Output: per-increment CSV of the responses and Newton records, and VTK XML unstructured
+//! grids (`.vtu`, written with `vtkio`) of displacement and stress, with a `.pvd` collection so
+//! ParaView plays the load history.
+
+use crate::model::Model;
+use crate::solver::Results;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use vtkio::model::{
+    Attribute, Attributes, ByteOrder, CellType, Cells, DataArray, DataSet, ElementType, IOBuffer,
+    UnstructuredGridPiece, Version, VertexNumbers, Vtk,
+};
+
+/// Output failures, naming the file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum OutputError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: VTK: {message}")]
+    Vtk { path: PathBuf, message: String },
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> OutputError + '_ {
+    move |source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Write `history.csv`: one row per converged increment with time, Newton iterations,
+/// cutbacks, final residual, and every response of the model.
+pub fn write_history_csv(path: &Path, model: &Model, res: &Results) -> Result<(), OutputError> {
+    let mut s = String::from("increment,time,iterations,cutbacks,residual");
+    for r in &model.responses {
+        let _ = write!(s, ",{}", r.name);
+    }
+    s.push('\n');
+    for (k, t) in res.times.iter().enumerate() {
+        let (it, cb, rn) = if k == 0 {
+            (0, 0, 0.0)
+        } else {
+            let r = &res.records[k - 1];
+            (
+                r.iterations,
+                r.cutbacks,
+                r.residuals.last().copied().unwrap_or(0.0),
+            )
+        };
+        let _ = write!(s, "{k},{t:.10e},{it},{cb},{rn:.6e}");
+        for r in &model.responses {
+            let v = match (res.states.get(k), res.residuals.get(k)) {
+                (Some(z), Some(rr)) => r.value(z, rr),
+                _ => f64::NAN,
+            };
+            let _ = write!(s, ",{v:.12e}");
+        }
+        s.push('\n');
+    }
+    std::fs::write(path, s).map_err(io(path))
+}
+
+/// Point and cell fields of one increment beyond displacement and stress.
+#[derive(Default)]
+pub struct ExtraFields {
+    /// `(name, components, values)` per point.
+    pub point: Vec<(String, u32, Vec<f64>)>,
+    /// `(name, components, values)` per cell.
+    pub cell: Vec<(String, u32, Vec<f64>)>,
+}
+
+/// Write one `.vtu` file: reference coordinates, displacement, Cauchy stress and von Mises
+/// stress per element, and any extra fields.
+pub fn write_vtu(
+    path: &Path,
+    model: &Model,
+    z: &[f64],
+    stress: &[nalgebra::Matrix3<f64>],
+    extra: &ExtraFields,
+) -> Result<(), OutputError> {
+    let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+    let n = x.len();
+    let mut points = Vec::with_capacity(3 * n);
+    let mut disp = Vec::with_capacity(3 * n);
+    for (i, p) in x.iter().enumerate() {
+        points.extend_from_slice(&[p[0], p[1], p[2]]);
+        disp.extend_from_slice(&[z[3 * i], z[3 * i + 1], z[3 * i + 2]]);
+    }
+    let ne = model.mesh.elements.len();
+    let mut connectivity = Vec::with_capacity(8 * ne);
+    let mut offsets = Vec::with_capacity(ne);
+    for (e, c) in model.mesh.elements.iter().enumerate() {
+        connectivity.extend(c.iter().map(|v| *v as u64));
+        offsets.push(8 * (e as u64 + 1));
+    }
+    let mut sig = Vec::with_capacity(6 * ne);
+    let mut mises = Vec::with_capacity(ne);
+    for s in stress {
+        sig.extend_from_slice(&[
+            s[(0, 0)],
+            s[(1, 1)],
+            s[(2, 2)],
+            s[(0, 1)],
+            s[(1, 2)],
+            s[(0, 2)],
+        ]);
+        let d = s - nalgebra::Matrix3::identity() * (s.trace() / 3.0);
+        mises.push((1.5 * d.component_mul(&d).sum()).sqrt());
+    }
+    let arr = |name: &str, comps: u32, data: Vec<f64>| {
+        Attribute::DataArray(DataArray {
+            name: name.to_string(),
+            elem: if comps == 1 {
+                ElementType::Scalars {
+                    num_comp: 1,
+                    lookup_table: None,
+                }
+            } else {
+                ElementType::Generic(comps)
+            },
+            data: IOBuffer::new(data),
+        })
+    };
+    let mut point = vec![arr("displacement", 3, disp)];
+    for (name, c, v) in &extra.point {
+        point.push(arr(name, *c, v.clone()));
+    }
+    let mut cell = vec![arr("cauchy_stress", 6, sig), arr("von_mises", 1, mises)];
+    for (name, c, v) in &extra.cell {
+        cell.push(arr(name, *c, v.clone()));
+    }
+    let vtk = Vtk {
+        version: Version::new(),
+        title: model
+            .bodies
+            .first()
+            .map(|b| b.name.clone())
+            .unwrap_or_default(),
+        byte_order: ByteOrder::native(),
+        file_path: None,
+        data: DataSet::inline(UnstructuredGridPiece {
+            points: IOBuffer::new(points),
+            cells: Cells {
+                cell_verts: VertexNumbers::XML {
+                    connectivity,
+                    offsets,
+                },
+                types: vec![CellType::Hexahedron; ne],
+            },
+            data: Attributes { point, cell },
+        }),
+    };
+    vtk.export(path).map_err(|e| OutputError::Vtk {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Write a ParaView collection (`.pvd`) listing `(time, file)` pairs.
+pub fn write_pvd(path: &Path, files: &[(f64, String)]) -> Result<(), OutputError> {
+    let mut s = String::from(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n",
+    );
+    for (t, f) in files {
+        let _ = writeln!(
+            s,
+            "    <DataSet timestep=\"{t}\" group=\"\" part=\"0\" file=\"{f}\"/>"
+        );
+    }
+    s.push_str("  </Collection>\n</VTKFile>\n");
+    std::fs::write(path, s).map_err(io(path))
+}
+
+/// Write the whole run: `history.csv`, `newton.json`, and `vtk/` with one `.vtu` per increment.
+pub fn write_run(dir: &Path, model: &Model, res: &Results) -> Result<(), OutputError> {
+    std::fs::create_dir_all(dir.join("vtk")).map_err(io(dir))?;
+    write_history_csv(&dir.join("history.csv"), model, res)?;
+    let p = dir.join("newton.json");
+    let json = serde_json::to_string_pretty(&res.records).expect("records serialise");
+    std::fs::write(&p, json).map_err(io(&p))?;
+    let mut files = Vec::new();
+    for (k, t) in res.times.iter().enumerate() {
+        let Some(z) = res.states.get(k) else { break };
+        let name = format!("step_{k:04}.vtu");
+        write_vtu(
+            &dir.join("vtk").join(&name),
+            model,
+            z,
+            &res.stresses[k],
+            &ExtraFields::default(),
+        )?;
+        files.push((*t, name));
+    }
+    write_pvd(&dir.join("vtk").join("history.pvd"), &files)
+}
