@@ -20,7 +20,7 @@
 //! let mut solver = Solver::new(&model).unwrap();
 //! let results = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
 //! let n = results.states.len() - 1;
-//! let w = model.responses[0].value(&results.states[n], &results.residuals[n]);
+//! let w = model.responses[0].value(&results.states[n], &results.residuals[n], &results.histories[n]);
 //! // tip deflection of a cantilever under P: -P L^3 / (3 E I)
 //! let (p, l, e, i) = (1e-4 * 1e5 * 0.1f64.powi(4) / 12.0 / 4.0, 2.0, 1e5, 0.1f64.powi(4) / 12.0);
 //! assert!((w / (-p * l.powi(3) / (3.0 * e * i)) - 1.0).abs() < 0.02);
@@ -36,4 +36,5 @@ pub mod output;
 pub mod response;
 pub mod scalar;
 pub mod scene;
+pub mod sensitivity;
 pub mod solver;

@@ -97,7 +97,7 @@ fn run(scene_name: &str, out: Option<PathBuf>) -> Result<(), String> {
         println!(
             "  {:<24} {:>16.8e}",
             r.name,
-            r.value(&res.states[last], &res.residuals[last])
+            r.value(&res.states[last], &res.residuals[last], &res.histories[last])
         );
     }
     println!("written to {}", dir.display());

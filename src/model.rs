@@ -46,6 +46,10 @@ impl Material {
     pub fn name(&self) -> &'static str {
         with_material!(self, m => m.name())
     }
+    /// Change parameter `index`.
+    pub fn set_param(&mut self, index: usize, v: f64) {
+        with_material!(self, m => m.params_mut()[index] = v)
+    }
 }
 
 /// A deformable body: one generated block of hex8 elements with one material.
@@ -252,6 +256,20 @@ impl Model {
             }
             DesignParam::Prescribed { index } => self.prescribed.get(index).map(|p| p.value),
             DesignParam::Load { index } => self.loads.get(index).map(|l| l.value),
+        }
+    }
+
+    /// Set a design parameter to a new value (for reruns).
+    pub fn set_param(&mut self, p: DesignParam, v: f64) {
+        match p {
+            DesignParam::Material { body, index } => self.bodies[body].material.set_param(index, v),
+            DesignParam::BlockLength { block, axis } => {
+                let b = &mut self.mesh.blocks[block];
+                [&mut b.x, &mut b.y, &mut b.z][axis].length = v;
+            }
+            DesignParam::BlockOrigin { block, axis } => self.mesh.blocks[block].origin[axis] = v,
+            DesignParam::Prescribed { index } => self.prescribed[index].value = v,
+            DesignParam::Load { index } => self.loads[index].value = v,
         }
     }
 

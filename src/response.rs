@@ -16,6 +16,9 @@ pub enum ResponseKind {
     Reaction { nodes: Vec<usize>, component: usize },
     /// Mean displacement of `nodes` in `component`.
     Displacement { nodes: Vec<usize>, component: usize },
+    /// One history scalar (e.g. the equivalent plastic strain of a Gauss point), by its index
+    /// in the global history vector.
+    History { index: usize },
 }
 
 /// A named response.
@@ -26,8 +29,8 @@ pub struct Response {
 }
 
 impl Response {
-    /// Value at unknowns `z` with residual `residual`.
-    pub fn value<S: Scalar>(&self, z: &[S], residual: &[S]) -> S {
+    /// Value at unknowns `z` with residual `residual` and committed history `hist`.
+    pub fn value<S: Scalar>(&self, z: &[S], residual: &[S], hist: &[S]) -> S {
         match &self.kind {
             ResponseKind::Reaction { nodes, component } => nodes
                 .iter()
@@ -38,6 +41,7 @@ impl Response {
                     .fold(S::zero(), |acc, n| acc + z[3 * n + component]);
                 sum / nodes.len() as f64
             }
+            ResponseKind::History { index } => hist[*index],
         }
     }
 }

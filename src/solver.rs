@@ -63,6 +63,9 @@ pub struct Converged<'a> {
     pub constrained: &'a [bool],
     /// The last factorization of this increment, if Newton factored at all.
     pub last_factor: Option<&'a LinearSolver>,
+    /// The tangent assembled at the converged state (before the identity rows of the
+    /// prescribed unknowns are applied).
+    pub tangent: &'a SparseMatrix,
     pub record: &'a IncrementRecord,
 }
 
@@ -88,6 +91,8 @@ pub struct Results {
     pub states: Vec<Vec<f64>>,
     /// Residual per increment (reactions at prescribed unknowns).
     pub residuals: Vec<Vec<f64>>,
+    /// Committed history per increment (empty vectors for models without history).
+    pub histories: Vec<Vec<f64>>,
     /// Volume-averaged Cauchy stress per element, per increment.
     pub stresses: Vec<Vec<nalgebra::Matrix3<f64>>>,
     /// Gauss-point branches per increment.
@@ -264,6 +269,7 @@ impl<'m> Solver<'m> {
         res.times.push(0.0);
         res.states.push(z.clone());
         res.residuals.push(vec![0.0; n]);
+        res.histories.push(hist.clone());
         res.stresses.push(vec![nalgebra::Matrix3::zeros(); ne]);
         res.branches.push(vec![Branch::Elastic; 8 * ne]);
         let mut t_prev = 0.0;
@@ -299,6 +305,7 @@ impl<'m> Solver<'m> {
                             eval: &eval,
                             constrained: &self.constrained,
                             last_factor: if factored { Some(&self.linear) } else { None },
+                            tangent: &self.matrix,
                             record: &record,
                         };
                         observer.converged(&conv)?;
@@ -308,6 +315,7 @@ impl<'m> Solver<'m> {
                         if opts.keep_states {
                             res.states.push(z.clone());
                             res.residuals.push(eval.residual.clone());
+                            res.histories.push(hist.clone());
                         }
                         res.stresses.push(eval.cauchy.clone());
                         res.branches.push(eval.branches.clone());

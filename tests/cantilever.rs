@@ -16,7 +16,7 @@ fn run(spec: &CantileverSpec) -> (fricsens::model::Model, Results) {
 
 fn response(model: &fricsens::model::Model, res: &Results, name: &str, inc: usize) -> f64 {
     let r = model.responses.iter().find(|r| r.name == name).unwrap();
-    r.value(&res.states[inc], &res.residuals[inc])
+    r.value(&res.states[inc], &res.residuals[inc], &res.histories[inc])
 }
 
 #[test]

@@ -64,6 +64,8 @@ pub trait MaterialLaw: Send + Sync + std::fmt::Debug {
     fn param_names(&self) -> &'static [&'static str];
     /// Parameter values.
     fn params(&self) -> &[f64];
+    /// Parameter values, mutable (reruns with a perturbed design).
+    fn params_mut(&mut self) -> &mut [f64];
     /// Number of history scalars per Gauss point (0 for elastic laws: they pay for none).
     fn history_len(&self) -> usize {
         0

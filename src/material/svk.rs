@@ -32,6 +32,9 @@ impl MaterialLaw for StVenantKirchhoff {
     fn params(&self) -> &[f64] {
         &self.params
     }
+    fn params_mut(&mut self) -> &mut [f64] {
+        &mut self.params
+    }
     fn update<S: Scalar>(
         &self,
         p: &[S],

@@ -1,0 +1,820 @@
+//! Design sensitivities along the whole load path: SDM, DDM and FDM behind one interface.
+//!
+//! ## Equations (shared/design.md section 3; the paper's eqs. 46-48, 53-56)
+//! State after increment `n`: unknowns `z_n`, history `h_n`. At convergence
+//! `R(z_n, h_{n-1}, b) = 0` and `h_n = H(z_n, h_{n-1}, b)`. Differentiating,
+//!
+//! ```text
+//! K dz_n/db = -( dR/db + dR/dh_{n-1} dh_{n-1}/db )     =: -r      (the pseudo-load)
+//! dh_n/db   =  dH/dz dz_n/db + dH/dh dh_{n-1}/db + dH/db
+//! ```
+//!
+//! * **DDM**: `R` evaluated with `z_n` real, `h_{n-1}` carrying its derivative and `b` seeded
+//!   (dual numbers): the derivative part is exactly `r`. After the solve, the same evaluation with
+//!   `z_n` carrying `dz_n/db` gives `dh_n/db` and the total derivative of every response.
+//!   Several parameters go at once through a vector dual and one multi-column solve.
+//! * **SDM**: `r ~ [R(z_n, h_{n-1} + db dh_{n-1}/db, b + db) - R(z_n, h_{n-1}, b)] / db` with the
+//!   `f64` kernels, branches frozen at the converged state; central SDM uses `b +- db`.
+//!   `db = beta b_0` (the paper's relative perturbation; `db = beta` where `b_0 = 0`).
+//! * **FDM**: complete reruns of the load history at `b_0 (1 +- beta)`.
+//!
+//! Prescribed unknowns are not solved for: their derivative is known (non-zero only for the
+//! magnitude of a prescribed displacement) and enters `r` through the coupling terms.
+//!
+//! ## Tangent of the sensitivity solve
+//! * `last`: the last Newton factorization, of the iterate before convergence (the paper);
+//! * `refined`: the same, plus iterative refinement against the converged tangent;
+//! * `exact`: the converged tangent, factored afresh.
+//!
+//! ## Non-differentiable points
+//! A Gauss point whose trial yield ratio lies within `kink_tol` of zero sits on the
+//! elastic/plastic transition: the increment is flagged, and for DDM the derivative is also
+//! computed with that point forced onto each branch — the one-sided derivatives.
+
+use crate::assembly::Evaluation;
+use crate::linalg::LinearSolver;
+use crate::material::Branch;
+use crate::model::{DesignParam, Lifted, Model};
+use crate::scalar::Scalar;
+use crate::solver::{AnalysisError, Converged, NoObserver, Observer, Results, RunOptions, Solver};
+use num_dual::{Dual64, DualSVec64};
+use std::time::Instant;
+
+/// A sensitivity method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Semi-analytical, forward perturbation.
+    Sdm,
+    /// Semi-analytical, central perturbation.
+    SdmCentral,
+    /// Direct differentiation with dual numbers.
+    Ddm,
+    /// Forward finite differences of reruns.
+    Fdm,
+    /// Central finite differences of reruns.
+    FdmCentral,
+}
+
+impl Method {
+    /// All methods.
+    pub const ALL: [Method; 5] = [
+        Method::Sdm,
+        Method::SdmCentral,
+        Method::Ddm,
+        Method::Fdm,
+        Method::FdmCentral,
+    ];
+
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Sdm => "sdm",
+            Method::SdmCentral => "sdm-central",
+            Method::Ddm => "ddm",
+            Method::Fdm => "fdm",
+            Method::FdmCentral => "fdm-central",
+        }
+    }
+
+    /// Whether the method needs a perturbation size.
+    pub fn uses_beta(self) -> bool {
+        !matches!(self, Method::Ddm)
+    }
+}
+
+/// Which factorization the sensitivity solve uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TangentChoice {
+    Last,
+    Refined,
+    Exact,
+}
+
+/// A named design parameter: one value `b` shared by one or more model targets (e.g. the same
+/// friction coefficient on two contact pairs).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Parameter {
+    pub name: String,
+    pub targets: Vec<DesignParam>,
+    /// Nominal value `b_0`.
+    pub value: f64,
+}
+
+impl Parameter {
+    /// A parameter with one target, named `name`.
+    pub fn single(model: &Model, name: &str, target: DesignParam) -> Result<Self, AnalysisError> {
+        let value = model.param_value(target).ok_or_else(|| {
+            AnalysisError::Sensitivity(format!("design parameter {target:?} does not exist"))
+        })?;
+        Ok(Parameter {
+            name: name.to_string(),
+            targets: vec![target],
+            value,
+        })
+    }
+
+    /// Resolve a parameter name:
+    /// * `PARAM` (e.g. `E`, `nu`, `sigma_y`): that material parameter of every body that has it
+    ///   (one shared value);
+    /// * `BODY.PARAM`: that material parameter of one body;
+    /// * `BODY.length.x|y|z`, `BODY.origin.x|y|z`: a shape parameter of a body's block;
+    /// * `load.NAME`, `prescribed.NAME`: the magnitude of a nodal load or prescribed displacement.
+    pub fn by_name(model: &Model, name: &str) -> Result<Self, AnalysisError> {
+        let err = |why: String| AnalysisError::Sensitivity(format!("parameter '{name}': {why}"));
+        let axis = |a: &str| match a {
+            "x" => Ok(0),
+            "y" => Ok(1),
+            "z" => Ok(2),
+            _ => Err(err(format!("axis '{a}' is not x, y or z"))),
+        };
+        let parts: Vec<&str> = name.split('.').collect();
+        let mut targets = Vec::new();
+        match parts.as_slice() {
+            ["load", l] => {
+                for (i, x) in model.loads.iter().enumerate() {
+                    if x.name == *l {
+                        targets.push(DesignParam::Load { index: i });
+                    }
+                }
+            }
+            ["prescribed", l] => {
+                for (i, x) in model.prescribed.iter().enumerate() {
+                    if x.name == *l {
+                        targets.push(DesignParam::Prescribed { index: i });
+                    }
+                }
+            }
+            [body, kind @ ("length" | "origin"), a] => {
+                let b = model
+                    .bodies
+                    .iter()
+                    .find(|b| b.name == *body)
+                    .ok_or_else(|| err(format!("no body '{body}'")))?;
+                let axis = axis(a)?;
+                targets.push(if *kind == "length" {
+                    DesignParam::BlockLength { block: b.block, axis }
+                } else {
+                    DesignParam::BlockOrigin { block: b.block, axis }
+                });
+            }
+            [body, param] => {
+                let (bi, b) = model
+                    .bodies
+                    .iter()
+                    .enumerate()
+                    .find(|(_, b)| b.name == *body)
+                    .ok_or_else(|| err(format!("no body '{body}'")))?;
+                let index = b
+                    .material
+                    .param_names()
+                    .iter()
+                    .position(|n| n == param)
+                    .ok_or_else(|| {
+                        err(format!(
+                            "material '{}' has parameters {:?}",
+                            b.material.name(),
+                            b.material.param_names()
+                        ))
+                    })?;
+                targets.push(DesignParam::Material { body: bi, index });
+            }
+            [param] => {
+                for (bi, b) in model.bodies.iter().enumerate() {
+                    if let Some(index) = b.material.param_names().iter().position(|n| n == param) {
+                        targets.push(DesignParam::Material { body: bi, index });
+                    }
+                }
+            }
+            _ => {}
+        }
+        if targets.is_empty() {
+            return Err(err("matches nothing in this model".into()));
+        }
+        let value = model.param_value(targets[0]).expect("resolved target exists");
+        if targets
+            .iter()
+            .any(|t| model.param_value(*t) != Some(value))
+        {
+            return Err(err(
+                "its targets have different values; name one of them (BODY.PARAM)".into(),
+            ));
+        }
+        Ok(Parameter {
+            name: name.to_string(),
+            targets,
+            value,
+        })
+    }
+
+    /// Perturbation step `db = beta b_0` (`beta` where `b_0 = 0`).
+    pub fn step(&self, beta: f64) -> f64 {
+        if self.value == 0.0 {
+            beta
+        } else {
+            beta * self.value
+        }
+    }
+}
+
+/// Settings of a sensitivity run.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    pub method: Method,
+    /// Relative perturbation (SDM, FDM).
+    pub beta: f64,
+    pub tangent: TangentChoice,
+    /// Refinement steps for `TangentChoice::Refined`.
+    pub refine_steps: usize,
+    /// Freeze branches at the converged state in SDM's perturbed evaluations.
+    pub freeze_branches: bool,
+    /// |trial yield ratio| below which a Gauss point is taken to sit on a transition.
+    pub kink_tol: f64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            method: Method::Ddm,
+            beta: 1e-6,
+            tangent: TangentChoice::Last,
+            refine_steps: 2,
+            freeze_branches: true,
+            kink_tol: 1e-6,
+        }
+    }
+}
+
+/// A point where the converged state sits on a transition.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Kink {
+    /// What kind of transition.
+    pub kind: &'static str,
+    /// Element (or node) number.
+    pub at: usize,
+    /// Gauss point (or 0).
+    pub point: usize,
+    /// Distance to the transition (trial yield ratio).
+    pub distance: f64,
+}
+
+/// Sensitivities at one converged increment.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct IncrementSensitivity {
+    pub increment: usize,
+    pub time: f64,
+    /// `values[r]`: response `r`.
+    pub values: Vec<f64>,
+    /// `derivatives[r][p]`: d response r / d parameter p.
+    pub derivatives: Vec<Vec<f64>>,
+    /// Flagged non-differentiable points.
+    pub kinks: Vec<Kink>,
+    /// One-sided derivatives where kinks were flagged (DDM): `[r][p]` with every flagged point
+    /// on the elastic (stick) branch, and on the plastic (slip) branch.
+    pub one_sided: Option<(Vec<Vec<f64>>, Vec<Vec<f64>>)>,
+    /// `dz/db` for every parameter (only when requested).
+    #[serde(skip)]
+    pub state_derivative: Option<Vec<Vec<f64>>>,
+}
+
+/// Work done by a sensitivity computation.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SensitivityCost {
+    pub wall_seconds: f64,
+    pub residual_evaluations: usize,
+    pub factorizations: usize,
+    pub solve_columns: usize,
+    pub primal_reruns: usize,
+}
+
+/// Everything a sensitivity run produces.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SensitivityResults {
+    pub method: Option<Method>,
+    pub beta: f64,
+    pub parameters: Vec<String>,
+    pub responses: Vec<String>,
+    /// Per converged increment of the nominal run.
+    pub increments: Vec<IncrementSensitivity>,
+    pub cost: SensitivityCost,
+    /// Cost of the nominal primal run (with the inline sensitivity work excluded).
+    pub primal_seconds: f64,
+}
+
+/// The in-line engine (SDM and DDM) run as an observer of the primal solver.
+pub struct Engine<'a> {
+    params: &'a [Parameter],
+    settings: Settings,
+    keep_state_derivative: bool,
+    /// `dh/db`, parameter-major: `dhist[p * n_history + i]`.
+    dhist: Vec<f64>,
+    exact: Option<LinearSolver>,
+    pub results: SensitivityResults,
+}
+
+impl<'a> Engine<'a> {
+    pub fn new(model: &Model, params: &'a [Parameter], settings: Settings) -> Self {
+        let nh = model.dof_map().n_history;
+        Engine {
+            params,
+            keep_state_derivative: false,
+            dhist: vec![0.0; nh * params.len()],
+            exact: None,
+            results: SensitivityResults {
+                method: Some(settings.method),
+                beta: settings.beta,
+                parameters: params.iter().map(|p| p.name.clone()).collect(),
+                responses: model.responses.iter().map(|r| r.name.clone()).collect(),
+                ..Default::default()
+            },
+            settings,
+        }
+    }
+
+    /// Also keep `dz/db` of every increment.
+    pub fn keep_state_derivative(mut self, yes: bool) -> Self {
+        self.keep_state_derivative = yes;
+        self
+    }
+
+    fn overrides<S: Scalar>(&self, value: impl Fn(usize, f64) -> S) -> Vec<(DesignParam, S)> {
+        let mut v = Vec::new();
+        for (k, p) in self.params.iter().enumerate() {
+            let s = value(k, p.value);
+            for t in &p.targets {
+                v.push((*t, s));
+            }
+        }
+        v
+    }
+
+    /// Derivative of the prescribed unknowns with respect to parameter `k`.
+    fn prescribed_derivative(&self, c: &Converged<'_>, k: usize, out: &mut [f64]) {
+        for (i, p) in c.model.prescribed.iter().enumerate() {
+            let hit = self.params[k]
+                .targets
+                .contains(&DesignParam::Prescribed { index: i });
+            if hit {
+                let a = p.amplitude.at(c.time);
+                for &n in &p.nodes {
+                    out[3 * n + p.component] += a;
+                }
+            }
+        }
+    }
+
+    /// Gauss points sitting on the elastic/plastic transition.
+    fn kinks(&self, c: &Converged<'_>) -> Vec<Kink> {
+        let mut v = Vec::new();
+        for (i, r) in c.eval.yield_ratio.iter().enumerate() {
+            if *r != -1.0 && r.abs() < self.settings.kink_tol {
+                v.push(Kink {
+                    kind: "yield",
+                    at: i / 8,
+                    point: i % 8,
+                    distance: *r,
+                });
+            }
+        }
+        v
+    }
+
+    /// Solve `K X = RHS` (columns stored column-major) with the chosen tangent.
+    fn solve(&mut self, c: &Converged<'_>, rhs: &mut [f64], ncols: usize) -> Result<(), AnalysisError> {
+        let n = c.z.len();
+        let converged_k = || {
+            let mut k = c.tangent.clone();
+            for (d, fixed) in c.constrained.iter().enumerate() {
+                if *fixed {
+                    k.set_identity_row_col(d).expect("in range");
+                }
+            }
+            k
+        };
+        let use_exact = self.settings.tangent == TangentChoice::Exact || c.last_factor.is_none();
+        if use_exact {
+            let k = converged_k();
+            if self.exact.is_none() {
+                self.exact = Some(LinearSolver::new(c.assembler.pattern.clone())?);
+            }
+            let s = self.exact.as_mut().expect("just created");
+            s.factor(&k)?;
+            self.results.cost.factorizations += 1;
+            s.solve_multi_in_place(rhs, ncols)?;
+        } else {
+            let last = c.last_factor.expect("checked above");
+            let b = rhs.to_vec();
+            last.solve_multi_in_place(rhs, ncols)?;
+            if self.settings.tangent == TangentChoice::Refined {
+                let k = converged_k();
+                last.refine_multi(&k, &b, rhs, ncols, self.settings.refine_steps)?;
+                self.results.cost.solve_columns += ncols * self.settings.refine_steps;
+            }
+        }
+        self.results.cost.solve_columns += ncols;
+        let _ = n;
+        Ok(())
+    }
+
+    /// DDM for parameters `ks` (at most `N`) with the vector dual `S`.
+    fn ddm_chunk<S: Scalar>(
+        &mut self,
+        c: &Converged<'_>,
+        ks: &[usize],
+        frozen: &[Branch],
+    ) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>), AnalysisError> {
+        let n = c.z.len();
+        let nh = c.hist_prev.len();
+        let ne = c.model.mesh.elements.len();
+        let np = ks.len();
+        // seeded design: parameter ks[j] in derivative slot j
+        let overrides: Vec<(DesignParam, S)> = {
+            let mut v = Vec::new();
+            for (j, &k) in ks.iter().enumerate() {
+                let p = &self.params[k];
+                for t in &p.targets {
+                    v.push((*t, S::seeded(p.value, j)));
+                }
+            }
+            v
+        };
+        let lifted: Lifted<S> = c.model.lifted(&overrides);
+        let mut dzc = vec![vec![0.0; n]; np];
+        for (j, &k) in ks.iter().enumerate() {
+            self.prescribed_derivative(c, k, &mut dzc[j]);
+        }
+        let mut parts = vec![0.0; np];
+        let hist: Vec<S> = (0..nh)
+            .map(|i| {
+                for (j, &k) in ks.iter().enumerate() {
+                    parts[j] = self.dhist[k * nh + i];
+                }
+                S::with_parts(c.hist_prev[i], &parts)
+            })
+            .collect();
+        let z: Vec<S> = (0..n)
+            .map(|i| {
+                for j in 0..np {
+                    parts[j] = dzc[j][i];
+                }
+                S::with_parts(c.z[i], &parts)
+            })
+            .collect();
+        let mut ev = Evaluation::<S>::new(&c.assembler.dofs, ne);
+        c.assembler
+            .evaluate(c.model, &lifted, &z, &hist, c.time, Some(frozen), None, &mut ev)?;
+        self.results.cost.residual_evaluations += 1;
+        // pseudo-loads, column-major
+        let mut rhs = vec![0.0; n * np];
+        for j in 0..np {
+            for i in 0..n {
+                rhs[j * n + i] = if c.constrained[i] {
+                    0.0
+                } else {
+                    -ev.residual[i].part(j)
+                };
+            }
+        }
+        self.solve(c, &mut rhs, np)?;
+        for j in 0..np {
+            for i in 0..n {
+                if c.constrained[i] {
+                    rhs[j * n + i] = dzc[j][i];
+                }
+            }
+        }
+        // total derivatives: evaluate with z carrying dz/db
+        let z: Vec<S> = (0..n)
+            .map(|i| {
+                for j in 0..np {
+                    parts[j] = rhs[j * n + i];
+                }
+                S::with_parts(c.z[i], &parts)
+            })
+            .collect();
+        c.assembler
+            .evaluate(c.model, &lifted, &z, &hist, c.time, Some(frozen), None, &mut ev)?;
+        self.results.cost.residual_evaluations += 1;
+        let mut dresp = vec![vec![0.0; np]; c.model.responses.len()];
+        for (r, resp) in c.model.responses.iter().enumerate() {
+            let v = resp.value(&z, &ev.residual, &ev.hist_new);
+            for (j, d) in dresp[r].iter_mut().enumerate() {
+                *d = v.part(j);
+            }
+        }
+        let dh: Vec<Vec<f64>> = (0..np)
+            .map(|j| ev.hist_new.iter().map(|h| h.part(j)).collect())
+            .collect();
+        let dz: Vec<Vec<f64>> = (0..np).map(|j| rhs[j * n..(j + 1) * n].to_vec()).collect();
+        Ok((dresp, dh, dz))
+    }
+
+    /// DDM for all parameters, in chunks of up to 8 through vector duals.
+    fn ddm(
+        &mut self,
+        c: &Converged<'_>,
+        frozen: &[Branch],
+    ) -> Result<(Vec<Vec<f64>>, Vec<f64>, Vec<Vec<f64>>), AnalysisError> {
+        let np = self.params.len();
+        let nr = c.model.responses.len();
+        let nh = c.hist_prev.len();
+        let mut dresp = vec![vec![0.0; np]; nr];
+        let mut dhist = vec![0.0; nh * np];
+        let mut dz_all = vec![Vec::new(); np];
+        let all: Vec<usize> = (0..np).collect();
+        for chunk in all.chunks(8) {
+            let (dr, dh, dz) = match chunk.len() {
+                1 => self.ddm_chunk::<Dual64>(c, chunk, frozen)?,
+                2 => self.ddm_chunk::<DualSVec64<2>>(c, chunk, frozen)?,
+                3 | 4 => self.ddm_chunk::<DualSVec64<4>>(c, chunk, frozen)?,
+                _ => self.ddm_chunk::<DualSVec64<8>>(c, chunk, frozen)?,
+            };
+            for (j, &k) in chunk.iter().enumerate() {
+                for r in 0..nr {
+                    dresp[r][k] = dr[r][j];
+                }
+                dhist[k * nh..(k + 1) * nh].copy_from_slice(&dh[j]);
+                dz_all[k] = dz[j].clone();
+            }
+        }
+        Ok((dresp, dhist, dz_all))
+    }
+
+    /// f64 evaluation at the design perturbed by `sign * db` along parameter `k`, with the
+    /// history perturbed consistently; `z_shift` moves the unknowns (for the total derivative).
+    #[allow(clippy::too_many_arguments)]
+    fn perturbed(
+        &self,
+        c: &Converged<'_>,
+        k: usize,
+        db: f64,
+        z_shift: Option<&[f64]>,
+        frozen: Option<&[Branch]>,
+        ev: &mut Evaluation<f64>,
+    ) -> Result<(), AnalysisError> {
+        let nh = c.hist_prev.len();
+        let overrides = self.overrides(|j, v| if j == k { v + db } else { v });
+        let lifted: Lifted<f64> = c.model.lifted(&overrides);
+        let hist: Vec<f64> = (0..nh)
+            .map(|i| c.hist_prev[i] + db * self.dhist[k * nh + i])
+            .collect();
+        let mut dzc = vec![0.0; c.z.len()];
+        self.prescribed_derivative(c, k, &mut dzc);
+        let z: Vec<f64> = (0..c.z.len())
+            .map(|i| match z_shift {
+                Some(s) => c.z[i] + db * s[i],
+                None => c.z[i] + db * dzc[i],
+            })
+            .collect();
+        c.assembler
+            .evaluate(c.model, &lifted, &z, &hist, c.time, frozen, None, ev)?;
+        Ok(())
+    }
+
+    /// SDM (forward or central) for all parameters.
+    fn sdm(
+        &mut self,
+        c: &Converged<'_>,
+        central: bool,
+    ) -> Result<(Vec<Vec<f64>>, Vec<f64>, Vec<Vec<f64>>), AnalysisError> {
+        let np = self.params.len();
+        let n = c.z.len();
+        let nh = c.hist_prev.len();
+        let ne = c.model.mesh.elements.len();
+        let frozen = if self.settings.freeze_branches {
+            Some(c.eval.branches.as_slice())
+        } else {
+            None
+        };
+        let mut ev_p = Evaluation::<f64>::new(&c.assembler.dofs, ne);
+        let mut ev_m = Evaluation::<f64>::new(&c.assembler.dofs, ne);
+        let mut rhs = vec![0.0; n * np];
+        let mut dzc = vec![vec![0.0; n]; np];
+        for k in 0..np {
+            self.prescribed_derivative(c, k, &mut dzc[k]);
+            let db = self.params[k].step(self.settings.beta);
+            self.perturbed(c, k, db, None, frozen, &mut ev_p)?;
+            self.results.cost.residual_evaluations += 1;
+            if central {
+                self.perturbed(c, k, -db, None, frozen, &mut ev_m)?;
+                self.results.cost.residual_evaluations += 1;
+            }
+            for i in 0..n {
+                if c.constrained[i] {
+                    continue;
+                }
+                // forward: R(b) = c.eval.residual (the converged residual, no extra evaluation)
+                let d = if central {
+                    (ev_p.residual[i] - ev_m.residual[i]) / (2.0 * db)
+                } else {
+                    (ev_p.residual[i] - c.eval.residual[i]) / db
+                };
+                rhs[k * n + i] = -d;
+            }
+        }
+        self.solve(c, &mut rhs, np)?;
+        let nr = c.model.responses.len();
+        let mut dresp = vec![vec![0.0; np]; nr];
+        let mut dhist = vec![0.0; nh * np];
+        let mut dz_all = Vec::with_capacity(np);
+        for k in 0..np {
+            let dz: Vec<f64> = (0..n)
+                .map(|i| if c.constrained[i] { dzc[k][i] } else { rhs[k * n + i] })
+                .collect();
+            let db = self.params[k].step(self.settings.beta);
+            self.perturbed(c, k, db, Some(&dz), frozen, &mut ev_p)?;
+            self.results.cost.residual_evaluations += 1;
+            let zp: Vec<f64> = (0..n).map(|i| c.z[i] + db * dz[i]).collect();
+            if central {
+                self.perturbed(c, k, -db, Some(&dz), frozen, &mut ev_m)?;
+                self.results.cost.residual_evaluations += 1;
+                let zm: Vec<f64> = (0..n).map(|i| c.z[i] - db * dz[i]).collect();
+                for (r, resp) in c.model.responses.iter().enumerate() {
+                    let vp = resp.value(&zp, &ev_p.residual, &ev_p.hist_new);
+                    let vm = resp.value(&zm, &ev_m.residual, &ev_m.hist_new);
+                    dresp[r][k] = (vp - vm) / (2.0 * db);
+                }
+                for i in 0..nh {
+                    dhist[k * nh + i] = (ev_p.hist_new[i] - ev_m.hist_new[i]) / (2.0 * db);
+                }
+            } else {
+                for (r, resp) in c.model.responses.iter().enumerate() {
+                    let vp = resp.value(&zp, &ev_p.residual, &ev_p.hist_new);
+                    let v0 = resp.value(c.z, &c.eval.residual, &c.eval.hist_new);
+                    dresp[r][k] = (vp - v0) / db;
+                }
+                for i in 0..nh {
+                    dhist[k * nh + i] = (ev_p.hist_new[i] - c.eval.hist_new[i]) / db;
+                }
+            }
+            dz_all.push(dz);
+        }
+        Ok((dresp, dhist, dz_all))
+    }
+}
+
+impl Observer for Engine<'_> {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        let t0 = Instant::now();
+        let kinks = self.kinks(c);
+        let (dresp, dhist, dz) = match self.settings.method {
+            Method::Ddm => self.ddm(c, &c.eval.branches)?,
+            Method::Sdm => self.sdm(c, false)?,
+            Method::SdmCentral => self.sdm(c, true)?,
+            Method::Fdm | Method::FdmCentral => {
+                return Err(AnalysisError::Sensitivity(
+                    "finite differences of reruns are not an in-line method (use run_sensitivity)".into(),
+                ))
+            }
+        };
+        // one-sided derivatives at flagged points (DDM): force the flagged points on each branch
+        let one_sided = if !kinks.is_empty() && self.settings.method == Method::Ddm {
+            let saved = self.dhist.clone();
+            let mut sides = Vec::new();
+            for branch in [Branch::Elastic, Branch::Plastic] {
+                let mut frozen = c.eval.branches.clone();
+                for k in &kinks {
+                    frozen[8 * k.at + k.point] = branch;
+                }
+                let (d, _, _) = self.ddm(c, &frozen)?;
+                sides.push(d);
+                self.dhist.clone_from(&saved);
+            }
+            let plastic = sides.pop().expect("two sides");
+            let elastic = sides.pop().expect("two sides");
+            Some((elastic, plastic))
+        } else {
+            None
+        };
+        self.dhist = dhist;
+        let values = c
+            .model
+            .responses
+            .iter()
+            .map(|r| r.value(c.z, &c.eval.residual, &c.eval.hist_new))
+            .collect();
+        self.results.increments.push(IncrementSensitivity {
+            increment: c.index,
+            time: c.time,
+            values,
+            derivatives: dresp,
+            kinks,
+            one_sided,
+            state_derivative: if self.keep_state_derivative { Some(dz) } else { None },
+        });
+        self.results.cost.wall_seconds += t0.elapsed().as_secs_f64();
+        Ok(())
+    }
+}
+
+/// Run the primal analysis with in-line SDM or DDM, or the reruns of FDM.
+pub fn run_sensitivity(
+    model: &Model,
+    params: &[Parameter],
+    settings: &Settings,
+) -> Result<(Results, SensitivityResults), AnalysisError> {
+    match settings.method {
+        Method::Sdm | Method::SdmCentral | Method::Ddm => {
+            let mut engine = Engine::new(model, params, settings.clone());
+            let mut solver = Solver::new(model)?;
+            let res = solver.run(&RunOptions::default(), &mut engine)?;
+            let mut s = engine.results;
+            s.primal_seconds = res.cost.wall_seconds - s.cost.wall_seconds;
+            Ok((res, s))
+        }
+        Method::Fdm | Method::FdmCentral => fdm(model, params, settings),
+    }
+}
+
+/// Primal run of a model with parameter `k` set to `b_0 + db`.
+fn rerun(model: &Model, p: &Parameter, db: f64) -> Result<Results, AnalysisError> {
+    let mut m = model.clone();
+    for t in &p.targets {
+        m.set_param(*t, p.value + db);
+    }
+    let mut solver = Solver::new(&m)?;
+    solver.run(&RunOptions::default(), &mut NoObserver)
+}
+
+/// Response values at the nominal increment times of a run (cutback sub-increments skipped).
+fn responses_at(model: &Model, res: &Results, times: &[f64]) -> Result<Vec<Vec<f64>>, AnalysisError> {
+    let mut out = Vec::with_capacity(times.len());
+    for t in times {
+        let k = res
+            .times
+            .iter()
+            .position(|x| (x - t).abs() <= 1e-12 * t.abs().max(1.0))
+            .ok_or_else(|| AnalysisError::Sensitivity(format!("rerun has no increment at t = {t}")))?;
+        out.push(
+            model
+                .responses
+                .iter()
+                .map(|r| r.value(&res.states[k], &res.residuals[k], &res.histories[k]))
+                .collect(),
+        );
+    }
+    Ok(out)
+}
+
+fn fdm(
+    model: &Model,
+    params: &[Parameter],
+    settings: &Settings,
+) -> Result<(Results, SensitivityResults), AnalysisError> {
+    let t0 = Instant::now();
+    let mut solver = Solver::new(model)?;
+    let nominal = solver.run(&RunOptions::default(), &mut NoObserver)?;
+    let primal_seconds = t0.elapsed().as_secs_f64();
+    let times: Vec<f64> = nominal.times[1..].to_vec();
+    let base = responses_at(model, &nominal, &times)?;
+    let central = settings.method == Method::FdmCentral;
+    let t1 = Instant::now();
+    let nr = model.responses.len();
+    let mut derivs = vec![vec![vec![0.0; params.len()]; nr]; times.len()];
+    let mut reruns = 0;
+    for (k, p) in params.iter().enumerate() {
+        let db = p.step(settings.beta);
+        let plus = responses_at(model, &rerun(model, p, db)?, &times)?;
+        reruns += 1;
+        let minus = if central {
+            reruns += 1;
+            Some(responses_at(model, &rerun(model, p, -db)?, &times)?)
+        } else {
+            None
+        };
+        for i in 0..times.len() {
+            for r in 0..nr {
+                derivs[i][r][k] = match &minus {
+                    Some(m) => (plus[i][r] - m[i][r]) / (2.0 * db),
+                    None => (plus[i][r] - base[i][r]) / db,
+                };
+            }
+        }
+    }
+    let increments = times
+        .iter()
+        .enumerate()
+        .map(|(i, t)| IncrementSensitivity {
+            increment: i + 1,
+            time: *t,
+            values: base[i].clone(),
+            derivatives: derivs[i].clone(),
+            ..Default::default()
+        })
+        .collect();
+    let s = SensitivityResults {
+        method: Some(settings.method),
+        beta: settings.beta,
+        parameters: params.iter().map(|p| p.name.clone()).collect(),
+        responses: model.responses.iter().map(|r| r.name.clone()).collect(),
+        increments,
+        cost: SensitivityCost {
+            wall_seconds: t1.elapsed().as_secs_f64(),
+            primal_reruns: reruns,
+            ..Default::default()
+        },
+        primal_seconds,
+    };
+    Ok((nominal, s))
+}
