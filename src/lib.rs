@@ -13,17 +13,21 @@
 //! [`scalar::Scalar`], implemented by `f64`, `num_dual::Dual64` and `num_dual::DualSVec64<N>`.
 //!
 //! ```
-//! use fricsens::scene::builtin;
-//! use fricsens::solver::{NoObserver, RunOptions, Solver};
+//! use fricsens::scene::{cantilever, CantileverSpec};
+//! use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings};
 //!
-//! let model = builtin("cantilever-small").unwrap().build().unwrap();
-//! let mut solver = Solver::new(&model).unwrap();
-//! let results = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
-//! let n = results.states.len() - 1;
-//! let w = model.responses[0].value(&results.states[n], &results.residuals[n], &results.histories[n]);
-//! // tip deflection of a cantilever under P: -P L^3 / (3 E I)
-//! let (p, l, e, i) = (1e-4 * 1e5 * 0.1f64.powi(4) / 12.0 / 4.0, 2.0, 1e5, 0.1f64.powi(4) / 12.0);
-//! assert!((w / (-p * l.powi(3) / (3.0 * e * i)) - 1.0).abs() < 0.02);
+//! // a cantilever under a small tip load, and the derivative of its tip deflection in E
+//! let spec = CantileverSpec::small_deflection();
+//! let model = cantilever(&spec).build().unwrap();
+//! let e = Parameter::by_name(&model, "E").unwrap();
+//! let settings = Settings { method: Method::Ddm, ..Settings::default() };
+//! let (_, sens) = run_sensitivity(&model, &[e], &settings).unwrap();
+//! let last = sens.increments.last().unwrap();
+//! let (w, dw_de) = (last.values[0], last.derivatives[0][0]);
+//! // beam theory: w = -P L^3 / (3 E I), so dw/dE = -w / E
+//! let exact = -spec.load() * spec.length.powi(3) / (3.0 * spec.young * spec.inertia());
+//! assert!((w / exact - 1.0).abs() < 0.02);
+//! assert!((dw_de / (-w / spec.young) - 1.0).abs() < 1e-6);
 //! ```
 
 pub mod assembly;

@@ -6,7 +6,7 @@
 //! for SDM), so that every kernel sees its parameters as `S`.
 
 use crate::element::{Hex8Formulation, Kinematics, Spring};
-use crate::material::{MaterialLaw, StVenantKirchhoff};
+use crate::material::{J2Plasticity, MaterialLaw, StVenantKirchhoff};
 use crate::mesh::{BlockGeometry, Mesh};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
@@ -17,6 +17,8 @@ use nalgebra::Vector3;
 pub enum Material {
     /// St Venant-Kirchhoff elasticity.
     Svk(StVenantKirchhoff),
+    /// J2 elastoplasticity with isotropic hardening.
+    J2(J2Plasticity),
 }
 
 /// Call `$body` with `$m` bound to the concrete law inside a [`Material`].
@@ -25,6 +27,7 @@ macro_rules! with_material {
     ($mat:expr, $m:ident => $body:expr) => {
         match $mat {
             $crate::model::Material::Svk($m) => $body,
+            $crate::model::Material::J2($m) => $body,
         }
     };
 }
@@ -45,6 +48,10 @@ impl Material {
     /// Short name.
     pub fn name(&self) -> &'static str {
         with_material!(self, m => m.name())
+    }
+    /// Names of the history entries per Gauss point.
+    pub fn history_names(&self) -> &'static [&'static str] {
+        with_material!(self, m => m.history_names())
     }
     /// Change parameter `index`.
     pub fn set_param(&mut self, index: usize, v: f64) {

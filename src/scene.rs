@@ -6,7 +6,7 @@
 //! unknowns for plain hex8).
 
 use crate::element::{Hex8Formulation, Kinematics, Spring};
-use crate::material::StVenantKirchhoff;
+use crate::material::{J2Plasticity, StVenantKirchhoff};
 use crate::mesh::{Axis, BlockSpec, Mesh, Zone};
 use crate::model::{Amplitude, Body, Material, Model, NodalLoad, Prescribed, SolverSettings};
 use crate::response::{Response, ResponseKind};
@@ -43,12 +43,39 @@ pub enum MaterialSpec {
         young: f64,
         nu: f64,
     },
+    /// J2 plasticity; linear hardening `sigma_y + H alpha`, plus the saturation term
+    /// `(sigma_inf - sigma_y)(1 - exp(-delta alpha))` when `sigma_inf` and `delta` are given.
+    J2 {
+        #[serde(rename = "E")]
+        young: f64,
+        nu: f64,
+        sigma_y: f64,
+        #[serde(rename = "H")]
+        hardening: f64,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sigma_inf: Option<f64>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        delta: Option<f64>,
+    },
 }
 
 impl MaterialSpec {
     fn build(&self) -> Material {
         match self {
             MaterialSpec::Svk { young, nu } => Material::Svk(StVenantKirchhoff::new(*young, *nu)),
+            MaterialSpec::J2 {
+                young,
+                nu,
+                sigma_y,
+                hardening,
+                sigma_inf,
+                delta,
+            } => Material::J2(match (sigma_inf, delta) {
+                (Some(si), Some(d)) => {
+                    J2Plasticity::saturation(*young, *nu, *sigma_y, *hardening, *si, *d)
+                }
+                _ => J2Plasticity::linear(*young, *nu, *sigma_y, *hardening),
+            }),
         }
     }
 
@@ -57,6 +84,39 @@ impl MaterialSpec {
             MaterialSpec::Svk { young, nu } => {
                 positive(*young, &format!("{at}.E"))?;
                 poisson(*nu, &format!("{at}.nu"))
+            }
+            MaterialSpec::J2 {
+                young,
+                nu,
+                sigma_y,
+                hardening,
+                sigma_inf,
+                delta,
+            } => {
+                positive(*young, &format!("{at}.E"))?;
+                poisson(*nu, &format!("{at}.nu"))?;
+                positive(*sigma_y, &format!("{at}.sigma_y"))?;
+                finite(*hardening, &format!("{at}.H"))?;
+                if *hardening < 0.0 {
+                    return Err(invalid(&format!("{at}.H"), "softening (H < 0) is not supported"));
+                }
+                if sigma_inf.is_some() != delta.is_some() {
+                    return Err(invalid(
+                        &format!("{at}.sigma_inf"),
+                        "saturation hardening needs both sigma_inf and delta",
+                    ));
+                }
+                if let (Some(si), Some(d)) = (sigma_inf, delta) {
+                    finite(*si, &format!("{at}.sigma_inf"))?;
+                    finite(*d, &format!("{at}.delta"))?;
+                    if si < sigma_y || *d < 0.0 {
+                        return Err(invalid(
+                            &format!("{at}.sigma_inf"),
+                            "needs sigma_inf >= sigma_y and delta >= 0",
+                        ));
+                    }
+                }
+                Ok(())
             }
         }
     }
@@ -156,13 +216,25 @@ pub enum ResponseSpec {
         set: String,
         component: Component,
     },
+    /// A history variable of one Gauss point: `element` counts within the body, `point` is
+    /// the Gauss point (0-7), `variable` names a history entry of the body's material
+    /// (for J2: `Ep11` ... `Ep13`, `alpha` = equivalent plastic strain).
+    History {
+        name: String,
+        body: String,
+        element: usize,
+        point: usize,
+        variable: String,
+    },
 }
 
 impl ResponseSpec {
     /// Name of the response.
     pub fn name(&self) -> &str {
         match self {
-            ResponseSpec::Reaction { name, .. } | ResponseSpec::Displacement { name, .. } => name,
+            ResponseSpec::Reaction { name, .. }
+            | ResponseSpec::Displacement { name, .. }
+            | ResponseSpec::History { name, .. } => name,
         }
     }
 }
@@ -457,6 +529,7 @@ impl Scene {
             t0 = s.end;
         }
         let mut responses = Vec::new();
+        let mut history_refs: Vec<(usize, usize, usize, usize, usize)> = Vec::new();
         for (i, r) in self.responses.iter().enumerate() {
             let field = format!("responses[{i}].set");
             let kind = match r {
@@ -472,6 +545,39 @@ impl Scene {
                     nodes: set(s, &field)?,
                     component: component.index(),
                 },
+                ResponseSpec::History {
+                    body,
+                    element,
+                    point,
+                    variable,
+                    ..
+                } => {
+                    let at = format!("responses[{i}]");
+                    let (bi, b) = bodies
+                        .iter()
+                        .enumerate()
+                        .find(|(_, b)| &b.name == body)
+                        .ok_or_else(|| invalid(&format!("{at}.body"), format!("no body '{body}'")))?;
+                    let names = b.material.history_names();
+                    let var = names.iter().position(|n| n == variable).ok_or_else(|| {
+                        invalid(
+                            &format!("{at}.variable"),
+                            format!("material '{}' has history {names:?}", b.material.name()),
+                        )
+                    })?;
+                    let elems = mesh.block_elements[b.block].clone();
+                    if *element >= elems.len() {
+                        return Err(invalid(
+                            &format!("{at}.element"),
+                            format!("body '{body}' has {} elements", elems.len()),
+                        ));
+                    }
+                    if *point >= 8 {
+                        return Err(invalid(&format!("{at}.point"), "Gauss points are 0-7"));
+                    }
+                    history_refs.push((responses.len(), bi, elems.start + element, *point, var));
+                    ResponseKind::History { index: usize::MAX }
+                }
             };
             responses.push(Response {
                 name: r.name().to_string(),
@@ -484,7 +590,7 @@ impl Scene {
         if sv.max_iterations == 0 {
             return Err(invalid("solver.max_iterations", "must be at least 1"));
         }
-        Ok(Model {
+        let mut model = Model {
             mesh,
             bodies,
             springs,
@@ -493,7 +599,17 @@ impl Scene {
             times,
             responses,
             solver: self.solver.clone(),
-        })
+        };
+        if !history_refs.is_empty() {
+            let dofs = model.dof_map();
+            for (r, b, e, point, var) in history_refs {
+                let nh = model.bodies[b].material.history_len();
+                model.responses[r].kind = ResponseKind::History {
+                    index: dofs.history_offset[e] + point * nh + var,
+                };
+            }
+        }
+        Ok(model)
     }
 }
 
@@ -503,6 +619,10 @@ pub fn builtin_list() -> Vec<(&'static str, &'static str)> {
         (
             "cantilever",
             "elastic cantilever, tip dead load to alpha = P L^2/(E I) = 5, large deflection (oracles 3)",
+        ),
+        (
+            "uniaxial-j2",
+            "one hex8, J2 with linear hardening, uniaxial stress, strain cycle 0 -> +0.01 -> -0.01 (oracles 1)",
         ),
         (
             "cantilever-small",
@@ -516,6 +636,7 @@ pub fn builtin(name: &str) -> Option<Scene> {
     match name {
         "cantilever" => Some(cantilever(&CantileverSpec::large_deflection())),
         "cantilever-small" => Some(cantilever(&CantileverSpec::small_deflection())),
+        "uniaxial-j2" => Some(uniaxial_j2(Kinematics::Small, 10)),
         _ => None,
     }
 }
@@ -648,6 +769,89 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
                 name: "clamp-reaction-y".into(),
                 set: "beam.xmin".into(),
                 component: Component::Y,
+            },
+        ],
+        solver: SolverSettings::default(),
+    }
+}
+
+/// One unit hex8 of J2 material (E = 200 GPa, nu = 0.3, sigma_y = 250 MPa, H = 10 GPa; units
+/// MPa and mm) in uniaxial stress: symmetry planes x = 0, y = 0, z = 0, the face x = 1 driven
+/// through the axial strain cycle 0 -> +0.01 (t = 1) -> -0.01 (t = 3), `increments_per_unit`
+/// increments per unit of pseudo-time. Responses: the axial stress (the reaction on the unit
+/// face), the strain, and the equivalent plastic strain of Gauss point 0.
+pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene {
+    let fixed = |name: &str, set: &str, c: Component| PrescribedSpec {
+        name: name.into(),
+        set: set.into(),
+        components: vec![c],
+        value: 0.0,
+        amplitude: ramp(),
+    };
+    Scene {
+        name: "uniaxial-j2".into(),
+        description: "Uniaxial stress cycle of one J2 hex8 (shared/oracles.md section 1).".into(),
+        bodies: vec![BodySpec {
+            block: BlockSpec {
+                name: "cube".into(),
+                origin: [0.0; 3],
+                x: Axis::uniform(1.0, 1),
+                y: Axis::uniform(1.0, 1),
+                z: Axis::uniform(1.0, 1),
+            },
+            material: MaterialSpec::J2 {
+                young: 200e3,
+                nu: 0.3,
+                sigma_y: 250.0,
+                hardening: 10e3,
+                sigma_inf: None,
+                delta: None,
+            },
+            kinematics,
+            formulation: Hex8Formulation::Full,
+        }],
+        free_nodes: vec![],
+        springs: vec![],
+        prescribed: vec![
+            fixed("sym-x", "cube.xmin", Component::X),
+            fixed("sym-y", "cube.ymin", Component::Y),
+            fixed("sym-z", "cube.zmin", Component::Z),
+            PrescribedSpec {
+                name: "strain".into(),
+                set: "cube.xmax".into(),
+                components: vec![Component::X],
+                value: 0.01,
+                amplitude: vec![(0.0, 0.0), (1.0, 1.0), (3.0, -1.0)],
+            },
+        ],
+        loads: vec![],
+        steps: vec![
+            StepSpec {
+                end: 1.0,
+                increments: increments_per_unit,
+            },
+            StepSpec {
+                end: 3.0,
+                increments: 2 * increments_per_unit,
+            },
+        ],
+        responses: vec![
+            ResponseSpec::Reaction {
+                name: "stress".into(),
+                set: "cube.xmax".into(),
+                component: Component::X,
+            },
+            ResponseSpec::Displacement {
+                name: "strain".into(),
+                set: "cube.xmax".into(),
+                component: Component::X,
+            },
+            ResponseSpec::History {
+                name: "alpha".into(),
+                body: "cube".into(),
+                element: 0,
+                point: 0,
+                variable: "alpha".into(),
             },
         ],
         solver: SolverSettings::default(),

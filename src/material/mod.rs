@@ -22,8 +22,10 @@
 //! | `C` | material tangent dS/dE (6x6 Voigt) |
 //! | `lambda`, `mu` | Lame constants, `lambda = E nu / ((1+nu)(1-2nu))`, `mu = E / (2(1+nu))` |
 
+pub mod j2;
 pub mod svk;
 
+pub use j2::J2Plasticity;
 pub use svk::StVenantKirchhoff;
 
 use crate::scalar::Scalar;
@@ -69,6 +71,10 @@ pub trait MaterialLaw: Send + Sync + std::fmt::Debug {
     /// Number of history scalars per Gauss point (0 for elastic laws: they pay for none).
     fn history_len(&self) -> usize {
         0
+    }
+    /// Names of the history scalars of a Gauss point (`history_len` of them).
+    fn history_names(&self) -> &'static [&'static str] {
+        &[]
     }
     /// Stress update. `p` are the parameters lifted to `S` (same order as `params`),
     /// `hist_old` the committed history, `hist_new` receives the updated history.

@@ -1,0 +1,1086 @@
+//! J2 (von Mises) elastoplasticity with isotropic hardening: radial return and its consistent
+//! tangent, generic over the scalar so that one kernel gives values (`f64`), design
+//! sensitivities (`Dual64`, `DualSVec64<N>`) and strain derivatives.
+//!
+//! ## Model
+//! Total-Lagrangian additive split of the Green-Lagrange strain:
+//!
+//! ```text
+//! E = E^e + E^p,       S = lambda tr(E - E^p) I + 2 mu (E - E^p)      (S = C : (E - E^p))
+//! f(S, alpha) = |dev S| - sqrt(2/3) k(alpha)                            (von Mises on PK2)
+//! dE^p/dt = gamma n,   n = dev S / |dev S|,   dalpha/dt = sqrt(2/3) gamma   (associated flow)
+//! gamma >= 0,  f <= 0,  gamma f = 0
+//! ```
+//!
+//! Hardening laws ([`Hardening`]):
+//! * `Linear { h }`: `k(alpha) = sigma_y + H alpha`; parameters `[E, nu, sigma_y, H]`;
+//! * `Saturation { h, sigma_inf, delta }` (Voce plus linear):
+//!   `k(alpha) = sigma_y + H alpha + (sigma_inf - sigma_y)(1 - exp(-delta alpha))`;
+//!   parameters `[E, nu, sigma_y, H, sigma_inf, delta]`.
+//!
+//! In uniaxial stress `alpha` equals the axial plastic strain and `k` is the uniaxial flow
+//! stress, so `H` is the plastic modulus of a tensile test.
+//!
+//! Under small kinematics the element passes the linear strain `eps` in place of `E` and the
+//! same code is classical small-strain J2 plasticity with `S` the Cauchy stress.
+//!
+//! | symbol | code | meaning |
+//! |---|---|---|
+//! | `E` | `strain` | Green-Lagrange strain (linear strain under small kinematics) |
+//! | `E^p` | `ep_old`, `ep_new` | plastic strain (tensor components) |
+//! | `alpha` | `alpha_old`, `alpha_new` | equivalent plastic strain |
+//! | `S` | `stress` | second Piola-Kirchhoff stress (Cauchy under small kinematics) |
+//! | `lambda`, `mu`, `kappa` | same | Lame constants, bulk modulus `lambda + 2 mu / 3` |
+//! | `sigma_y`, `H` | `p[2]`, `p[3]` | initial yield stress, linear hardening modulus |
+//! | `sigma_inf`, `delta` | `p[4]`, `p[5]` | saturation stress, saturation rate (Voce) |
+//! | `k`, `k'` | `k`, `kp` | flow stress `k(alpha)` and its slope `dk/dalpha` |
+//! | `xi_tr` | `xi_trial` | trial stress deviator `2 mu dev(E - E^p_n)` |
+//! | `f_tr` | `f_trial` | trial yield function `|xi_tr| - sqrt(2/3) k(alpha_n)` |
+//! | `Dgamma` | `dgamma` | plastic multiplier of the step |
+//! | `theta`, `theta_bar` | `theta`, `theta_bar` | factors of the consistent tangent |
+//!
+//! ## Algorithm (Simo & Hughes 1998, Boxes 3.1 and 3.2)
+//! 1. Trial state: `S_tr = C : (E - E^p_n)`, `xi_tr = dev S_tr`,
+//!    `f_tr = |xi_tr| - sqrt(2/3) k(alpha_n)`.
+//! 2. Branch: plastic if `re(f_tr) > 0`, unless `frozen` imposes one. Elastic: `S = S_tr`,
+//!    history unchanged, tangent `C`.
+//! 3. Plastic: solve
+//!    `g(Dgamma) = |xi_tr| - 2 mu Dgamma - sqrt(2/3) k(alpha_n + sqrt(2/3) Dgamma) = 0`.
+//!    Linear law: `Dgamma = f_tr / (2 mu + 2 H / 3)`, closed form in `S`. Saturation law: scalar
+//!    Newton on real parts to 1e-13 relative (on `g` or on the step), then one Newton step in
+//!    `S` from the converged value, whose derivative part is the implicit-function-theorem
+//!    derivative `-(dg/db) / (dg/dDgamma)`, exact. (`g` is convex and decreasing for
+//!    `k'' <= 0`, so Newton from `Dgamma = 0` converges monotonically.)
+//! 4. `n = xi_tr / |xi_tr|`, `S = S_tr - 2 mu Dgamma n`, `E^p = E^p_n + Dgamma n`,
+//!    `alpha = alpha_n + sqrt(2/3) Dgamma`.
+//! 5. Consistent tangent, with `theta = 1 - 2 mu Dgamma / |xi_tr|` and
+//!    `theta_bar = 1 / (1 + k'(alpha) / (3 mu)) - (1 - theta)`:
+//!    `C_alg = kappa 1 (x) 1 + 2 mu theta (I - 1 (x) 1 / 3) - 2 mu theta_bar n (x) n`.
+//!
+//! Every quantity is computed in the scalar type `S`; only branch decisions and the Newton
+//! iterations of step 3 use real parts. A zero trial deviator (hydrostatic or zero state) is
+//! guarded: its norm goes through [`safe_norm_tensor`] and `n = 0`, so dual evaluations there
+//! give finite derivatives. With `frozen = Some(Branch::Plastic)` at a state with `f_tr <= 0`
+//! the return formulas are still evaluated (they stay defined, `Dgamma <= 0`): this is the
+//! smooth continuation of the plastic branch that a perturbed (SDM) evaluation needs.
+//!
+//! `yield_ratio = re(f_tr) / (sqrt(2/3) re(k(alpha_n)))`.
+//!
+//! ## History (7 scalars per Gauss point)
+//! `[Ep11, Ep22, Ep33, Ep12, Ep23, Ep13, alpha]`, tensor components (not engineering shears),
+//! zero initially. In a sensitivity analysis the history is carried as dual numbers: the
+//! derivative parts of step `n` enter step `n + 1` (design notes, section 3).
+//!
+//! ## Limits
+//! * The additive split of the Green-Lagrange strain is objective (`E` is invariant under rigid
+//!   rotations, so rotations of any size are handled exactly) but it is not the
+//!   multiplicative `F = F^e F^p` of finite-strain plasticity: it is meant for small elastic
+//!   strains and moderate plastic strains (a few percent), with large rotations allowed.
+//! * Yield is measured on the deviator of PK2, not of the Kirchhoff/Cauchy stress; the two agree
+//!   to first order in the strain. `tr E^p = 0` is plastic incompressibility only to first
+//!   order (`det F^p = 1` is not enforced).
+//! * Rate-independent, isothermal, isotropic hardening only (no kinematic hardening, so no
+//!   Bauschinger effect); `k' >= 0` is assumed (no softening), which [`J2Plasticity::validate`]
+//!   checks.
+
+use super::{
+    isotropic_tangent, lame, stress_to_voigt, Branch, MaterialLaw, PointResponse, Tangent,
+};
+use crate::scalar::{safe_norm_tensor, Scalar};
+use nalgebra::Matrix3;
+use serde::{Deserialize, Serialize};
+
+/// `sqrt(2/3)`.
+const SQRT_2_3: f64 = 0.816_496_580_927_726;
+/// Relative tolerance of the local Newton iteration on `Dgamma` (saturation law).
+const NEWTON_TOL: f64 = 1e-13;
+/// Iteration cap of the local Newton iteration (monotone convergence: never reached in practice).
+const NEWTON_MAX_ITER: usize = 60;
+
+/// Isotropic hardening law: the flow stress `k(alpha)` as a function of the equivalent plastic
+/// strain `alpha` (values here are the scene data; [`MaterialLaw::update`] reads the parameters
+/// from its `p` slice so that any of them can be seeded).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "law", rename_all = "snake_case")]
+pub enum Hardening {
+    /// `k = sigma_y + H alpha`.
+    Linear {
+        /// Hardening modulus `H`.
+        h: f64,
+    },
+    /// `k = sigma_y + H alpha + (sigma_inf - sigma_y)(1 - exp(-delta alpha))` (Voce plus linear).
+    Saturation {
+        /// Linear hardening modulus `H`.
+        h: f64,
+        /// Saturation stress `sigma_inf` (`>= sigma_y`).
+        sigma_inf: f64,
+        /// Saturation rate `delta` (`>= 0`).
+        delta: f64,
+    },
+}
+
+/// An invalid parameter of [`J2Plasticity`].
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("J2 plasticity: parameter {name} = {value} is invalid ({requirement})")]
+pub struct J2ParamError {
+    /// Parameter name, as in [`MaterialLaw::param_names`].
+    pub name: &'static str,
+    /// The offending value.
+    pub value: f64,
+    /// What the value must satisfy.
+    pub requirement: &'static str,
+}
+
+/// J2 elastoplasticity with isotropic hardening on the additive Green-strain split (see the
+/// module documentation for the model and its limits).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "J2Spec", into = "J2Spec")]
+pub struct J2Plasticity {
+    /// Which law; its values live in `params` only, so `params_mut` cannot desynchronise them.
+    saturation: bool,
+    /// `[E, nu, sigma_y, H, sigma_inf, delta]`; the last two are unused (zero) for `Linear`.
+    params: [f64; 6],
+}
+
+/// Serialized form: named fields, validated on reading.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct J2Spec {
+    young: f64,
+    poisson: f64,
+    sigma_y: f64,
+    hardening: Hardening,
+}
+
+impl TryFrom<J2Spec> for J2Plasticity {
+    type Error = J2ParamError;
+    fn try_from(s: J2Spec) -> Result<Self, J2ParamError> {
+        let m = Self::new(s.young, s.poisson, s.sigma_y, s.hardening);
+        m.validate()?;
+        Ok(m)
+    }
+}
+
+impl From<J2Plasticity> for J2Spec {
+    fn from(m: J2Plasticity) -> Self {
+        J2Spec {
+            young: m.params[0],
+            poisson: m.params[1],
+            sigma_y: m.params[2],
+            hardening: m.hardening(),
+        }
+    }
+}
+
+impl J2Plasticity {
+    /// Names of the history scalars, in storage order.
+    pub const HISTORY_NAMES: [&'static str; 7] =
+        ["Ep11", "Ep22", "Ep33", "Ep12", "Ep23", "Ep13", "alpha"];
+
+    /// Young's modulus, Poisson's ratio, initial yield stress and a hardening law (unchecked;
+    /// see [`J2Plasticity::validate`]).
+    pub fn new(young: f64, poisson: f64, sigma_y: f64, hardening: Hardening) -> Self {
+        match hardening {
+            Hardening::Linear { h } => Self {
+                saturation: false,
+                params: [young, poisson, sigma_y, h, 0.0, 0.0],
+            },
+            Hardening::Saturation {
+                h,
+                sigma_inf,
+                delta,
+            } => Self {
+                saturation: true,
+                params: [young, poisson, sigma_y, h, sigma_inf, delta],
+            },
+        }
+    }
+
+    /// Linear isotropic hardening `k = sigma_y + H alpha`; parameters `[E, nu, sigma_y, H]`.
+    pub fn linear(young: f64, poisson: f64, sigma_y: f64, h: f64) -> Self {
+        Self::new(young, poisson, sigma_y, Hardening::Linear { h })
+    }
+
+    /// Voce plus linear hardening; parameters `[E, nu, sigma_y, H, sigma_inf, delta]`.
+    pub fn saturation(
+        young: f64,
+        poisson: f64,
+        sigma_y: f64,
+        h: f64,
+        sigma_inf: f64,
+        delta: f64,
+    ) -> Self {
+        Self::new(
+            young,
+            poisson,
+            sigma_y,
+            Hardening::Saturation {
+                h,
+                sigma_inf,
+                delta,
+            },
+        )
+    }
+
+    /// The hardening law, with its current parameter values.
+    pub fn hardening(&self) -> Hardening {
+        let p = &self.params;
+        if self.saturation {
+            Hardening::Saturation {
+                h: p[3],
+                sigma_inf: p[4],
+                delta: p[5],
+            }
+        } else {
+            Hardening::Linear { h: p[3] }
+        }
+    }
+
+    /// Checks `E > 0`, `-1 < nu < 1/2`, `sigma_y > 0`, `H >= 0`, and for the saturation law
+    /// `sigma_inf >= sigma_y`, `delta >= 0` (so that `k' >= 0`), all finite.
+    pub fn validate(&self) -> Result<(), J2ParamError> {
+        let names = self.param_names();
+        let check = |i: usize, ok: bool, requirement: &'static str| {
+            let value = self.params[i];
+            if ok && value.is_finite() {
+                Ok(())
+            } else {
+                Err(J2ParamError {
+                    name: names[i],
+                    value,
+                    requirement,
+                })
+            }
+        };
+        let p = &self.params;
+        check(0, p[0] > 0.0, "E > 0")?;
+        check(1, p[1] > -1.0 && p[1] < 0.5, "-1 < nu < 1/2")?;
+        check(2, p[2] > 0.0, "sigma_y > 0")?;
+        check(3, p[3] >= 0.0, "H >= 0")?;
+        if self.saturation {
+            check(4, p[4] >= p[2], "sigma_inf >= sigma_y")?;
+            check(5, p[5] >= 0.0, "delta >= 0")?;
+        }
+        Ok(())
+    }
+}
+
+/// The flow stress with parameters of scalar type `T`.
+#[derive(Clone, Copy, Debug)]
+struct FlowStress<T> {
+    sigma_y: T,
+    h: T,
+    /// `(sigma_inf - sigma_y, delta)` for the saturation law.
+    saturation: Option<(T, T)>,
+}
+
+impl<T: Scalar> FlowStress<T> {
+    fn from_params(saturation: bool, p: &[T]) -> Self {
+        Self {
+            sigma_y: p[2],
+            h: p[3],
+            saturation: saturation.then(|| (p[4] - p[2], p[5])),
+        }
+    }
+
+    fn re(&self) -> FlowStress<f64> {
+        FlowStress {
+            sigma_y: self.sigma_y.value(),
+            h: self.h.value(),
+            saturation: self.saturation.map(|(q, d)| (q.value(), d.value())),
+        }
+    }
+
+    /// `(k(alpha), k'(alpha))`.
+    #[inline]
+    fn eval(&self, alpha: T) -> (T, T) {
+        let lin = self.sigma_y + self.h * alpha;
+        match self.saturation {
+            None => (lin, self.h),
+            Some((q, delta)) => {
+                let decay = (-(delta * alpha)).exp();
+                (lin + q * (-decay + 1.0), self.h + q * delta * decay)
+            }
+        }
+    }
+
+    /// Consistency residual `g(Dgamma)` and its slope `g'(Dgamma)`.
+    #[inline]
+    fn consistency(&self, xi_norm: T, two_mu: T, alpha_old: T, dgamma: T) -> (T, T) {
+        let (k, kp) = self.eval(alpha_old + dgamma * SQRT_2_3);
+        (
+            xi_norm - two_mu * dgamma - k * SQRT_2_3,
+            -(two_mu + kp * (2.0 / 3.0)),
+        )
+    }
+}
+
+/// Plastic multiplier of the step: closed form (linear law) or real Newton iterations plus one
+/// final Newton step in `S` (implicit-function-theorem derivative).
+fn plastic_multiplier<S: Scalar>(
+    law: &FlowStress<S>,
+    xi_norm: S,
+    two_mu: S,
+    alpha_old: S,
+    f_trial: S,
+) -> S {
+    if law.saturation.is_none() {
+        return f_trial / (two_mu + law.h * (2.0 / 3.0));
+    }
+    let law_re = law.re();
+    let (xi_re, two_mu_re, alpha_re) = (xi_norm.value(), two_mu.value(), alpha_old.value());
+    let scale = xi_re.max(law_re.eval(alpha_re).0.abs() * SQRT_2_3);
+    let mut x = 0.0;
+    for _ in 0..NEWTON_MAX_ITER {
+        let (g, dg) = law_re.consistency(xi_re, two_mu_re, alpha_re, x);
+        let step = -g / dg;
+        x += step;
+        if g.abs() <= NEWTON_TOL * scale || step.abs() <= NEWTON_TOL * x.abs() {
+            break;
+        }
+    }
+    let x = S::lift(x);
+    let (g, dg) = law.consistency(xi_norm, two_mu, alpha_old, x);
+    x - g / dg
+}
+
+/// `C_alg = kappa 1(x)1 + 2 mu theta (I - 1(x)1/3) - 2 mu theta_bar n(x)n` in Voigt form
+/// (`dS_voigt = C dE_voigt`, engineering shear strains).
+fn algorithmic_tangent<S: Scalar>(
+    lambda: S,
+    mu: S,
+    theta: S,
+    theta_bar: S,
+    n: &Matrix3<S>,
+) -> Tangent<S> {
+    let kappa = lambda + mu * (2.0 / 3.0);
+    let a = mu * theta * 2.0;
+    let b = mu * theta_bar * 2.0;
+    let nv = stress_to_voigt(n);
+    let mut c = Tangent::<S>::zeros();
+    for i in 0..6 {
+        for j in 0..6 {
+            c[(i, j)] = -(b * nv[i] * nv[j]);
+        }
+    }
+    let vol = kappa - a * (1.0 / 3.0);
+    for i in 0..3 {
+        for j in 0..3 {
+            c[(i, j)] += vol;
+        }
+        c[(i, i)] += a;
+        c[(i + 3, i + 3)] += a * 0.5;
+    }
+    c
+}
+
+impl MaterialLaw for J2Plasticity {
+    fn name(&self) -> &'static str {
+        "j2"
+    }
+
+    fn param_names(&self) -> &'static [&'static str] {
+        if self.saturation {
+            &["E", "nu", "sigma_y", "H", "sigma_inf", "delta"]
+        } else {
+            &["E", "nu", "sigma_y", "H"]
+        }
+    }
+
+    fn params(&self) -> &[f64] {
+        let n = if self.saturation { 6 } else { 4 };
+        &self.params[..n]
+    }
+
+    fn params_mut(&mut self) -> &mut [f64] {
+        let n = if self.saturation { 6 } else { 4 };
+        &mut self.params[..n]
+    }
+
+    fn history_len(&self) -> usize {
+        7
+    }
+    fn history_names(&self) -> &'static [&'static str] {
+        &Self::HISTORY_NAMES
+    }
+
+    fn update<S: Scalar>(
+        &self,
+        p: &[S],
+        strain: &Matrix3<S>,
+        hist_old: &[S],
+        hist_new: &mut [S],
+        frozen: Option<Branch>,
+    ) -> PointResponse<S> {
+        debug_assert!(p.len() >= self.params().len());
+        debug_assert!(hist_old.len() >= 7 && hist_new.len() >= 7);
+        let (lambda, mu) = lame(p[0], p[1]);
+        let two_mu = mu * 2.0;
+        let law = FlowStress::from_params(self.saturation, p);
+        let h = hist_old;
+        let ep_old = Matrix3::new(h[0], h[3], h[5], h[3], h[1], h[4], h[5], h[4], h[2]);
+        let alpha_old = h[6];
+
+        // Trial state.
+        let ee = (strain + strain.transpose()) * S::lift(0.5) - ep_old;
+        let s_trial = ee * two_mu + Matrix3::from_diagonal_element(lambda * ee.trace());
+        let xi_trial = s_trial - Matrix3::from_diagonal_element(s_trial.trace() * (1.0 / 3.0));
+        let xi_norm = safe_norm_tensor(&xi_trial);
+        let r_old = law.eval(alpha_old).0 * SQRT_2_3;
+        let f_trial = xi_norm - r_old;
+        let yield_ratio = f_trial.value() / r_old.value().max(f64::MIN_POSITIVE);
+
+        let branch = frozen.unwrap_or(if f_trial.value() > 0.0 {
+            Branch::Plastic
+        } else {
+            Branch::Elastic
+        });
+        if branch == Branch::Elastic {
+            hist_new[..7].copy_from_slice(&hist_old[..7]);
+            return PointResponse {
+                stress: s_trial,
+                tangent: isotropic_tangent(lambda, mu),
+                branch,
+                yield_ratio,
+            };
+        }
+
+        // Radial return.
+        let dgamma = plastic_multiplier(&law, xi_norm, two_mu, alpha_old, f_trial);
+        let (n, one_minus_theta) = if xi_norm.value() > 0.0 {
+            let inv = xi_norm.recip();
+            (xi_trial * inv, two_mu * dgamma * inv)
+        } else {
+            (Matrix3::zeros(), S::zero())
+        };
+        let stress = s_trial - n * (two_mu * dgamma);
+        let ep_new = ep_old + n * dgamma;
+        let alpha_new = alpha_old + dgamma * SQRT_2_3;
+        hist_new[..7].copy_from_slice(&[
+            ep_new[(0, 0)],
+            ep_new[(1, 1)],
+            ep_new[(2, 2)],
+            ep_new[(0, 1)],
+            ep_new[(1, 2)],
+            ep_new[(0, 2)],
+            alpha_new,
+        ]);
+
+        let kp = law.eval(alpha_new).1;
+        let theta = -one_minus_theta + 1.0;
+        let theta_bar = (kp / (mu * 3.0) + 1.0).recip() - one_minus_theta;
+        PointResponse {
+            stress,
+            tangent: algorithmic_tangent(lambda, mu, theta, theta_bar, &n),
+            branch,
+            yield_ratio,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::{strain_to_voigt, voigt_to_strain, Voigt};
+    use approx::assert_relative_eq;
+    use nalgebra::{Rotation3, Vector3};
+    use num_dual::{Dual64, DualSVec64};
+    use proptest::prelude::*;
+
+    // Oracle material (shared/oracles.md section 1), MPa.
+    const YOUNG: f64 = 200e3;
+    const NU: f64 = 0.3;
+    const SIGMA_Y: f64 = 250.0;
+    const H: f64 = 10e3;
+    const EPS_A: f64 = 0.01;
+
+    fn oracle_material() -> J2Plasticity {
+        J2Plasticity::linear(YOUNG, NU, SIGMA_Y, H)
+    }
+
+    fn saturation_material() -> J2Plasticity {
+        J2Plasticity::saturation(YOUNG, NU, SIGMA_Y, 2e3, 400.0, 150.0)
+    }
+
+    fn lifted<S: Scalar>(v: &[f64]) -> Vec<S> {
+        v.iter().map(|x| S::lift(*x)).collect()
+    }
+
+    /// Flow stress written out independently of the kernel.
+    fn flow_stress(m: &J2Plasticity, alpha: f64) -> f64 {
+        let p = m.params();
+        match m.hardening() {
+            Hardening::Linear { .. } => p[2] + p[3] * alpha,
+            Hardening::Saturation { .. } => {
+                p[2] + p[3] * alpha + (p[4] - p[2]) * (1.0 - (-p[5] * alpha).exp())
+            }
+        }
+    }
+
+    fn dev(a: &Matrix3<f64>) -> Matrix3<f64> {
+        a - Matrix3::identity() * (a.trace() / 3.0)
+    }
+
+    /// Symmetric tensor from tensor components `[11, 22, 33, 12, 23, 13]`.
+    fn sym(v: [f64; 6]) -> Matrix3<f64> {
+        Matrix3::new(v[0], v[3], v[5], v[3], v[1], v[4], v[5], v[4], v[2])
+    }
+
+    fn history_of(ep: &Matrix3<f64>, alpha: f64) -> [f64; 7] {
+        [
+            ep[(0, 0)],
+            ep[(1, 1)],
+            ep[(2, 2)],
+            ep[(0, 1)],
+            ep[(1, 2)],
+            ep[(0, 2)],
+            alpha,
+        ]
+    }
+
+    /// A prior plastic state: deviatoric plastic strain and a consistent alpha.
+    fn prior_history() -> [f64; 7] {
+        let ep = dev(&sym([1.2e-3, -0.4e-3, 0.1e-3, 0.3e-3, -0.2e-3, 0.5e-3]));
+        history_of(&ep, SQRT_2_3 * ep.norm() * 1.5)
+    }
+
+    /// One uniaxial-stress step at the Gauss point: axial strain `e11` imposed, lateral strains
+    /// `E22`, `E33` solved so that `S22 = S33 = 0` (Newton with the returned tangent on real
+    /// parts, then one correction in `S` so the lateral strains carry their derivative parts).
+    /// Returns the response, the new history and the real lateral strains.
+    fn uniaxial_step<S: Scalar>(
+        m: &J2Plasticity,
+        p: &[S],
+        e11: S,
+        lat_guess: [f64; 2],
+        hist_old: &[S; 7],
+    ) -> (PointResponse<S>, [S; 7], [f64; 2]) {
+        let strain = |l1: S, l2: S| Matrix3::from_diagonal(&Vector3::new(e11, l1, l2));
+        let mut hist_new = [S::zero(); 7];
+        let mut lat = lat_guess;
+        let mut kmat = [[0.0; 2]; 2];
+        for it in 0..50 {
+            let r = m.update(
+                p,
+                &strain(S::lift(lat[0]), S::lift(lat[1])),
+                hist_old,
+                &mut hist_new,
+                None,
+            );
+            let res = [r.stress[(1, 1)].value(), r.stress[(2, 2)].value()];
+            let c = &r.tangent;
+            kmat = [
+                [c[(1, 1)].value(), c[(1, 2)].value()],
+                [c[(2, 1)].value(), c[(2, 2)].value()],
+            ];
+            let scale = r.stress[(0, 0)].value().abs().max(1.0);
+            if res[0].abs().max(res[1].abs()) <= 1e-14 * scale && it > 0 {
+                break;
+            }
+            let d = solve2(&kmat, [res[0], res[1]]);
+            lat[0] -= d[0];
+            lat[1] -= d[1];
+            assert!(it < 49, "uniaxial driver did not converge");
+        }
+        // Final correction in S: the derivative parts of the lateral strains.
+        let r = m.update(
+            p,
+            &strain(S::lift(lat[0]), S::lift(lat[1])),
+            hist_old,
+            &mut hist_new,
+            None,
+        );
+        let det = kmat[0][0] * kmat[1][1] - kmat[0][1] * kmat[1][0];
+        let (r1, r2) = (r.stress[(1, 1)], r.stress[(2, 2)]);
+        let d1 = (r1 * kmat[1][1] - r2 * kmat[0][1]) * (1.0 / det);
+        let d2 = (r2 * kmat[0][0] - r1 * kmat[1][0]) * (1.0 / det);
+        let (l1, l2) = (S::lift(lat[0]) - d1, S::lift(lat[1]) - d2);
+        let r = m.update(p, &strain(l1, l2), hist_old, &mut hist_new, None);
+        (r, hist_new, [l1.value(), l2.value()])
+    }
+
+    fn solve2(k: &[[f64; 2]; 2], b: [f64; 2]) -> [f64; 2] {
+        let det = k[0][0] * k[1][1] - k[0][1] * k[1][0];
+        [
+            (b[0] * k[1][1] - b[1] * k[0][1]) / det,
+            (b[1] * k[0][0] - b[0] * k[1][0]) / det,
+        ]
+    }
+
+    /// The oracle cycle 0 -> +EPS_A (20 steps) -> -EPS_A (40 steps), committing history each
+    /// step. Returns the axial stress at +EPS_A and at -EPS_A. With `drop_parts` the history is
+    /// lifted from its real parts between steps (sensitivities of the history discarded).
+    fn oracle_cycle<S: Scalar>(m: &J2Plasticity, p: &[S], drop_parts: bool) -> (S, S) {
+        let path: Vec<f64> = (1..=20)
+            .map(|i| EPS_A * i as f64 / 20.0)
+            .chain((1..=40).map(|i| EPS_A - 2.0 * EPS_A * i as f64 / 40.0))
+            .collect();
+        let mut hist = [S::zero(); 7];
+        let mut lat = [0.0; 2];
+        let mut s_max = S::zero();
+        let mut s_end = S::zero();
+        for (i, e) in path.iter().enumerate() {
+            let (r, h, l) = uniaxial_step(m, p, S::lift(*e), lat, &hist);
+            hist = if drop_parts {
+                h.map(|x| S::lift(x.value()))
+            } else {
+                h
+            };
+            lat = l;
+            if i == 19 {
+                s_max = r.stress[(0, 0)];
+            }
+            s_end = r.stress[(0, 0)];
+        }
+        (s_max, s_end)
+    }
+
+    /// Oracle section 1, loading branch: `E (sigma_y + H eps) / (E + H)`.
+    fn oracle_loading<D: Scalar>(e: D, sy: D, h: D, eps: f64) -> D {
+        e * (sy + h * eps) / (e + h)
+    }
+
+    /// Oracle section 1, after reversal from `EPS_A`:
+    /// `E (H eps - sigma_y - 2 H eps_p1) / (E + H)`, `eps_p1 = (E eps_a - sigma_y) / (E + H)`.
+    fn oracle_reversed<D: Scalar>(e: D, sy: D, h: D, eps: f64) -> D {
+        let eps_p1 = (e * EPS_A - sy) / (e + h);
+        e * (h * eps - sy - h * eps_p1 * 2.0) / (e + h)
+    }
+
+    fn rel_err(a: f64, b: f64) -> f64 {
+        (a - b).abs() / b.abs()
+    }
+
+    #[test]
+    fn oracle_uniaxial_cycle_linear_hardening() {
+        let m = oracle_material();
+        let (s_max, s_end) = oracle_cycle::<f64>(&m, m.params(), false);
+        let exact_max = oracle_loading(YOUNG, SIGMA_Y, H, EPS_A);
+        let exact_end = oracle_reversed(YOUNG, SIGMA_Y, H, -EPS_A);
+        // The closed forms reproduce the worked digits of oracles.md.
+        assert!((exact_max - 333.333333).abs() < 5e-7);
+        assert!((exact_end + 492.063492).abs() < 5e-7);
+        println!(
+            "oracle: sigma_max rel err {:.2e}, sigma(-eps_a) rel err {:.2e}",
+            rel_err(s_max, exact_max),
+            rel_err(s_end, exact_end)
+        );
+        assert_relative_eq!(s_max, exact_max, max_relative = 1e-8);
+        assert_relative_eq!(s_end, exact_end, max_relative = 1e-8);
+    }
+
+    /// The parameter vector with parameter `k` seeded.
+    fn seeded_params(m: &J2Plasticity, k: usize) -> Vec<Dual64> {
+        m.params()
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                if i == k {
+                    Dual64::new(*v, 1.0)
+                } else {
+                    Dual64::from(*v)
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn oracle_history_sensitivities_after_reversal() {
+        let m = oracle_material();
+        let d = |a: f64, b: f64| Dual64::new(a, b);
+        let c = Dual64::from;
+        // (seeded parameter index, closed-form derivative, worked digits from oracles.md)
+        let cases = [
+            (
+                2,
+                oracle_reversed(c(YOUNG), d(SIGMA_Y, 1.0), c(H), -EPS_A).eps,
+                -0.86167800,
+                5e-9,
+            ),
+            (
+                3,
+                oracle_reversed(c(YOUNG), c(SIGMA_Y), d(H, 1.0), -EPS_A).eps,
+                -0.022297808,
+                5e-10,
+            ),
+            // oracles.md prints -2.6832978e-4 here, which disagrees with its own formula from
+            // the 7th digit on; the formula (differentiated exactly, also with sympy) gives
+            // -2.68329554e-4, which the model reproduces.
+            (
+                0,
+                oracle_reversed(d(YOUNG, 1.0), c(SIGMA_Y), c(H), -EPS_A).eps,
+                -2.68329554e-4,
+                5e-13,
+            ),
+        ];
+        for (k, exact, worked, digits) in cases {
+            assert!(
+                (exact - worked).abs() < digits,
+                "closed form {exact} vs {worked}"
+            );
+            let (_, s_end) = oracle_cycle(&m, &seeded_params(&m, k), false);
+            println!(
+                "d sigma / d {}: {:.10e}, rel err {:.2e}",
+                m.param_names()[k],
+                s_end.eps,
+                rel_err(s_end.eps, exact)
+            );
+            assert_relative_eq!(s_end.eps, exact, max_relative = 1e-8);
+        }
+    }
+
+    #[test]
+    fn dropping_history_sensitivities_gives_wrong_derivatives() {
+        // Documents why the history stores its derivative parts: lifting it from real parts
+        // between steps keeps the values but loses d(E^p)/db and d(alpha)/db.
+        let m = oracle_material();
+        for k in [0, 2, 3] {
+            let p = seeded_params(&m, k);
+            let (_, right) = oracle_cycle(&m, &p, false);
+            let (_, wrong) = oracle_cycle(&m, &p, true);
+            println!(
+                "d sigma / d {}: carried {:.6e}, dropped {:.6e}",
+                m.param_names()[k],
+                right.eps,
+                wrong.eps
+            );
+            assert_relative_eq!(right.re, wrong.re, max_relative = 1e-12);
+            assert!(
+                rel_err(wrong.eps, right.eps) > 0.01,
+                "param {k}: dropped {} vs carried {}",
+                wrong.eps,
+                right.eps
+            );
+        }
+    }
+
+    /// Tangent returned in f64 against the DualSVec64<6> derivative of the stress.
+    fn check_tangent(m: &J2Plasticity, strain: &Matrix3<f64>, hist: &[f64; 7], expect: Branch) {
+        let mut h_new = [0.0; 7];
+        let r = m.update(m.params(), strain, hist, &mut h_new, None);
+        assert_eq!(r.branch, expect);
+        let v = strain_to_voigt(strain);
+        let vd: Voigt<DualSVec64<6>> =
+            Voigt::from_fn(|k, _| DualSVec64::<6>::from_re(v[k]).derivative(k));
+        let ed = voigt_to_strain(&vd);
+        let mut hd_new = [DualSVec64::<6>::from_re(0.0); 7];
+        let rd = m.update(
+            &lifted(m.params()),
+            &ed,
+            &lifted::<DualSVec64<6>>(hist),
+            &mut hd_new,
+            None,
+        );
+        let sv = stress_to_voigt(&rd.stress);
+        let jac = Tangent::<f64>::from_fn(|i, k| sv[i].part(k));
+        let scale = r.tangent.amax();
+        assert_relative_eq!(jac, r.tangent, epsilon = 1e-9 * scale, max_relative = 1e-9);
+    }
+
+    #[test]
+    fn consistent_tangent_equals_dual_derivative() {
+        let hist = prior_history();
+        let ep = sym([hist[0], hist[1], hist[2], hist[3], hist[4], hist[5]]);
+        let dir = dev(&sym([1.0, -0.3, -0.2, 0.6, 0.25, -0.4]));
+        let vol = Matrix3::identity() * 2e-4;
+        for m in [oracle_material(), saturation_material()] {
+            let (_, mu) = lame(YOUNG, NU);
+            let r_old = SQRT_2_3 * flow_stress(&m, hist[6]);
+            // Deviatoric trial-strain magnitude putting |xi_trial| at `ratio` times r_old.
+            let at = |ratio: f64| ep + dir * (ratio * r_old / (2.0 * mu * dir.norm())) + vol;
+            check_tangent(&m, &at(0.6), &hist, Branch::Elastic);
+            check_tangent(&m, &at(5.0), &hist, Branch::Plastic);
+            let just = at(1.0 + 1e-8);
+            let mut h_new = [0.0; 7];
+            let r = m.update(m.params(), &just, &hist, &mut h_new, None);
+            assert!(r.yield_ratio > 0.0 && r.yield_ratio < 1e-7);
+            check_tangent(&m, &just, &hist, Branch::Plastic);
+            // A general (non-proportional) plastic state from a random-looking strain.
+            let general = sym([4e-3, -1e-3, 2e-3, 3e-3, -2.5e-3, 1e-3]);
+            check_tangent(&m, &general, &hist, Branch::Plastic);
+        }
+    }
+
+    #[test]
+    fn unloading_is_elastic_and_reloading_yields_at_hardened_flow_stress() {
+        let m = oracle_material();
+        let p = m.params();
+        let mut hist = [0.0; 7];
+        let mut lat = [0.0; 2];
+        for i in 1..=20 {
+            let (_, h, l) = uniaxial_step(&m, p, EPS_A * i as f64 / 20.0, lat, &hist);
+            hist = h;
+            lat = l;
+        }
+        let alpha = hist[6];
+        assert!(alpha > 0.0);
+        // Unloading step: elastic branch, elastic tangent, history unchanged.
+        let (r, h_unl, lat_unl) = uniaxial_step(&m, p, 0.9 * EPS_A, lat, &hist);
+        assert_eq!(r.branch, Branch::Elastic);
+        let (lambda, mu) = lame(YOUNG, NU);
+        assert_eq!(r.tangent, isotropic_tangent(lambda, mu));
+        assert_eq!(h_unl, hist);
+        // Reloading from the unloaded state: bisect on the branch for the re-yield strain.
+        let (mut lo, mut hi) = (0.9 * EPS_A, 1.02 * EPS_A);
+        assert_eq!(
+            uniaxial_step(&m, p, hi, lat_unl, &h_unl).0.branch,
+            Branch::Plastic
+        );
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            match uniaxial_step(&m, p, mid, lat_unl, &h_unl).0.branch {
+                Branch::Elastic => lo = mid,
+                Branch::Plastic => hi = mid,
+            }
+        }
+        let s_reyield = uniaxial_step(&m, p, lo, lat_unl, &h_unl).0.stress[(0, 0)];
+        assert_relative_eq!(s_reyield, SIGMA_Y + H * alpha, max_relative = 1e-10);
+        assert!(s_reyield > 1.3 * SIGMA_Y);
+        assert_relative_eq!(
+            s_reyield,
+            oracle_loading(YOUNG, SIGMA_Y, H, EPS_A),
+            max_relative = 1e-10
+        );
+    }
+
+    #[test]
+    fn dual_real_part_equals_f64_evaluation() {
+        let hist = prior_history();
+        let strain = sym([6e-3, -2e-3, 1e-3, 2e-3, -1e-3, 3e-3]);
+        for m in [oracle_material(), saturation_material()] {
+            let mut h = [0.0; 7];
+            let r = m.update(m.params(), &strain, &hist, &mut h, None);
+            assert_eq!(r.branch, Branch::Plastic);
+            for k in 0..m.params().len() {
+                let mut hd = [Dual64::from(0.0); 7];
+                let hist_d = hist.map(|x| Dual64::new(x, 1e-3 * x));
+                let rd = m.update(
+                    &seeded_params(&m, k),
+                    &strain.map(Dual64::from),
+                    &hist_d,
+                    &mut hd,
+                    None,
+                );
+                assert_eq!(rd.branch, r.branch);
+                assert_eq!(rd.yield_ratio, r.yield_ratio);
+                let scale = r.stress.amax();
+                assert_relative_eq!(
+                    rd.stress.map(|x| x.re),
+                    r.stress,
+                    epsilon = 1e-14 * scale,
+                    max_relative = 1e-14
+                );
+                assert_relative_eq!(
+                    rd.tangent.map(|x| x.re),
+                    r.tangent,
+                    epsilon = 1e-14 * r.tangent.amax(),
+                    max_relative = 1e-14
+                );
+                for (a, b) in hd.iter().zip(h.iter()) {
+                    assert_relative_eq!(a.re, *b, epsilon = 1e-14 * hist[6], max_relative = 1e-14);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn frozen_branches() {
+        let m = saturation_material();
+        let hist = prior_history();
+        let ep = sym([hist[0], hist[1], hist[2], hist[3], hist[4], hist[5]]);
+        let (lambda, mu) = lame(YOUNG, NU);
+        // Frozen elastic at a plastic trial state: the elastic trial stress, history unchanged.
+        let strain = sym([6e-3, -2e-3, 1e-3, 2e-3, -1e-3, 3e-3]);
+        let mut h = [0.0; 7];
+        let r = m.update(m.params(), &strain, &hist, &mut h, Some(Branch::Elastic));
+        assert!(r.yield_ratio > 0.0);
+        assert_eq!(r.branch, Branch::Elastic);
+        let ee = strain - ep;
+        let trial = ee * (2.0 * mu) + Matrix3::identity() * (lambda * ee.trace());
+        assert_relative_eq!(r.stress, trial, max_relative = 1e-13, epsilon = 1e-10);
+        assert_eq!(h, hist);
+        // Frozen plastic at an elastic trial state: defined, Dgamma < 0, and the stress lies on
+        // the yield surface of the (decreased) alpha: the smooth continuation of the branch.
+        let strain = ep + sym([2e-4, -1e-4, 0.0, 1e-4, 0.0, 0.0]);
+        let r = m.update(m.params(), &strain, &hist, &mut h, Some(Branch::Plastic));
+        assert!(r.yield_ratio < 0.0);
+        assert_eq!(r.branch, Branch::Plastic);
+        assert!(h[6] < hist[6]);
+        let f = dev(&r.stress).norm() - SQRT_2_3 * flow_stress(&m, h[6]);
+        assert!(f.abs() < 1e-10 * SIGMA_Y);
+    }
+
+    #[test]
+    fn zero_deviator_gives_finite_derivatives() {
+        for m in [oracle_material(), saturation_material()] {
+            let hydro = Matrix3::identity() * 1e-3;
+            for strain in [Matrix3::zeros(), hydro] {
+                for frozen in [None, Some(Branch::Plastic)] {
+                    let v = strain_to_voigt(&strain);
+                    let vd: Voigt<DualSVec64<6>> =
+                        Voigt::from_fn(|k, _| DualSVec64::<6>::from_re(v[k]).derivative(k));
+                    let mut h = [DualSVec64::<6>::from_re(0.0); 7];
+                    let r = m.update(
+                        &lifted(m.params()),
+                        &voigt_to_strain(&vd),
+                        &[DualSVec64::<6>::from_re(0.0); 7],
+                        &mut h,
+                        frozen,
+                    );
+                    for x in r.stress.iter().chain(r.tangent.iter()).chain(h.iter()) {
+                        assert!(x.re.is_finite());
+                        assert!((0..6).all(|k| x.part(k).is_finite()));
+                    }
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+        #[test]
+        fn return_map_properties(
+            g in proptest::array::uniform9(-1.0f64..1.0),
+            log_size in -4.0f64..-1.5,
+            epd in proptest::array::uniform5(-1e-3f64..1e-3),
+            alpha_extra in 0.0f64..0.05,
+            w in proptest::array::uniform3(-3.0f64..3.0),
+            saturation in any::<bool>(),
+        ) {
+            let m = if saturation { saturation_material() } else { oracle_material() };
+            let ep = sym([epd[0], epd[1], -epd[0] - epd[1], epd[2], epd[3], epd[4]]);
+            let alpha_old = SQRT_2_3 * ep.norm() + alpha_extra;
+            let hist = history_of(&ep, alpha_old);
+            let f = Matrix3::identity() + Matrix3::from_row_slice(&g) * 10f64.powf(log_size);
+            let green = |f: &Matrix3<f64>| (f.transpose() * f - Matrix3::identity()) * 0.5;
+            let strain = green(&f);
+            let mut h = [0.0; 7];
+            let r = m.update(m.params(), &strain, &hist, &mut h, None);
+            let (lambda, mu) = lame(YOUNG, NU);
+            match r.branch {
+                Branch::Plastic => {
+                    let k_new = flow_stress(&m, h[6]);
+                    let dev_s = dev(&r.stress);
+                    let f_new = dev_s.norm() - SQRT_2_3 * k_new;
+                    prop_assert!(f_new.abs() <= 1e-10 * k_new, "f = {f_new}");
+                    let dgamma = (h[6] - alpha_old) / SQRT_2_3;
+                    prop_assert!(dgamma >= 0.0);
+                    // Normality: E^p_new - E^p_old = Dgamma dev S / |dev S|.
+                    let dep = sym([h[0], h[1], h[2], h[3], h[4], h[5]]) - ep;
+                    let expected = dev_s * (dgamma / dev_s.norm());
+                    prop_assert!((dep - expected).amax() <= 1e-12 * dgamma.max(1e-6));
+                }
+                Branch::Elastic => {
+                    prop_assert!(r.yield_ratio <= 0.0);
+                    let ee = strain - ep;
+                    let s = ee * (2.0 * mu) + Matrix3::identity() * (lambda * ee.trace());
+                    prop_assert!((r.stress - s).amax() <= 1e-12 * s.amax().max(1.0));
+                    prop_assert_eq!(h, hist);
+                }
+            }
+            // Rigid rotation of the deformation: same Green strain, same update.
+            let q = Rotation3::new(Vector3::from(w));
+            let strain_q = green(&(q.matrix() * f));
+            let mut hq = [0.0; 7];
+            let rq = m.update(m.params(), &strain_q, &hist, &mut hq, None);
+            prop_assert_eq!(rq.branch, r.branch);
+            let scale = flow_stress(&m, alpha_old);
+            prop_assert!((rq.stress - r.stress).amax() <= 1e-10 * scale);
+            for (a, b) in hq.iter().zip(h.iter()) {
+                prop_assert!((a - b).abs() <= 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn parameters_names_and_validation() {
+        let lin = oracle_material();
+        assert_eq!(lin.param_names(), ["E", "nu", "sigma_y", "H"]);
+        assert_eq!(lin.params(), [YOUNG, NU, SIGMA_Y, H]);
+        let sat = J2Plasticity::saturation(1.0, 0.2, 3.0, 4.0, 5.0, 6.0);
+        assert_eq!(
+            sat.param_names(),
+            ["E", "nu", "sigma_y", "H", "sigma_inf", "delta"]
+        );
+        assert_eq!(sat.params(), [1.0, 0.2, 3.0, 4.0, 5.0, 6.0]);
+        assert_eq!(lin.history_len(), J2Plasticity::HISTORY_NAMES.len());
+        assert!(lin.validate().is_ok() && sat.validate().is_ok());
+        // The serde path (`try_from`) rejects what `validate` rejects.
+        let spec = J2Spec::from(J2Plasticity::linear(YOUNG, 0.5, SIGMA_Y, H));
+        let err = J2Plasticity::try_from(spec).unwrap_err();
+        assert_eq!(err.name, "nu");
+        let bad_sat = J2Plasticity::saturation(YOUNG, NU, SIGMA_Y, H, 0.5 * SIGMA_Y, 10.0);
+        assert_eq!(bad_sat.validate().unwrap_err().name, "sigma_inf");
+        let round = J2Plasticity::try_from(J2Spec::from(sat.clone())).unwrap();
+        assert_eq!(round, sat);
+        // A perturbed design (FDM rerun) through `params_mut` is seen by the hardening law.
+        let mut pert = sat.clone();
+        pert.params_mut()[4] = 7.5;
+        assert_eq!(pert.params().len(), 6);
+        assert_eq!(
+            pert.hardening(),
+            Hardening::Saturation {
+                h: 4.0,
+                sigma_inf: 7.5,
+                delta: 6.0
+            }
+        );
+        let mut lin_pert = lin.clone();
+        assert_eq!(lin_pert.params_mut().len(), 4);
+    }
+
+    /// Median cost of one call, ns.
+    fn median_ns(mut f: impl FnMut()) -> f64 {
+        let batch = 2000;
+        let mut samples: Vec<f64> = (0..101)
+            .map(|_| {
+                let t = std::time::Instant::now();
+                for _ in 0..batch {
+                    f();
+                }
+                t.elapsed().as_nanos() as f64 / batch as f64
+            })
+            .collect();
+        samples.sort_by(|a, b| a.total_cmp(b));
+        samples[samples.len() / 2]
+    }
+
+    fn bench_law<S: Scalar>(m: &J2Plasticity) -> f64 {
+        use std::hint::black_box;
+        let p: Vec<S> = m
+            .params()
+            .iter()
+            .enumerate()
+            .map(|(i, v)| S::seeded(*v, i % S::NPARTS.max(1)))
+            .collect();
+        let hist: [S; 7] = prior_history().map(S::lift);
+        let strain = sym([6e-3, -2e-3, 1e-3, 2e-3, -1e-3, 3e-3]).map(S::lift);
+        let mut h = [S::zero(); 7];
+        median_ns(|| {
+            let r = m.update(
+                black_box(&p),
+                black_box(&strain),
+                black_box(&hist),
+                &mut h,
+                None,
+            );
+            assert_eq!(r.branch, Branch::Plastic);
+            black_box(&r);
+        })
+    }
+
+    #[test]
+    #[ignore]
+    fn bench_plastic_update() {
+        for (name, m) in [
+            ("linear", oracle_material()),
+            ("saturation", saturation_material()),
+        ] {
+            println!(
+                "{name:>10}: f64 {:7.1} ns  Dual64 {:7.1} ns  DualSVec64<4> {:7.1} ns",
+                bench_law::<f64>(&m),
+                bench_law::<Dual64>(&m),
+                bench_law::<DualSVec64<4>>(&m)
+            );
+        }
+    }
+}
