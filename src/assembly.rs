@@ -6,6 +6,8 @@
 //! The residual is `R(z) = f_int(z) + f_spring(z) - f_ext(t)` over every unknown, including the
 //! constrained ones (where it is the reaction). Dirichlet conditions are applied by the solver.
 
+use crate::contact::assembly::{ContactError, ContactEval, ContactLayout};
+use crate::contact::ContactChoice;
 use crate::element::hex8::{self, ElementFailure, Hex8Input, Hex8Output, MAX_DOF, MAX_GEN};
 use crate::linalg::{LinalgError, SparseMatrix, SparsePattern};
 use crate::material::Branch;
@@ -29,14 +31,31 @@ pub struct Assembler {
     elem_hist: Vec<usize>,
     /// Pattern block of each spring.
     spring_block: Vec<usize>,
+    /// Pattern block of each element (`usize::MAX` for unassembled ones).
+    elem_block: Vec<usize>,
+    /// Contact blocks and offsets.
+    pub contact: ContactLayout,
 }
 
-/// An element that failed during assembly.
+/// Branch decisions imposed on an evaluation (SDM's frozen state, one-sided derivatives).
+#[derive(Clone, Copy, Debug)]
+pub struct Frozen<'a> {
+    /// Per Gauss point (8 per element).
+    pub gauss: &'a [Branch],
+    /// Per hitting node (flat over pairs).
+    pub contact: &'a [ContactChoice],
+}
+
+/// What failed during assembly, and where.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("element {element}: {failure}")]
-pub struct AssemblyFailure {
-    pub element: usize,
-    pub failure: ElementFailure,
+pub enum AssemblyFailure {
+    #[error("element {element}: {failure}")]
+    Element {
+        element: usize,
+        failure: ElementFailure,
+    },
+    #[error("{0}")]
+    Contact(ContactError),
 }
 
 /// Everything an evaluation produces besides the tangent.
@@ -54,12 +73,16 @@ pub struct Evaluation<S: Scalar> {
     pub cauchy: Vec<Matrix3<f64>>,
     /// Smallest det F over the model.
     pub min_det_f: f64,
+    /// Contact results.
+    pub contact: ContactEval<S>,
 }
 
 impl<S: Scalar> Evaluation<S> {
     /// An empty evaluation sized for a model.
-    pub fn new(dofs: &DofMap, n_elements: usize) -> Self {
+    pub fn new(asm: &Assembler, n_elements: usize) -> Self {
+        let dofs = &asm.dofs;
         Evaluation {
+            contact: ContactEval::new(asm.contact.n_hitting, asm.contact.lambda.len()),
             residual: vec![S::zero(); dofs.n_total],
             hist_new: vec![S::zero(); dofs.n_history],
             branches: vec![Branch::Elastic; 8 * n_elements],
@@ -127,8 +150,23 @@ impl Assembler {
             }
             blocks.push(d);
         }
+        let mut contact = ContactLayout::new(model, dofs.first_lambda, dofs.first_contact_history);
+        for pair_blocks in contact.blocks.iter_mut() {
+            for nb in pair_blocks.iter_mut() {
+                nb.pattern_block = blocks.len();
+                blocks.push(nb.dofs.clone());
+            }
+        }
         let refs: Vec<&[usize]> = blocks.iter().map(|b| b.as_slice()).collect();
         let pattern = std::sync::Arc::new(SparsePattern::new(dofs.n_total, &refs, extra)?);
+        let mut elem_block = vec![usize::MAX; ne];
+        let mut k = 0;
+        for (e, nd) in elem_ndof.iter().enumerate() {
+            if *nd > 0 {
+                elem_block[e] = k;
+                k += 1;
+            }
+        }
         Ok(Assembler {
             dofs,
             pattern,
@@ -136,21 +174,9 @@ impl Assembler {
             elem_ndof,
             elem_hist,
             spring_block,
+            elem_block,
+            contact,
         })
-    }
-
-    /// Pattern block index of element `e` (elements come first, in order, skipping unassembled
-    /// ones).
-    fn element_block(&self) -> Vec<usize> {
-        let mut v = vec![usize::MAX; self.elem_ndof.len()];
-        let mut k = 0;
-        for (e, nd) in self.elem_ndof.iter().enumerate() {
-            if *nd > 0 {
-                v[e] = k;
-                k += 1;
-            }
-        }
-        v
     }
 
     /// Global unknowns of element `e`.
@@ -168,7 +194,7 @@ impl Assembler {
         z: &[S],
         hist_old: &[S],
         time: f64,
-        frozen: Option<&[Branch]>,
+        frozen: Option<&Frozen<'_>>,
         mut tangent: Option<&mut SparseMatrix>,
         out: &mut Evaluation<S>,
     ) -> Result<(), AssemblyFailure> {
@@ -181,7 +207,6 @@ impl Assembler {
         out.min_det_f = f64::INFINITY;
         let want_k = tangent.is_some();
         let ne = model.mesh.elements.len();
-        let block_of = self.element_block();
         let mut locals: Vec<Local<S>> = Vec::new();
         let mut start = 0;
         while start < ne {
@@ -190,7 +215,9 @@ impl Assembler {
             let range: Vec<usize> = (start..end).collect();
             range
                 .par_iter()
-                .map(|&e| self.element_local(model, lifted, z, hist_old, frozen, e, want_k))
+                .map(|&e| {
+                    self.element_local(model, lifted, z, hist_old, frozen.map(|f| f.gauss), e, want_k)
+                })
                 .collect_into_vec(&mut locals);
             // scatter sequentially in element order (bit-identical whatever the thread count)
             for (off, loc) in locals.iter().enumerate() {
@@ -200,7 +227,7 @@ impl Assembler {
                     continue;
                 }
                 if let Some(f) = &loc.failure {
-                    return Err(AssemblyFailure {
+                    return Err(AssemblyFailure::Element {
                         element: e,
                         failure: f.clone(),
                     });
@@ -216,7 +243,7 @@ impl Assembler {
                 out.hist_new[h0..h0 + nh8].copy_from_slice(&loc.hist[..nh8]);
                 out.min_det_f = out.min_det_f.min(loc.min_det_f);
                 if let Some(k) = tangent.as_deref_mut() {
-                    k.add_block(block_of[e], &loc.tangent[..nd * nd])
+                    k.add_block(self.elem_block[e], &loc.tangent[..nd * nd])
                         .expect("element block of this pattern");
                 }
             }
@@ -252,6 +279,30 @@ impl Assembler {
                 }
                 k.add_block(self.spring_block[s], &local)
                     .expect("spring block of this pattern");
+            }
+        }
+        // contact
+        if !model.contacts.is_empty() {
+            let mut local = Vec::new();
+            crate::contact::assembly::evaluate(
+                model,
+                &self.contact,
+                lifted,
+                z,
+                hist_old,
+                time,
+                frozen.map(|f| f.contact),
+                want_k,
+                &mut out.residual,
+                &mut out.hist_new,
+                &mut out.contact,
+                &mut local,
+            )
+            .map_err(AssemblyFailure::Contact)?;
+            if let Some(k) = tangent.as_deref_mut() {
+                for (b, kt) in &local {
+                    k.add_block(*b, kt).expect("contact block of this pattern");
+                }
             }
         }
         // external loads

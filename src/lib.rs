@@ -31,6 +31,7 @@
 //! ```
 
 pub mod assembly;
+pub mod contact;
 pub mod element;
 pub mod linalg;
 pub mod material;

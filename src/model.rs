@@ -168,6 +168,10 @@ pub struct DofMap {
     pub history_offset: Vec<usize>,
     /// Total history length.
     pub n_history: usize,
+    /// First contact multiplier (all pairs follow, one per hitting node).
+    pub first_lambda: usize,
+    /// First contact history scalar.
+    pub first_contact_history: usize,
 }
 
 /// A complete analysis model.
@@ -180,6 +184,8 @@ pub struct Model {
     pub loads: Vec<NodalLoad>,
     /// End times of the load increments, increasing.
     pub times: Vec<f64>,
+    /// Contact pairs.
+    pub contacts: Vec<crate::contact::ContactPair>,
     /// Responses recorded at every increment.
     pub responses: Vec<crate::response::Response>,
     pub solver: SolverSettings,
@@ -199,6 +205,12 @@ pub enum DesignParam {
     Prescribed { index: usize },
     /// Magnitude of nodal load number `index`.
     Load { index: usize },
+    /// Friction-law parameter `index` of contact pair `pair` (0 = mu for Coulomb).
+    Friction { pair: usize, index: usize },
+    /// Magnitude of motion component `index` of a rigid target of pair `pair`.
+    RigidMotion { pair: usize, index: usize },
+    /// Tangential penalty stiffness of contact pair `pair`.
+    TangentialStiffness { pair: usize },
 }
 
 /// Model data lifted to a scalar type, design parameters substituted.
@@ -212,6 +224,12 @@ pub struct Lifted<S: Scalar> {
     pub prescribed: Vec<S>,
     /// Magnitudes of the nodal loads.
     pub loads: Vec<S>,
+    /// Friction-law parameters of each contact pair.
+    pub friction: Vec<Vec<S>>,
+    /// Rigid-target motion magnitudes of each pair.
+    pub rigid_motion: Vec<Vec<S>>,
+    /// Tangential penalty stiffness of each pair.
+    pub tangential: Vec<S>,
 }
 
 impl Model {
@@ -237,6 +255,12 @@ impl Model {
                 hist += 8 * nh;
             }
         }
+        let first_lambda = next;
+        let first_contact_history = hist;
+        for c in &self.contacts {
+            next += c.hitting.len();
+            hist += c.history_len() * c.hitting.len();
+        }
         DofMap {
             n_nodal,
             element_internal,
@@ -244,6 +268,8 @@ impl Model {
             element_body,
             history_offset,
             n_history: hist,
+            first_lambda,
+            first_contact_history,
         }
     }
 
@@ -263,6 +289,38 @@ impl Model {
             }
             DesignParam::Prescribed { index } => self.prescribed.get(index).map(|p| p.value),
             DesignParam::Load { index } => self.loads.get(index).map(|l| l.value),
+            DesignParam::Friction { pair, index } => self
+                .contacts
+                .get(pair)?
+                .friction
+                .as_ref()?
+                .params()
+                .get(index)
+                .copied(),
+            DesignParam::RigidMotion { pair, index } => match &self.contacts.get(pair)?.target {
+                crate::contact::Target::Rigid { motion, .. } => motion.get(index).map(|m| m.value),
+                _ => None,
+            },
+            DesignParam::TangentialStiffness { pair } => {
+                self.contacts.get(pair).map(|c| c.tangential_stiffness)
+            }
+        }
+    }
+
+    /// A length scale of the model: the diagonal of its reference bounding box.
+    pub fn characteristic_length(&self) -> f64 {
+        let x = self.mesh.coordinates::<f64>(&self.mesh.block_geometry());
+        let mut lo = nalgebra::Vector3::from_element(f64::INFINITY);
+        let mut hi = nalgebra::Vector3::from_element(f64::NEG_INFINITY);
+        for p in &x {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        let d = (hi - lo).norm();
+        if d.is_finite() && d > 0.0 {
+            d
+        } else {
+            1.0
         }
     }
 
@@ -277,6 +335,17 @@ impl Model {
             DesignParam::BlockOrigin { block, axis } => self.mesh.blocks[block].origin[axis] = v,
             DesignParam::Prescribed { index } => self.prescribed[index].value = v,
             DesignParam::Load { index } => self.loads[index].value = v,
+            DesignParam::Friction { pair, index } => {
+                if let Some(f) = self.contacts[pair].friction.as_mut() {
+                    f.set_param(index, v)
+                }
+            }
+            DesignParam::RigidMotion { pair, index } => {
+                if let crate::contact::Target::Rigid { motion, .. } = &mut self.contacts[pair].target {
+                    motion[index].value = v;
+                }
+            }
+            DesignParam::TangentialStiffness { pair } => self.contacts[pair].tangential_stiffness = v,
         }
     }
 
@@ -290,6 +359,29 @@ impl Model {
             .collect();
         let mut prescribed: Vec<S> = self.prescribed.iter().map(|p| S::lift(p.value)).collect();
         let mut loads: Vec<S> = self.loads.iter().map(|l| S::lift(l.value)).collect();
+        let mut friction: Vec<Vec<S>> = self
+            .contacts
+            .iter()
+            .map(|c| match &c.friction {
+                Some(f) => f.params().iter().map(|v| S::lift(*v)).collect(),
+                None => Vec::new(),
+            })
+            .collect();
+        let mut rigid_motion: Vec<Vec<S>> = self
+            .contacts
+            .iter()
+            .map(|c| match &c.target {
+                crate::contact::Target::Rigid { motion, .. } => {
+                    motion.iter().map(|m| S::lift(m.value)).collect()
+                }
+                _ => Vec::new(),
+            })
+            .collect();
+        let mut tangential: Vec<S> = self
+            .contacts
+            .iter()
+            .map(|c| S::lift(c.tangential_stiffness))
+            .collect();
         for (p, v) in overrides {
             match *p {
                 DesignParam::Material { body, index } => material[body][index] = *v,
@@ -297,6 +389,9 @@ impl Model {
                 DesignParam::BlockOrigin { block, axis } => geometry[block].origin[axis] = *v,
                 DesignParam::Prescribed { index } => prescribed[index] = *v,
                 DesignParam::Load { index } => loads[index] = *v,
+                DesignParam::Friction { pair, index } => friction[pair][index] = *v,
+                DesignParam::RigidMotion { pair, index } => rigid_motion[pair][index] = *v,
+                DesignParam::TangentialStiffness { pair } => tangential[pair] = *v,
             }
         }
         Lifted {
@@ -304,6 +399,9 @@ impl Model {
             material,
             prescribed,
             loads,
+            friction,
+            rigid_motion,
+            tangential,
         }
     }
 }

@@ -597,6 +597,7 @@ impl Scene {
             prescribed,
             loads,
             times,
+            contacts: Vec::new(),
             responses,
             solver: self.solver.clone(),
         };

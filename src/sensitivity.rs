@@ -31,7 +31,8 @@
 //! elastic/plastic transition: the increment is flagged, and for DDM the derivative is also
 //! computed with that point forced onto each branch — the one-sided derivatives.
 
-use crate::assembly::Evaluation;
+use crate::assembly::{Evaluation, Frozen};
+use crate::contact::{ContactChoice, ContactState};
 use crate::linalg::LinearSolver;
 use crate::material::Branch;
 use crate::model::{DesignParam, Lifted, Model};
@@ -364,9 +365,51 @@ impl<'a> Engine<'a> {
         }
     }
 
-    /// Gauss points sitting on the elastic/plastic transition.
+    /// Whether flat hitting node `k` belongs to a pair with friction.
+    fn friction_at(&self, c: &Converged<'_>, k: usize) -> bool {
+        let l = &c.assembler.contact;
+        (0..l.flat.len())
+            .rev()
+            .find(|p| l.flat[*p] <= k)
+            .map(|p| c.model.contacts[p].friction.is_some())
+            .unwrap_or(false)
+    }
+
+    /// Points sitting on a transition: yield onset, contact opening/closing, stick/slip.
     fn kinks(&self, c: &Converged<'_>) -> Vec<Kink> {
         let mut v = Vec::new();
+        let tol = self.settings.kink_tol;
+        // contact: normal distance relative to the largest normal force (closed) or to the
+        // pair's characteristic length (open); slip ratio for friction
+        let fmax = c
+            .eval
+            .contact
+            .normal_force
+            .iter()
+            .fold(0.0f64, |m, f| m.max(f.abs()));
+        for (k, (nd, sr)) in c.eval.contact.distance.iter().enumerate() {
+            let closed = c.eval.contact.choice[k].state != ContactState::Open;
+            let rel = if closed {
+                c.eval.contact.normal_force[k].abs() / fmax.max(f64::MIN_POSITIVE)
+            } else {
+                nd.abs() / c.model.characteristic_length()
+            };
+            if rel < tol {
+                v.push(Kink {
+                    kind: "contact",
+                    at: k,
+                    point: 0,
+                    distance: rel,
+                });
+            } else if closed && sr.abs() < tol {
+                v.push(Kink {
+                    kind: "friction",
+                    at: k,
+                    point: 0,
+                    distance: *sr,
+                });
+            }
+        }
         for (i, r) in c.eval.yield_ratio.iter().enumerate() {
             if *r != -1.0 && r.abs() < self.settings.kink_tol {
                 v.push(Kink {
@@ -422,7 +465,7 @@ impl<'a> Engine<'a> {
         &mut self,
         c: &Converged<'_>,
         ks: &[usize],
-        frozen: &[Branch],
+        frozen: &Frozen<'_>,
     ) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>), AnalysisError> {
         let n = c.z.len();
         let nh = c.hist_prev.len();
@@ -461,7 +504,7 @@ impl<'a> Engine<'a> {
                 S::with_parts(c.z[i], &parts)
             })
             .collect();
-        let mut ev = Evaluation::<S>::new(&c.assembler.dofs, ne);
+        let mut ev = Evaluation::<S>::new(c.assembler, ne);
         c.assembler
             .evaluate(c.model, &lifted, &z, &hist, c.time, Some(frozen), None, &mut ev)?;
         self.results.cost.residual_evaluations += 1;
@@ -514,7 +557,7 @@ impl<'a> Engine<'a> {
     fn ddm(
         &mut self,
         c: &Converged<'_>,
-        frozen: &[Branch],
+        frozen: &Frozen<'_>,
     ) -> Result<(Vec<Vec<f64>>, Vec<f64>, Vec<Vec<f64>>), AnalysisError> {
         let np = self.params.len();
         let nr = c.model.responses.len();
@@ -550,7 +593,7 @@ impl<'a> Engine<'a> {
         k: usize,
         db: f64,
         z_shift: Option<&[f64]>,
-        frozen: Option<&[Branch]>,
+        frozen: Option<&Frozen<'_>>,
         ev: &mut Evaluation<f64>,
     ) -> Result<(), AnalysisError> {
         let nh = c.hist_prev.len();
@@ -582,13 +625,17 @@ impl<'a> Engine<'a> {
         let n = c.z.len();
         let nh = c.hist_prev.len();
         let ne = c.model.mesh.elements.len();
+        let converged = Frozen {
+            gauss: &c.eval.branches,
+            contact: &c.eval.contact.choice,
+        };
         let frozen = if self.settings.freeze_branches {
-            Some(c.eval.branches.as_slice())
+            Some(&converged)
         } else {
             None
         };
-        let mut ev_p = Evaluation::<f64>::new(&c.assembler.dofs, ne);
-        let mut ev_m = Evaluation::<f64>::new(&c.assembler.dofs, ne);
+        let mut ev_p = Evaluation::<f64>::new(c.assembler, ne);
+        let mut ev_m = Evaluation::<f64>::new(c.assembler, ne);
         let mut rhs = vec![0.0; n * np];
         let mut dzc = vec![vec![0.0; n]; np];
         for k in 0..np {
@@ -659,7 +706,13 @@ impl Observer for Engine<'_> {
         let t0 = Instant::now();
         let kinks = self.kinks(c);
         let (dresp, dhist, dz) = match self.settings.method {
-            Method::Ddm => self.ddm(c, &c.eval.branches)?,
+            Method::Ddm => self.ddm(
+                c,
+                &Frozen {
+                    gauss: &c.eval.branches,
+                    contact: &c.eval.contact.choice,
+                },
+            )?,
             Method::Sdm => self.sdm(c, false)?,
             Method::SdmCentral => self.sdm(c, true)?,
             Method::Fdm | Method::FdmCentral => {
@@ -672,11 +725,37 @@ impl Observer for Engine<'_> {
         let one_sided = if !kinks.is_empty() && self.settings.method == Method::Ddm {
             let saved = self.dhist.clone();
             let mut sides = Vec::new();
-            for branch in [Branch::Elastic, Branch::Plastic] {
-                let mut frozen = c.eval.branches.clone();
+            for side in [0, 1] {
+                let mut gauss = c.eval.branches.clone();
+                let mut contact: Vec<ContactChoice> = c.eval.contact.choice.clone();
                 for k in &kinks {
-                    frozen[8 * k.at + k.point] = branch;
+                    match k.kind {
+                        "yield" => {
+                            gauss[8 * k.at + k.point] =
+                                [Branch::Elastic, Branch::Plastic][side];
+                        }
+                        "friction" => {
+                            contact[k.at].state = [ContactState::Stick, ContactState::Slip][side];
+                        }
+                        _ => {
+                            let closed = if c.eval.contact.choice[k.at].state == ContactState::Open {
+                                // closing: stick is the state a node enters
+                                if self.friction_at(c, k.at) {
+                                    ContactState::Stick
+                                } else {
+                                    ContactState::Closed
+                                }
+                            } else {
+                                c.eval.contact.choice[k.at].state
+                            };
+                            contact[k.at].state = [ContactState::Open, closed][side];
+                        }
+                    }
                 }
+                let frozen = Frozen {
+                    gauss: &gauss,
+                    contact: &contact,
+                };
                 let (d, _, _) = self.ddm(c, &frozen)?;
                 sides.push(d);
                 self.dhist.clone_from(&saved);

@@ -19,6 +19,7 @@
 //! carries the results computed so far.
 
 use crate::assembly::{Assembler, AssemblyFailure, Evaluation};
+use crate::element::hex8::ElementFailure;
 use crate::linalg::{LinalgError, LinearSolver, SparseMatrix};
 use crate::material::Branch;
 use crate::model::{Lifted, Model};
@@ -220,6 +221,13 @@ impl<'m> Solver<'m> {
                 }
             }
         }
+        for pair_blocks in &assembler.contact.blocks {
+            for b in pair_blocks {
+                for &d in &b.dofs {
+                    touched[d] = true;
+                }
+            }
+        }
         for (d, t) in touched.iter().enumerate() {
             if !t {
                 constrained[d] = true;
@@ -264,8 +272,9 @@ impl<'m> Solver<'m> {
         let ne = model.mesh.elements.len();
         let mut res = Results::default();
         let mut z = vec![0.0; n];
-        let mut hist = vec![0.0; self.assembler.dofs.n_history];
-        let mut eval = Evaluation::<f64>::new(&self.assembler.dofs, ne);
+        let mut hist = crate::contact::assembly::initial_history(model, &self.assembler, &self.lifted)
+            .map_err(|e| AnalysisError::Model(e.to_string()))?;
+        let mut eval = Evaluation::<f64>::new(&self.assembler, ne);
         res.times.push(0.0);
         res.states.push(z.clone());
         res.residuals.push(vec![0.0; n]);
@@ -341,16 +350,15 @@ impl<'m> Solver<'m> {
                                 partial: Box::new(res),
                             });
                         }
-                        if let AttemptFailure::Element(AssemblyFailure {
-                            failure:
-                                crate::element::hex8::ElementFailure::BadReferenceGeometry { .. },
-                            ..
-                        }) = why
+                        // a bad mesh does not improve with a smaller step
+                        if let AttemptFailure::Element(
+                            f @ AssemblyFailure::Element {
+                                failure: ElementFailure::BadReferenceGeometry { .. },
+                                ..
+                            },
+                        ) = why
                         {
-                            // a bad mesh does not improve with a smaller step
-                            if let AttemptFailure::Element(f) = why {
-                                return Err(AnalysisError::Mesh(f));
-                            }
+                            return Err(AnalysisError::Mesh(f));
                         }
                         cutbacks += 1;
                         step *= 0.5;

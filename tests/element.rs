@@ -333,14 +333,14 @@ fn assembled_tangent_is_the_derivative_of_the_residual() {
         let ne = model.mesh.elements.len();
         let lifted = model.lifted::<f64>(&[]);
         let mut k = SparseMatrix::new(asm.pattern.clone());
-        let mut ev = Evaluation::<f64>::new(&asm.dofs, ne);
+        let mut ev = Evaluation::<f64>::new(&asm, ne);
         asm.evaluate(&model, &lifted, &z, &[], 0.5, None, Some(&mut k), &mut ev)
             .unwrap();
         // directional derivative of R along v by dual numbers: K v
         let v: Vec<f64> = (0..z.len()).map(|i| ((i as f64) * 1.3).cos()).collect();
         let zd: Vec<Dual64> = z.iter().zip(&v).map(|(a, b)| Dual64::new(*a, *b)).collect();
         let lifted_d = model.lifted::<Dual64>(&[]);
-        let mut evd = Evaluation::<Dual64>::new(&asm.dofs, ne);
+        let mut evd = Evaluation::<Dual64>::new(&asm, ne);
         asm.evaluate(&model, &lifted_d, &zd, &[], 0.5, None, None, &mut evd)
             .unwrap();
         let mut kv = vec![0.0; z.len()];
@@ -368,7 +368,7 @@ fn real_part_of_seeded_dual_evaluation_equals_f64() {
     let (model, z) = deformed_cantilever(Hex8Formulation::IncompatibleModes);
     let asm = Assembler::new(&model, &[]).unwrap();
     let ne = model.mesh.elements.len();
-    let mut ev = Evaluation::<f64>::new(&asm.dofs, ne);
+    let mut ev = Evaluation::<f64>::new(&asm, ne);
     asm.evaluate(
         &model,
         &model.lifted::<f64>(&[]),
@@ -388,7 +388,7 @@ fn real_part_of_seeded_dual_evaluation_equals_f64() {
         let v = model.param_value(p).unwrap();
         let lifted = model.lifted::<Dual64>(&[(p, Dual64::new(v, 1.0))]);
         let zd: Vec<Dual64> = z.iter().map(|x| Dual64::from_re(*x)).collect();
-        let mut evd = Evaluation::<Dual64>::new(&asm.dofs, ne);
+        let mut evd = Evaluation::<Dual64>::new(&asm, ne);
         asm.evaluate(&model, &lifted, &zd, &[], 0.5, None, None, &mut evd)
             .unwrap();
         let scale = ev.residual.iter().fold(0.0f64, |m, x| m.max(x.abs()));

@@ -1,0 +1,497 @@
+//! Contact in the global system: the fixed sparsity blocks of the hitting nodes, and the
+//! evaluation of every pair's residual, tangent (forward AD over each node's local unknowns),
+//! history update and branch decisions.
+//!
+//! Each hitting node owns one pattern block: its three displacement unknowns, the unknowns of
+//! every node of its candidate target faces (faces within the pair's search radius in the
+//! reference configuration) and its multiplier. The block never changes during a run, so the
+//! symbolic factorization is done once however far the node slides over its candidates.
+
+use super::geometry::closest_on_quads;
+use super::{
+    node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
+    KernelParams, Target, TargetGeom,
+};
+use crate::assembly::Assembler;
+use crate::model::{Lifted, Model};
+use crate::scalar::Scalar;
+use nalgebra::Vector3;
+use num_dual::DualSVec64;
+
+/// Local unknowns of one hitting node's block.
+#[derive(Clone, Debug)]
+pub struct NodeBlock {
+    /// Global unknowns of the block: 3 of the hitting node, 3 per target node, the multiplier.
+    pub dofs: Vec<usize>,
+    /// Target nodes of the block, in block order.
+    pub target_nodes: Vec<usize>,
+    /// Pattern block index (set by the assembler).
+    pub pattern_block: usize,
+}
+
+/// Contact layout of a model.
+#[derive(Clone, Debug, Default)]
+pub struct ContactLayout {
+    /// `blocks[pair][node]`.
+    pub blocks: Vec<Vec<NodeBlock>>,
+    /// First multiplier unknown of each pair.
+    pub lambda: Vec<usize>,
+    /// First history scalar of each pair.
+    pub history: Vec<usize>,
+    /// First flat hitting-node index of each pair (for per-node result arrays).
+    pub flat: Vec<usize>,
+    pub n_hitting: usize,
+}
+
+impl ContactLayout {
+    /// Lay out the multipliers after `first_lambda` and the histories after `first_history`.
+    pub fn new(model: &Model, first_lambda: usize, first_history: usize) -> Self {
+        let mut l = ContactLayout::default();
+        let mut next_l = first_lambda;
+        let mut next_h = first_history;
+        let mut flat = 0;
+        for pair in &model.contacts {
+            l.lambda.push(next_l);
+            l.history.push(next_h);
+            l.flat.push(flat);
+            let mut blocks = Vec::new();
+            for (i, &s) in pair.hitting.iter().enumerate() {
+                let mut target_nodes = Vec::new();
+                if let Target::Faces { faces } = &pair.target {
+                    for &f in &pair.candidates[i] {
+                        for &n in &faces[f] {
+                            if !target_nodes.contains(&n) {
+                                target_nodes.push(n);
+                            }
+                        }
+                    }
+                }
+                let mut dofs: Vec<usize> = (0..3).map(|c| 3 * s + c).collect();
+                for &n in &target_nodes {
+                    dofs.extend((0..3).map(|c| 3 * n + c));
+                }
+                dofs.push(next_l + i);
+                blocks.push(NodeBlock {
+                    dofs,
+                    target_nodes,
+                    pattern_block: usize::MAX,
+                });
+            }
+            next_l += pair.hitting.len();
+            next_h += pair.history_len() * pair.hitting.len();
+            flat += pair.hitting.len();
+            l.blocks.push(blocks);
+        }
+        l.n_hitting = flat;
+        l
+    }
+}
+
+/// Per-evaluation contact results.
+#[derive(Clone, Debug)]
+pub struct ContactEval<S: Scalar> {
+    /// Branch decisions per hitting node (flat over pairs).
+    pub choice: Vec<ContactChoice>,
+    /// Normal force per hitting node.
+    pub normal_force: Vec<S>,
+    /// Total contact force on each pair's target (minus the sum of the forces on its
+    /// hitting nodes): the reaction of a rigid target.
+    pub pair_force: Vec<Vector3<S>>,
+    /// Contact force per hitting node (real parts), for output.
+    pub force: Vec<Vector3<f64>>,
+    /// `(normal_distance, slip_ratio)` per hitting node.
+    pub distance: Vec<(f64, f64)>,
+}
+
+impl<S: Scalar> ContactEval<S> {
+    pub fn new(n_hitting: usize, n_pairs: usize) -> Self {
+        ContactEval {
+            choice: vec![ContactChoice::default(); n_hitting],
+            normal_force: vec![S::zero(); n_hitting],
+            pair_force: vec![Vector3::zeros(); n_pairs],
+            force: vec![Vector3::zeros(); n_hitting],
+            distance: vec![(f64::INFINITY, f64::INFINITY); n_hitting],
+        }
+    }
+}
+
+/// A contact failure with its place.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("contact pair '{pair}', hitting node {node}: {failure}")]
+pub struct ContactError {
+    pub pair: String,
+    pub node: usize,
+    pub failure: ContactFailure,
+}
+
+fn node_pos<S: Scalar>(lifted: &Lifted<S>, z: &[S], n: usize) -> Vector3<S> {
+    lifted.coords[n] + Vector3::new(z[3 * n], z[3 * n + 1], z[3 * n + 2])
+}
+
+/// Rigid translation of a pair's target at time `t`.
+pub fn rigid_translation<S: Scalar>(
+    pair: &ContactPair,
+    values: &[S],
+    t: f64,
+) -> Vector3<S> {
+    let mut d = Vector3::zeros();
+    if let Target::Rigid { motion, .. } = &pair.target {
+        for (m, v) in motion.iter().zip(values) {
+            d[m.component] += *v * m.amplitude.at(t);
+        }
+    }
+    d
+}
+
+/// Local tangent contributions of one node: `(row, col, value)` in block-local indices.
+type LocalTangent = Vec<f64>;
+
+/// Evaluate every contact pair: adds to `residual`, writes the friction history into
+/// `hist_new`, fills `out`, and returns the local tangents (block-major, dense) if wanted.
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate<S: Scalar>(
+    model: &Model,
+    layout: &ContactLayout,
+    lifted: &Lifted<S>,
+    z: &[S],
+    hist_old: &[S],
+    time: f64,
+    frozen: Option<&[ContactChoice]>,
+    want_tangent: bool,
+    residual: &mut [S],
+    hist_new: &mut [S],
+    out: &mut ContactEval<S>,
+    tangents: &mut Vec<(usize, LocalTangent)>,
+) -> Result<(), ContactError> {
+    tangents.clear();
+    for (p, pair) in model.contacts.iter().enumerate() {
+        out.pair_force[p] = Vector3::zeros();
+        let d: Vector3<S> = rigid_translation(pair, &lifted.rigid_motion[p], time);
+        let nh = pair.history_len();
+        let fparams = &lifted.friction[p];
+        let eps_t = lifted.tangential[p];
+        let par = KernelParams {
+            normal: pair.normal,
+            friction: pair.friction.as_ref(),
+            friction_params: fparams,
+            eps_t,
+            k: pair.constraint_scale,
+        };
+        for (i, &s) in pair.hitting.iter().enumerate() {
+            let flat = layout.flat[p] + i;
+            let block = &layout.blocks[p][i];
+            let lam_dof = layout.lambda[p] + i;
+            let h0 = layout.history[p] + nh * i;
+            let x = node_pos(lifted, z, s);
+            let lambda = z[lam_dof];
+            let err = |failure| ContactError {
+                pair: pair.name.clone(),
+                node: s,
+                failure,
+            };
+            let fz = frozen.map(|f| f[flat]);
+            // ---- branch decisions on real parts: contact face ----
+            let (face, xi_start) = match &pair.target {
+                Target::Faces { faces } => match fz {
+                    Some(c) => (c.face, [0.0, 0.0]),
+                    None => {
+                        let quads: Vec<[Vector3<f64>; 4]> = pair.candidates[i]
+                            .iter()
+                            .map(|&f| faces[f].map(|n| node_pos(lifted, z, n).map(|v| v.value())))
+                            .collect();
+                        let xr = x.map(|v| v.value());
+                        let (k, pr) = closest_on_quads(&xr, &quads, None)
+                            .map_err(|e| err(ContactFailure::Geometry(e.to_string())))?;
+                        (pair.candidates[i][k], [pr.xi[0], pr.xi[1]])
+                    }
+                },
+                Target::Rigid { .. } => (0, [0.0, 0.0]),
+            };
+            let target = match &pair.target {
+                Target::Faces { faces } => TargetGeom::Quad {
+                    nodes: faces[face].map(|n| node_pos(lifted, z, n)),
+                    xi_start,
+                },
+                Target::Rigid { surface, .. } => TargetGeom::Rigid { surface, d },
+            };
+            let anchor = if nh > 0 {
+                Some(match &pair.target {
+                    Target::Faces { faces } => {
+                        let af = hist_old[h0].value() as usize;
+                        AnchorGeom::Quad {
+                            nodes: faces[af.min(faces.len() - 1)].map(|n| node_pos(lifted, z, n)),
+                            xi: [hist_old[h0 + 1], hist_old[h0 + 2]],
+                        }
+                    }
+                    Target::Rigid { .. } => AnchorGeom::Rigid {
+                        x: Vector3::new(hist_old[h0], hist_old[h0 + 1], hist_old[h0 + 2]),
+                        d,
+                    },
+                })
+            } else {
+                None
+            };
+            let ko = node_kernel(&x, lambda, &target, anchor.as_ref(), &par, fz.map(|c| c.state))
+                .map_err(err)?;
+            // ---- residual ----
+            for c in 0..3 {
+                residual[3 * s + c] -= ko.force[c];
+            }
+            if let Target::Faces { faces } = &pair.target {
+                for (a, &n) in faces[face].iter().enumerate() {
+                    for c in 0..3 {
+                        residual[3 * n + c] += ko.weights[a] * ko.force[c];
+                    }
+                }
+            }
+            residual[lam_dof] += ko.r_lambda;
+            out.pair_force[p] += ko.force;
+            out.normal_force[flat] = ko.p_n;
+            out.force[flat] = ko.force.map(|v| v.value());
+            out.distance[flat] = (ko.normal_distance, ko.slip_ratio);
+            // ---- history: the stick anchor ----
+            let mut anchor_face = face;
+            if nh > 0 {
+                match (&pair.target, ko.state) {
+                    (_, ContactState::Stick) => {
+                        hist_new[h0..h0 + 3].copy_from_slice(&hist_old[h0..h0 + 3]);
+                        anchor_face = hist_old[h0].value() as usize;
+                    }
+                    (Target::Rigid { .. }, _) => {
+                        let a = ko.new_anchor - d;
+                        hist_new[h0..h0 + 3].copy_from_slice(&[a[0], a[1], a[2]]);
+                    }
+                    (Target::Faces { faces }, ContactState::Open | ContactState::Closed) => {
+                        hist_new[h0] = S::lift(face as f64);
+                        hist_new[h0 + 1] = ko.projection.xi[0];
+                        hist_new[h0 + 2] = ko.projection.xi[1];
+                        let _ = faces;
+                    }
+                    (Target::Faces { faces }, ContactState::Slip) => {
+                        // re-project the new anchor: which face is a real-part decision
+                        anchor_face = match fz {
+                            Some(c) => c.anchor_face,
+                            None => {
+                                let quads: Vec<[Vector3<f64>; 4]> = pair.candidates[i]
+                                    .iter()
+                                    .map(|&f| {
+                                        faces[f].map(|n| node_pos(lifted, z, n).map(|v| v.value()))
+                                    })
+                                    .collect();
+                                let pr = ko.new_anchor.map(|v| v.value());
+                                let (k, _) = closest_on_quads(&pr, &quads, None)
+                                    .map_err(|e| err(ContactFailure::Geometry(e.to_string())))?;
+                                pair.candidates[i][k]
+                            }
+                        };
+                        let nodes = faces[anchor_face].map(|n| node_pos(lifted, z, n));
+                        let pa = project_on_quad_s(&ko.new_anchor, &nodes).map_err(err)?;
+                        hist_new[h0] = S::lift(anchor_face as f64);
+                        hist_new[h0 + 1] = pa[0];
+                        hist_new[h0 + 2] = pa[1];
+                    }
+                }
+            }
+            out.choice[flat] = ContactChoice {
+                state: ko.state,
+                face,
+                anchor_face,
+            };
+            // ---- tangent by forward AD over the node's local unknowns ----
+            if want_tangent {
+                let kt = local_tangent(model, layout, lifted, z, hist_old, time, p, i, face, fz)
+                    .map_err(err)?;
+                tangents.push((block.pattern_block, kt));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn project_on_quad_s<S: Scalar>(
+    x: &Vector3<S>,
+    nodes: &[Vector3<S>; 4],
+) -> Result<[S; 2], ContactFailure> {
+    let p = super::geometry::project_on_quad(x, nodes, [0.0, 0.0])
+        .map_err(|e| ContactFailure::Geometry(e.to_string()))?;
+    Ok(p.xi)
+}
+
+/// Maximum number of seeded local unknowns: hitting node (3), contact face (12), anchor face
+/// (12), multiplier (1).
+const NSEED: usize = 28;
+type Ad = DualSVec64<NSEED>;
+
+/// The dense block tangent of one hitting node (rows and columns in block order), from one
+/// evaluation of the kernel with the node's local unknowns seeded.
+#[allow(clippy::too_many_arguments)]
+fn local_tangent<S: Scalar>(
+    model: &Model,
+    layout: &ContactLayout,
+    lifted: &Lifted<S>,
+    z: &[S],
+    hist_old: &[S],
+    time: f64,
+    p: usize,
+    i: usize,
+    face: usize,
+    fz: Option<ContactChoice>,
+) -> Result<Vec<f64>, ContactFailure> {
+    let pair = &model.contacts[p];
+    let block = &layout.blocks[p][i];
+    let nb = block.dofs.len();
+    let s = pair.hitting[i];
+    let nh = pair.history_len();
+    let h0 = layout.history[p] + nh * i;
+    let re3 = |v: Vector3<S>| v.map(|c| c.value());
+    let pos = |n: usize| re3(lifted.coords[n]) + Vector3::new(z[3 * n].value(), z[3 * n + 1].value(), z[3 * n + 2].value());
+    // seeds: slot -> block-local column
+    let mut slots: Vec<usize> = Vec::with_capacity(NSEED);
+    let seed = |v: f64, col: usize, slots: &mut Vec<usize>| {
+        let k = slots.len();
+        slots.push(col);
+        Ad::from_re(v).derivative(k)
+    };
+    let xs = pos(s);
+    let x = Vector3::new(
+        seed(xs[0], 0, &mut slots),
+        seed(xs[1], 1, &mut slots),
+        seed(xs[2], 2, &mut slots),
+    );
+    let local_of = |n: usize| block.target_nodes.iter().position(|&m| m == n);
+    let mut seeded_nodes: Vec<(usize, Vector3<Ad>)> = Vec::new();
+    let mut node_ad = |n: usize, slots: &mut Vec<usize>| -> Vector3<Ad> {
+        if let Some((_, v)) = seeded_nodes.iter().find(|(m, _)| *m == n) {
+            return *v;
+        }
+        let xn = pos(n);
+        let col = 3 + 3 * local_of(n).expect("target node in block");
+        let v = Vector3::new(
+            seed(xn[0], col, slots),
+            seed(xn[1], col + 1, slots),
+            seed(xn[2], col + 2, slots),
+        );
+        seeded_nodes.push((n, v));
+        v
+    };
+    let fparams: Vec<Ad> = lifted.friction[p].iter().map(|v| Ad::from_re(v.value())).collect();
+    let eps_t = Ad::from_re(lifted.tangential[p].value());
+    let rv: Vec<Ad> = lifted.rigid_motion[p].iter().map(|v| Ad::from_re(v.value())).collect();
+    let d: Vector3<Ad> = rigid_translation(pair, &rv, time);
+    let (target, contact_nodes) = match &pair.target {
+        Target::Faces { faces } => {
+            let nodes = faces[face].map(|n| node_ad(n, &mut slots));
+            (
+                TargetGeom::Quad {
+                    nodes,
+                    xi_start: [0.0, 0.0],
+                },
+                Some(faces[face]),
+            )
+        }
+        Target::Rigid { surface, .. } => (TargetGeom::Rigid { surface, d }, None),
+    };
+    let anchor = if nh > 0 {
+        Some(match &pair.target {
+            Target::Faces { faces } => {
+                let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
+                let nodes = faces[af].map(|n| node_ad(n, &mut slots));
+                AnchorGeom::Quad {
+                    nodes,
+                    xi: [
+                        Ad::from_re(hist_old[h0 + 1].value()),
+                        Ad::from_re(hist_old[h0 + 2].value()),
+                    ],
+                }
+            }
+            Target::Rigid { .. } => AnchorGeom::Rigid {
+                x: Vector3::new(
+                    Ad::from_re(hist_old[h0].value()),
+                    Ad::from_re(hist_old[h0 + 1].value()),
+                    Ad::from_re(hist_old[h0 + 2].value()),
+                ),
+                d,
+            },
+        })
+    } else {
+        None
+    };
+    let lam_col = nb - 1;
+    let lambda = seed(z[layout.lambda[p] + i].value(), lam_col, &mut slots);
+    let par = KernelParams {
+        normal: pair.normal,
+        friction: pair.friction.as_ref(),
+        friction_params: &fparams,
+        eps_t,
+        k: pair.constraint_scale,
+    };
+    let ko = node_kernel(&x, lambda, &target, anchor.as_ref(), &par, fz.map(|c| c.state))?;
+    let mut kt = vec![0.0; nb * nb];
+    let mut add_row = |row: usize, v: &Ad| {
+        for (k, &col) in slots.iter().enumerate() {
+            kt[row * nb + col] += v.eps.0.map(|m| m[k]).unwrap_or(0.0);
+        }
+    };
+    for c in 0..3 {
+        add_row(c, &(-ko.force[c]));
+    }
+    if let Some(cn) = contact_nodes {
+        for (a, &n) in cn.iter().enumerate() {
+            let row = 3 + 3 * local_of(n).expect("target node in block");
+            for c in 0..3 {
+                add_row(row + c, &(ko.weights[a] * ko.force[c]));
+            }
+        }
+    }
+    add_row(lam_col, &ko.r_lambda);
+    Ok(kt)
+}
+
+/// The history at t = 0: zero for the materials; for every frictional hitting node the stick
+/// anchor at the projection of its reference position (generic, so shape parameters that move
+/// the reference position carry into the anchor's sensitivity).
+pub fn initial_history<S: Scalar>(
+    model: &Model,
+    asm: &Assembler,
+    lifted: &Lifted<S>,
+) -> Result<Vec<S>, ContactError> {
+    let layout = &asm.contact;
+    let mut h = vec![S::zero(); asm.dofs.n_history];
+    for (p, pair) in model.contacts.iter().enumerate() {
+        if pair.history_len() == 0 {
+            continue;
+        }
+        let d: Vector3<S> = rigid_translation(pair, &lifted.rigid_motion[p], 0.0);
+        for (i, &s) in pair.hitting.iter().enumerate() {
+            let h0 = layout.history[p] + 3 * i;
+            let x = lifted.coords[s];
+            let err = |e: super::geometry::GeometryError| ContactError {
+                pair: pair.name.clone(),
+                node: s,
+                failure: ContactFailure::Geometry(e.to_string()),
+            };
+            match &pair.target {
+                Target::Rigid { surface, .. } => {
+                    let pr = surface.project(&x, &d).map_err(err)?;
+                    let a = pr.point - d;
+                    h[h0..h0 + 3].copy_from_slice(&[a[0], a[1], a[2]]);
+                }
+                Target::Faces { faces } => {
+                    let quads: Vec<[Vector3<f64>; 4]> = pair.candidates[i]
+                        .iter()
+                        .map(|&f| faces[f].map(|n| lifted.coords[n].map(|v| v.value())))
+                        .collect();
+                    let xr = x.map(|v| v.value());
+                    let (k, _) = closest_on_quads(&xr, &quads, None).map_err(err)?;
+                    let f = pair.candidates[i][k];
+                    let nodes = faces[f].map(|n| lifted.coords[n]);
+                    let pr = super::geometry::project_on_quad(&x, &nodes, [0.0, 0.0]).map_err(err)?;
+                    h[h0] = S::lift(f as f64);
+                    h[h0 + 1] = pr.xi[0];
+                    h[h0 + 2] = pr.xi[1];
+                }
+            }
+        }
+    }
+    Ok(h)
+}

@@ -1,0 +1,341 @@
+//! Node-to-segment frictional contact.
+//!
+//! A contact pair joins a set of hitting (slave) nodes of a deformable body to a target (master)
+//! surface: the bilinear quad faces of a deformable body, or an analytic rigid surface moving
+//! with a prescribed translation `d(t)`.
+//!
+//! ## Normal contact
+//! For each hitting node the closest-point projection onto the target gives the contact point
+//! `xbar`, its convected coordinates `xi`, the outward normal `n` and the gap
+//! `g = (x - xbar) . n` (positive = open; [`geometry`]). The normal force `p_n >= 0` is
+//! * a Lagrange multiplier `lambda` (an unknown of the global system, eqs. 13-14 and 25-26 of
+//!   the paper) with the primal-dual active set rule: the node is active when
+//!   `lambda - k g > 0` (real parts); active rows enforce `-k g = 0`, inactive ones `lambda = 0`,
+//!   so the sparsity pattern never changes (`k` only scales the rows to force units);
+//! * or a penalty force `p_n = eps_N <-g>` (the multiplier stays zero). The penalty is cheaper
+//!   and smooth but lets the bodies interpenetrate by `p_n / eps_N`; Lagrange multipliers are
+//!   exact but make the system indefinite (LU).
+//!
+//! ## Friction
+//! A stick anchor per hitting node, a material point of the target (on a rigid body: a point in
+//! the body's frame; on a deformable target: a face and its `xi`), is carried as history. The
+//! elastic slip is `g_T = (I - n n)(x - x_anchor)`, the trial force `t_trial = -eps_T g_T`, and
+//! the [`friction::FrictionLaw`] returns it to its slip surface. On slip the anchor moves to
+//! `x + t / eps_T` (projected on the target), so the elastic slip keeps the returned force;
+//! while a node is open the anchor follows the contact point. The anchor is carried across
+//! segment boundaries by re-projection, so large sliding needs no special case.
+//!
+//! ## Residual and tangent
+//! The contact force `f = p_n n + t` acts on the hitting node (`r_s -= f`) and is distributed
+//! to the contact face nodes by the shape functions at `xi` (`r_a += N_a(xi) f`). The kernel
+//! [`node_kernel`] is generic over the scalar: with `f64` it gives the residual (and SDM's
+//! perturbed residual), with `Dual64` DDM's pseudo-load, and with `DualSVec64<N>` seeded on the
+//! node's local unknowns its exact, unsymmetric consistent tangent (forward AD; eq. 43).
+//! Which face is closest is a branch decision taken on real parts, like stick/slip.
+
+pub mod assembly;
+pub mod friction;
+pub mod geometry;
+
+use crate::model::Amplitude;
+use crate::scalar::Scalar;
+use friction::{Coulomb, FrictionBranch, FrictionLaw};
+use geometry::{project_on_quad, Projection, RigidSurface};
+use nalgebra::Vector3;
+
+/// A shipped friction law (enum dispatch; see [`friction::FrictionLaw`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "law", rename_all = "kebab-case")]
+pub enum Friction {
+    Coulomb(Coulomb),
+}
+
+/// Call `$body` with `$f` bound to the concrete law inside a [`Friction`].
+#[macro_export]
+macro_rules! with_friction {
+    ($fr:expr, $f:ident => $body:expr) => {
+        match $fr {
+            $crate::contact::Friction::Coulomb($f) => $body,
+        }
+    };
+}
+
+impl Friction {
+    pub fn params(&self) -> &[f64] {
+        with_friction!(self, f => f.params())
+    }
+    pub fn param_names(&self) -> &'static [&'static str] {
+        with_friction!(self, f => f.param_names())
+    }
+    pub fn set_param(&mut self, i: usize, v: f64) {
+        with_friction!(self, f => f.params_mut()[i] = v)
+    }
+    pub fn name(&self) -> &'static str {
+        with_friction!(self, f => f.name())
+    }
+}
+
+/// How the normal force is computed.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "law", rename_all = "kebab-case")]
+pub enum NormalLaw {
+    /// Lagrange multiplier (exact impenetrability).
+    Lagrange,
+    /// Penalty `p_n = stiffness * <-g>` (force per unit penetration).
+    Penalty { stiffness: f64 },
+}
+
+/// One component of a rigid target's prescribed translation: `value * amplitude(t)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigidMotion {
+    pub component: usize,
+    pub value: f64,
+    pub amplitude: Amplitude,
+}
+
+/// What the hitting nodes touch.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Target {
+    /// Quad faces of a deformable body (outward oriented).
+    Faces { faces: Vec<[usize; 4]> },
+    /// An analytic rigid surface and its prescribed translation.
+    Rigid {
+        surface: RigidSurface,
+        motion: Vec<RigidMotion>,
+    },
+}
+
+/// A contact pair.
+#[derive(Clone, Debug)]
+pub struct ContactPair {
+    pub name: String,
+    /// Hitting nodes.
+    pub hitting: Vec<usize>,
+    /// Tributary reference area of each hitting node.
+    pub area: Vec<f64>,
+    pub target: Target,
+    pub normal: NormalLaw,
+    pub friction: Option<Friction>,
+    /// Tangential penalty stiffness `eps_T` (force per unit elastic slip).
+    pub tangential_stiffness: f64,
+    /// Row scale `k` of the multiplier constraints (force per unit gap).
+    pub constraint_scale: f64,
+    /// Candidate target faces of each hitting node (indices into `Target::Faces::faces`).
+    pub candidates: Vec<Vec<usize>>,
+}
+
+impl ContactPair {
+    /// History scalars per hitting node (the stick anchor), zero when frictionless.
+    pub fn history_len(&self) -> usize {
+        if self.friction.is_some() {
+            3
+        } else {
+            0
+        }
+    }
+}
+
+/// Contact state of a hitting node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+pub enum ContactState {
+    Open,
+    /// Closed, frictionless.
+    Closed,
+    Stick,
+    Slip,
+}
+
+impl ContactState {
+    /// Numeric code for VTK output: 0 open, 1 closed (frictionless), 2 stick, 3 slip.
+    pub fn code(self) -> f64 {
+        match self {
+            ContactState::Open => 0.0,
+            ContactState::Closed => 1.0,
+            ContactState::Stick => 2.0,
+            ContactState::Slip => 3.0,
+        }
+    }
+}
+
+/// The branch decisions of one hitting node: what SDM freezes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct ContactChoice {
+    pub state: ContactState,
+    /// Contact face (deformable target), index into the target's faces.
+    pub face: usize,
+    /// Face of the new anchor (deformable target).
+    pub anchor_face: usize,
+}
+
+impl Default for ContactChoice {
+    fn default() -> Self {
+        ContactChoice {
+            state: ContactState::Open,
+            face: 0,
+            anchor_face: 0,
+        }
+    }
+}
+
+/// Target geometry seen by the kernel.
+pub enum TargetGeom<'a, S: Scalar> {
+    Quad {
+        nodes: [Vector3<S>; 4],
+        xi_start: [f64; 2],
+    },
+    Rigid {
+        surface: &'a RigidSurface,
+        d: Vector3<S>,
+    },
+}
+
+/// Current position of the stick anchor.
+pub enum AnchorGeom<S: Scalar> {
+    Quad { nodes: [Vector3<S>; 4], xi: [S; 2] },
+    Rigid { x: Vector3<S>, d: Vector3<S> },
+}
+
+impl<S: Scalar> AnchorGeom<S> {
+    fn position(&self) -> Vector3<S> {
+        match self {
+            AnchorGeom::Quad { nodes, xi } => {
+                let n = bilinear(xi);
+                nodes[0] * n[0] + nodes[1] * n[1] + nodes[2] * n[2] + nodes[3] * n[3]
+            }
+            AnchorGeom::Rigid { x, d } => x + d,
+        }
+    }
+}
+
+/// Bilinear shape functions of a quad at `xi`.
+pub fn bilinear<S: Scalar>(xi: &[S; 2]) -> [S; 4] {
+    let q = 0.25;
+    let (a, b) = (xi[0], xi[1]);
+    let one = S::one();
+    [
+        (one - a) * (one - b) * q,
+        (one + a) * (one - b) * q,
+        (one + a) * (one + b) * q,
+        (one - a) * (one + b) * q,
+    ]
+}
+
+/// Parameters of the kernel, lifted.
+pub struct KernelParams<'a, S: Scalar> {
+    pub normal: NormalLaw,
+    pub friction: Option<&'a Friction>,
+    pub friction_params: &'a [S],
+    pub eps_t: S,
+    pub k: f64,
+}
+
+/// What the kernel returns for one hitting node.
+pub struct KernelOut<S: Scalar> {
+    /// Contact force on the hitting node, `p_n n + t` (the residual gets `-force`).
+    pub force: Vector3<S>,
+    /// Shape functions of the contact point on the contact face (deformable target).
+    pub weights: [S; 4],
+    /// Residual of the multiplier row.
+    pub r_lambda: S,
+    pub p_n: S,
+    pub state: ContactState,
+    /// Where the stick anchor goes (spatial position), for the history update.
+    pub new_anchor: Vector3<S>,
+    pub projection: Projection<S>,
+    /// Distance to the open/closed transition (gap over length, or force over force scale).
+    pub normal_distance: f64,
+    /// `|t_trial| / limit - 1` when closed with friction.
+    pub slip_ratio: f64,
+}
+
+/// Kernel failures (recoverable by cutback).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ContactFailure {
+    #[error("projection: {0}")]
+    Geometry(String),
+}
+
+/// The contact kernel of one hitting node (see the module docs).
+pub fn node_kernel<S: Scalar>(
+    x: &Vector3<S>,
+    lambda: S,
+    target: &TargetGeom<'_, S>,
+    anchor: Option<&AnchorGeom<S>>,
+    par: &KernelParams<'_, S>,
+    frozen: Option<ContactState>,
+) -> Result<KernelOut<S>, ContactFailure> {
+    let proj = match target {
+        TargetGeom::Quad { nodes, xi_start } => project_on_quad(x, nodes, *xi_start),
+        TargetGeom::Rigid { surface, d } => surface.project(x, d),
+    }
+    .map_err(|e| ContactFailure::Geometry(e.to_string()))?;
+    let g = proj.gap;
+    let n = proj.normal;
+    let weights = match target {
+        TargetGeom::Quad { .. } => bilinear(&proj.xi),
+        TargetGeom::Rigid { .. } => [S::zero(); 4],
+    };
+    let k = par.k;
+    // normal branch, on real parts
+    let active = match frozen {
+        Some(s) => s != ContactState::Open,
+        None => match par.normal {
+            NormalLaw::Lagrange => lambda.value() - k * g.value() > 0.0,
+            NormalLaw::Penalty { .. } => g.value() < 0.0,
+        },
+    };
+    let (p_n, r_lambda) = match (par.normal, active) {
+        (NormalLaw::Lagrange, true) => (lambda, -g * k),
+        (NormalLaw::Lagrange, false) => (S::zero(), lambda),
+        (NormalLaw::Penalty { stiffness }, true) => (-g * stiffness, lambda),
+        (NormalLaw::Penalty { .. }, false) => (S::zero(), lambda),
+    };
+    let normal_distance = if active {
+        p_n.value() / k.max(f64::MIN_POSITIVE)
+    } else {
+        g.value()
+    };
+    let mut force = n * p_n;
+    let mut state = if active {
+        ContactState::Closed
+    } else {
+        ContactState::Open
+    };
+    let mut new_anchor = proj.point;
+    let mut slip_ratio = f64::INFINITY;
+    if let (true, Some(law), Some(anchor)) = (active, par.friction, anchor) {
+        let xa = anchor.position();
+        let dx = x - xa;
+        let g_t = dx - n * n.dot(&dx);
+        let t_trial = g_t * (-par.eps_t);
+        let fb = match frozen {
+            Some(ContactState::Stick) => Some(FrictionBranch::Stick),
+            Some(ContactState::Slip) => Some(FrictionBranch::Slip),
+            _ => None,
+        };
+        let upd = crate::with_friction!(law, f => f.return_map(par.friction_params, &t_trial, p_n, fb));
+        slip_ratio = upd.slip_ratio;
+        force += upd.traction;
+        match upd.branch {
+            FrictionBranch::Stick => {
+                state = ContactState::Stick;
+                new_anchor = xa;
+            }
+            FrictionBranch::Slip => {
+                state = ContactState::Slip;
+                new_anchor = x + upd.traction / par.eps_t;
+            }
+        }
+    }
+    Ok(KernelOut {
+        force,
+        weights,
+        r_lambda,
+        p_n,
+        state,
+        new_anchor,
+        projection: proj,
+        normal_distance,
+        slip_ratio,
+    })
+}
