@@ -93,6 +93,23 @@ impl<S: Scalar> Evaluation<S> {
     }
 }
 
+impl<S: Scalar> Evaluation<S> {
+    /// The response input at unknowns `z` (history: this evaluation's updated history).
+    pub fn response_input<'a>(
+        &'a self,
+        z: &'a [S],
+        asm: &'a Assembler,
+    ) -> crate::response::ResponseInput<'a, S> {
+        crate::response::ResponseInput {
+            z,
+            residual: &self.residual,
+            hist: &self.hist_new,
+            contact: Some(&self.contact),
+            flat: Some(&asm.contact.flat),
+        }
+    }
+}
+
 /// Per-element scratch filled in parallel.
 struct Local<S: Scalar> {
     force: [S; MAX_DOF],
@@ -216,7 +233,15 @@ impl Assembler {
             range
                 .par_iter()
                 .map(|&e| {
-                    self.element_local(model, lifted, z, hist_old, frozen.map(|f| f.gauss), e, want_k)
+                    self.element_local(
+                        model,
+                        lifted,
+                        z,
+                        hist_old,
+                        frozen.map(|f| f.gauss),
+                        e,
+                        want_k,
+                    )
                 })
                 .collect_into_vec(&mut locals);
             // scatter sequentially in element order (bit-identical whatever the thread count)
@@ -299,7 +324,7 @@ impl Assembler {
                 &mut local,
             )
             .map_err(AssemblyFailure::Contact)?;
-            if let Some(k) = tangent.as_deref_mut() {
+            if let Some(k) = tangent {
                 for (b, kt) in &local {
                     k.add_block(*b, kt).expect("contact block of this pattern");
                 }
@@ -308,8 +333,8 @@ impl Assembler {
         // external loads
         for (l, load) in model.loads.iter().enumerate() {
             let f = lifted.loads[l] * load.amplitude.at(time);
-            for &n in &load.nodes {
-                out.residual[3 * n + load.component] -= f;
+            for (&n, w) in load.nodes.iter().zip(&load.weights) {
+                out.residual[3 * n + load.component] -= f * *w;
             }
         }
         Ok(())

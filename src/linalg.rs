@@ -1,6 +1,81 @@
-//! Global sparse system: fixed pattern, block assembly, LU reused across a run.
+//! Global sparse system of the Newton solver: fixed pattern, block assembly, sparse LU
+//! (or Cholesky) whose symbolic analysis is reused over a whole run, multi-column solves.
 //!
-//! (module docs written at the end)
+//! # Terms
+//! - *block*: the list of global DOFs of one element (or any group of coupled DOFs);
+//!   all pairs `(i, j)` within a block are stored. Repeated DOFs within a block are summed.
+//! - *slot*: position of a stored entry in [`SparseMatrix::values`] (CSC order).
+//!   [`SparsePattern::block_slots`] gives, for block `b` with `m` DOFs, the `m * m` slots
+//!   of its local matrix, row-major: assembling is `values[slots[k]] += local[k]`.
+//!
+//! # Once per run (pattern fixed: include every candidate contact pair)
+//! 1. [`SparsePattern::new`]: CSC pattern (structurally symmetric, full diagonal), the
+//!    per-block slot tables (4 bytes per element-matrix entry: 30k hex8 blocks = 69 MB)
+//!    and the assembly chunks.
+//! 2. [`LinearSolver::new`] / [`LinearSolver::with_options`]: symbolic analysis (LU:
+//!    COLAMD column ordering + symbolic LU; LLT/LDLT: AMD + symbolic Cholesky).
+//!    [`LinearSolver::symbolic_count`] stays 1.
+//!
+//! # Per Newton iteration
+//! 1. [`SparseMatrix::zero`], then [`SparseMatrix::assemble_blocks_par`] (or
+//!    [`SparseMatrix::try_assemble_blocks_par_with`] with per-thread scratch and
+//!    fallible kernels), [`SparseMatrix::add`] for single entries.
+//! 2. [`SparseMatrix::apply_dirichlet`] (or [`SparseMatrix::set_identity_row_col`]).
+//! 3. [`LinearSolver::factor`]: numeric factorization only (storage reused).
+//! 4. [`LinearSolver::solve_in_place`] for the Newton step; design sensitivities:
+//!    [`LinearSolver::solve_multi_in_place`], all pseudo-loads in one call;
+//!    [`LinearSolver::refine`] / [`LinearSolver::refine_multi`] for iterative
+//!    refinement against another matrix (the "refined" tangent option);
+//!    [`LinearSolver::solve_transpose_multi_in_place`] for adjoints.
+//! 5. [`LinearSolver::stats`]: symbolic / numeric / solve counters for the cost ledger.
+//!
+//! # Measured costs (release, this 2-core machine, best of several interleaved runs)
+//! Structured hex8 meshes, 3 DOFs per node, blocks of 24 DOFs (27-node stencil).
+//! Times from `timing_hex8_pattern` (`cargo test --release -- --ignored --nocapture`);
+//! the machine was shared, spreads are over three runs.
+//!
+//! | n (DOF) | nnz/row | symbolic LU | numeric LU Seq | numeric LU rayon(2) | solve 1 col | solve 10 cols |
+//! |--------:|--------:|------------:|---------------:|--------------------:|------------:|--------------:|
+//! |   2 187 |      64 |       14 ms |          26 ms |               35 ms |      1.0 ms | 1.8 (Seq) / 3.6-4.9 (rayon) ms |
+//! |   8 232 |      70 |      100 ms |         193 ms |              228 ms |      5.2 ms | 10 (Seq) / 14.5 (rayon) ms |
+//! |  31 944 |      74 |   0.67-1.0 s |     2.7-3.2 s |          2.4-2.8 s |  37-39 ms | 79-86 (Seq and rayon) ms |
+//!
+//! Cholesky LLT (symmetric values), n = 31 944: symbolic 105 ms, numeric 1.31-1.41 s Seq,
+//! 0.83 s rayon(2); n = 8 232: 68 ms Seq, 74 ms rayon; solves cost the same as with LU.
+//! One refinement step (mat-vec + solve) ~ one solve; `mul_vec` 2 ms at n = 31 944.
+//! Factor/solve ratio ~70 (LU, 32k DOF): ten right-hand sides in one call cost ~2 single
+//! solves. [`SolverOptions::check_finite`] (on by default) adds one solve per factorization.
+//!
+//! # Parallelism choice
+//! - Triangular solves: `Par::Seq` (default). rayon(2) was never faster and up to 2.7x
+//!   slower for multi-column solves on small systems.
+//! - Numeric factorization: rayon pays only on large systems (LU -5..-15 %, LLT -40 % at
+//!   32k DOF) and costs +20..+75 % below ~10k DOF, so `factor_par: None` picks
+//!   `Par::rayon(0)` for `n >= PAR_FACTOR_MIN_N` (20 000) and `Par::Seq` below.
+//!   faer's `Par::Rayon` runs in the current rayon pool. Caveat: in two runs where other
+//!   builds shared the cores, rayon(2) was 15-25 % *slower* at 32k DOF (LU and LLT) and
+//!   parallel assembly gained nothing; pass `factor_par: Some(Par::Seq)` when the cores
+//!   are shared or the caller already runs solvers in parallel.
+//! - Assembly (29 791 blocks of 24x24, n = 98 304, nnz 7.5 M; pattern build ~0.2 s):
+//!
+//!   | kernel                   | sequential `add_block` | buffered, 1 thr | buffered, 2 thr | coloured, 1 thr | coloured, 2 thr |
+//!   |--------------------------|-----------------------:|----------------:|----------------:|----------------:|----------------:|
+//!   | fill only                |               61-71 ms |        57-84 ms |           36 ms |          115 ms |        49-57 ms |
+//!   | B^T D B, 8 points        |             200-215 ms |      208-225 ms |      137-145 ms |      239-254 ms |      126-147 ms |
+//!
+//!   "Buffered" (kept): local matrices of a chunk of blocks (~2 MB) are evaluated in
+//!   parallel into a buffer laid out like the slot tables, then added sequentially in
+//!   block order while the next chunk is evaluated. "Coloured" (removed): greedy colouring
+//!   (8 colours), blocks of one colour scattered concurrently. Equal at 2 threads within
+//!   noise, buffered better at 1 thread, needs no `unsafe`, and is bit-identical to the
+//!   sequential `add_block` loop for any thread count (coloured is only deterministic).
+//!
+//! # Notes
+//! - The pattern is made structurally symmetric (an extra `(i, j)` also stores `(j, i)`),
+//!   which Dirichlet elimination and the Cholesky path rely on.
+//! - LU: partial pivoting within faer's supernodal/simplicial LU; a numerically singular
+//!   matrix gives non-finite factors, caught by the finiteness check.
+//! - LLT/LDLT read the lower triangle only; the values must be symmetric (not checked).
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
@@ -34,7 +109,8 @@ pub enum LinalgError {
         /// faer reports one; `None` when singularity was detected by non-finite values.
         index: Option<usize>,
     },
-    /// A Cholesky (LLT/LDLT) factorization met a non-positive or zero pivot.
+    /// The LLT factorization met a non-positive pivot (LDLT zero pivots give
+    /// [`LinalgError::Singular`]).
     #[error("matrix not positive definite (bad pivot at elimination step {index})")]
     NotPositiveDefinite {
         /// Elimination step (in the fill-reducing order).
@@ -115,9 +191,6 @@ pub struct SparsePattern {
     diag: Vec<usize>,
     /// Block boundaries of the assembly chunks.
     chunk_ptr: Vec<usize>,
-    /// Blocks grouped by colour (no two blocks of a colour share a DOF).
-    colour_ptr: Vec<usize>,
-    colour_blocks: Vec<usize>,
 }
 
 impl SparsePattern {
@@ -266,42 +339,6 @@ impl SparsePattern {
             chunk_ptr.push(nb);
         }
 
-        // Greedy colouring (blocks of one colour share no DOF).
-        let mut colour = vec![usize::MAX; nb];
-        let mut used = Vec::<usize>::new(); // used[c] == b  <=> colour c taken by a neighbour of b
-        let mut ncolours = 0usize;
-        for b in 0..nb {
-            for &d in &block_dofs[block_dof_ptr[b]..block_dof_ptr[b + 1]] {
-                for &(nbk, _) in &inc[inc_ptr[d]..inc_ptr[d + 1]] {
-                    let c = colour[nbk];
-                    if c != usize::MAX {
-                        used[c] = b;
-                    }
-                }
-            }
-            let c = (0..ncolours).find(|&c| used[c] != b).unwrap_or(ncolours);
-            if c == ncolours {
-                ncolours += 1;
-                used.push(usize::MAX);
-            }
-            colour[b] = c;
-        }
-        let mut colour_ptr = vec![0usize; ncolours + 1];
-        for &c in &colour {
-            colour_ptr[c + 1] += 1;
-        }
-        for c in 0..ncolours {
-            colour_ptr[c + 1] += colour_ptr[c];
-        }
-        let mut colour_blocks = vec![0usize; nb];
-        {
-            let mut next = colour_ptr.clone();
-            for (b, &c) in colour.iter().enumerate() {
-                colour_blocks[next[c]] = b;
-                next[c] += 1;
-            }
-        }
-
         let symbolic = SymbolicSparseColMat::<usize>::new_checked(n, n, col_ptr, None, row_idx);
         Ok(Self {
             n,
@@ -312,8 +349,6 @@ impl SparsePattern {
             block_slot_data,
             diag,
             chunk_ptr,
-            colour_ptr,
-            colour_blocks,
         })
     }
 
@@ -377,11 +412,6 @@ impl SparsePattern {
         self.symbolic.row_idx()
     }
 
-    /// Number of colours of the block colouring used by parallel assembly.
-    pub fn num_colours(&self) -> usize {
-        self.colour_ptr.len() - 1
-    }
-
     /// faer view of the pattern.
     pub fn faer_symbolic(&self) -> faer::sparse::SymbolicSparseColMatRef<'_, usize> {
         self.symbolic.as_ref()
@@ -400,13 +430,6 @@ pub struct SparseMatrix {
     /// Reused assembly buffers (two chunks, double-buffered).
     buffer: Vec<f64>,
 }
-
-/// `*mut f64` that may cross threads; used only where writes are provably disjoint.
-#[derive(Clone, Copy)]
-struct SharedMut(*mut f64);
-// SAFETY: only used for colour-disjoint scatter (see `assemble_coloured`).
-unsafe impl Send for SharedMut {}
-unsafe impl Sync for SharedMut {}
 
 /// Per-thread cache of user scratch values for parallel assembly.
 struct ScratchPool<S> {
@@ -692,36 +715,6 @@ impl SparseMatrix {
         self.buffer = buffer;
         result
     }
-
-    /// Coloured parallel assembly (blocks of one colour scatter concurrently, colours in
-    /// sequence). Deterministic for any thread count, but the summation order differs
-    /// from block order. Kept for comparison (see module docs).
-    #[doc(hidden)]
-    pub fn assemble_blocks_coloured<F>(&mut self, f: F)
-    where
-        F: Fn(usize, &mut [f64]) + Sync,
-    {
-        use rayon::prelude::*;
-        let pat = &*self.pattern;
-        let ptr = SharedMut(self.values.as_mut_ptr());
-        for c in 0..pat.num_colours() {
-            let blocks = &pat.colour_blocks[pat.colour_ptr[c]..pat.colour_ptr[c + 1]];
-            blocks
-                .par_iter()
-                .for_each_init(Vec::new, |local: &mut Vec<f64>, &b| {
-                    let slots = pat.block_slots(b);
-                    local.clear();
-                    local.resize(slots.len(), 0.0);
-                    f(b, local);
-                    let p = ptr;
-                    for (&s, &v) in slots.iter().zip(local.iter()) {
-                        // SAFETY: blocks of one colour share no DOF, hence no slot; slots are
-                        // < nnz = values.len().
-                        unsafe { *p.0.add(s as usize) += v };
-                    }
-                });
-        }
-    }
 }
 
 /// Evaluates blocks `b0..b1` into `buf` (laid out as their slots), recursively in parallel.
@@ -786,9 +779,11 @@ pub enum FactorKind {
 pub struct SolverOptions {
     /// Factorization kind.
     pub kind: FactorKind,
-    /// Parallelism of the numeric factorization.
-    pub factor_par: Par,
-    /// Parallelism of the triangular solves.
+    /// Parallelism of the numeric factorization; `None` chooses: `Par::rayon(0)` (all
+    /// threads of the current rayon pool) when `n >= PAR_FACTOR_MIN_N` and the pool has
+    /// more than one thread, `Par::Seq` otherwise (see the module docs for the numbers).
+    pub factor_par: Option<Par>,
+    /// Parallelism of the triangular solves (`Par::Seq` measured never slower).
     pub solve_par: Par,
     /// After each factorization, solve once with a vector of ones and fail with
     /// [`LinalgError::Singular`] if the result is not finite (costs one solve).
@@ -799,12 +794,15 @@ impl Default for SolverOptions {
     fn default() -> Self {
         Self {
             kind: FactorKind::Lu,
-            factor_par: Par::Seq,
+            factor_par: None,
             solve_par: Par::Seq,
             check_finite: true,
         }
     }
 }
+
+/// Smallest dimension for which [`SolverOptions::factor_par`]` = None` factors in parallel.
+pub const PAR_FACTOR_MIN_N: usize = 20_000;
 
 /// Cost counters of a [`LinearSolver`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -826,7 +824,7 @@ enum SymbolicFactor {
 
 enum NumericFactor {
     None,
-    Lu(NumericLu<usize, f64>),
+    Lu(Box<NumericLu<usize, f64>>),
     Llt(Vec<f64>),
     Ldlt(Vec<f64>),
 }
@@ -836,6 +834,7 @@ enum NumericFactor {
 pub struct LinearSolver {
     pattern: Arc<SparsePattern>,
     options: SolverOptions,
+    factor_par: Par,
     symbolic: SymbolicFactor,
     numeric: NumericFactor,
     /// Kept between factorizations (the numeric LU storage is reused too).
@@ -883,9 +882,17 @@ impl LinearSolver {
                 .map_err(faer_err)?,
             ),
         };
+        let factor_par = options.factor_par.unwrap_or_else(|| {
+            if pattern.n >= PAR_FACTOR_MIN_N && rayon::current_num_threads() > 1 {
+                Par::rayon(0)
+            } else {
+                Par::Seq
+            }
+        });
         Ok(Self {
             pattern,
             options,
+            factor_par,
             symbolic,
             numeric: NumericFactor::None,
             factor_mem: None,
@@ -904,6 +911,11 @@ impl LinearSolver {
     /// Options in use.
     pub fn options(&self) -> &SolverOptions {
         &self.options
+    }
+
+    /// Parallelism used by [`LinearSolver::factor`] (resolved from the options).
+    pub fn factor_par(&self) -> Par {
+        self.factor_par
     }
 
     /// Number of symbolic analyses run (always 1: done in the constructor).
@@ -942,7 +954,7 @@ impl LinearSolver {
         if !Arc::ptr_eq(&a.pattern, &self.pattern) {
             return Err(LinalgError::PatternMismatch);
         }
-        let par = self.options.factor_par;
+        let par = self.factor_par;
         let mat = a.as_faer();
         let numeric = std::mem::replace(&mut self.numeric, NumericFactor::None);
         let mem = self.factor_mem.take();
@@ -950,7 +962,7 @@ impl LinearSolver {
             SymbolicFactor::Lu(sym) => {
                 let mut lu = match numeric {
                     NumericFactor::Lu(lu) => lu,
-                    _ => NumericLu::new(),
+                    _ => Box::new(NumericLu::new()),
                 };
                 let req = sym.factorize_numeric_lu_scratch::<f64>(par, Default::default());
                 let mut mem = reuse_mem(mem, req)?;
@@ -1007,7 +1019,7 @@ impl LinearSolver {
                     )
                     .map_err(|e| match e {
                         LdltError::ZeroPivot { index } => {
-                            LinalgError::NotPositiveDefinite { index }
+                            LinalgError::Singular { index: Some(index) }
                         }
                     })?;
                     (NumericFactor::Ldlt(l), mem)
@@ -1170,10 +1182,761 @@ impl LinearSolver {
 }
 
 fn reuse_mem(mem: Option<MemBuffer>, req: faer::dyn_stack::StackReq) -> Result<MemBuffer> {
-    // MemBuffer does not expose its size: reallocate when the requirement changes is
-    // not detectable, so keep one buffer sized for this solver's (fixed) requirement.
+    // The requirement depends only on the pattern, the kind and the parallelism, all
+    // fixed for a solver: the first buffer fits every later factorization.
     match mem {
         Some(m) => Ok(m),
         None => MemBuffer::try_new(req).map_err(faer_err),
+    }
+}
+
+#[cfg(test)]
+// Index loops mirror the matrix formulas in the test oracles.
+#[allow(clippy::needless_range_loop)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use faer::prelude::*;
+    use faer::Mat;
+    use proptest::prelude::*;
+
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    }
+
+    /// Dense copy of a sparse matrix.
+    fn to_dense(a: &SparseMatrix) -> Mat<f64> {
+        let n = a.n();
+        let mut d = Mat::<f64>::zeros(n, n);
+        let (cp, ri) = (a.pattern().col_ptr(), a.pattern().row_idx());
+        for j in 0..n {
+            for k in cp[j]..cp[j + 1] {
+                d[(ri[k], j)] += a.values()[k];
+            }
+        }
+        d
+    }
+
+    /// Dense LU solve (the independent oracle).
+    fn dense_solve(d: &Mat<f64>, b: &[f64]) -> Vec<f64> {
+        let n = b.len();
+        let rhs = Mat::<f64>::from_fn(n, 1, |i, _| b[i]);
+        let x = d.partial_piv_lu().solve(&rhs);
+        (0..n).map(|i| x[(i, 0)]).collect()
+    }
+
+    fn rel_err(x: &[f64], y: &[f64]) -> f64 {
+        let num: f64 = x.iter().zip(y).map(|(a, b)| (a - b) * (a - b)).sum();
+        let den: f64 = y.iter().map(|a| a * a).sum();
+        (num / den).sqrt()
+    }
+
+    fn residual(a: &SparseMatrix, x: &[f64], b: &[f64]) -> f64 {
+        let mut ax = vec![0.0; b.len()];
+        a.mul_vec(x, &mut ax).unwrap();
+        rel_err(&ax, b)
+    }
+
+    /// 2D grid of bilinear quads (nx x ny elements), blocks of the 4 corner nodes.
+    fn quad_grid(nx: usize, ny: usize) -> (usize, Vec<Vec<usize>>) {
+        let node = |i: usize, j: usize| j * (nx + 1) + i;
+        let mut blocks = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                blocks.push(vec![
+                    node(i, j),
+                    node(i + 1, j),
+                    node(i + 1, j + 1),
+                    node(i, j + 1),
+                ]);
+            }
+        }
+        ((nx + 1) * (ny + 1), blocks)
+    }
+
+    /// Q1 Laplacian element matrix on a square (row-major 4x4), plus an optional
+    /// unsymmetric convection-like part `c`.
+    fn q1_laplace(c: f64) -> Vec<f64> {
+        let k = [
+            [4.0, -1.0, -2.0, -1.0],
+            [-1.0, 4.0, -1.0, -2.0],
+            [-2.0, -1.0, 4.0, -1.0],
+            [-1.0, -2.0, -1.0, 4.0],
+        ];
+        let mut out = Vec::with_capacity(16);
+        for a in 0..4 {
+            for b in 0..4 {
+                let skew = if a == b {
+                    0.0
+                } else if (a + 1) % 4 == b {
+                    c
+                } else if (b + 1) % 4 == a {
+                    -c
+                } else {
+                    0.0
+                };
+                out.push(k[a][b] / 6.0 + skew);
+            }
+        }
+        out
+    }
+
+    fn refs(blocks: &[Vec<usize>]) -> Vec<&[usize]> {
+        blocks.iter().map(|b| b.as_slice()).collect()
+    }
+
+    /// 2D Poisson (optionally with convection) with Dirichlet boundary; matrix and rhs.
+    fn poisson_2d(nx: usize, c: f64) -> (SparseMatrix, Vec<f64>) {
+        let (n, blocks) = quad_grid(nx, nx);
+        let pat = Arc::new(SparsePattern::new(n, &refs(&blocks), &[]).unwrap());
+        let mut a = SparseMatrix::new(pat);
+        let ke = q1_laplace(c);
+        for b in 0..blocks.len() {
+            a.add_block(b, &ke).unwrap();
+        }
+        let mut rhs: Vec<f64> = (0..n).map(|i| 1.0 + 0.01 * i as f64).collect();
+        let boundary: Vec<(usize, f64)> = (0..n)
+            .filter(|&p| {
+                let (i, j) = (p % (nx + 1), p / (nx + 1));
+                i == 0 || j == 0 || i == nx || j == nx
+            })
+            .map(|p| (p, 0.1 * (p % 7) as f64))
+            .collect();
+        a.apply_dirichlet(&boundary, &mut rhs).unwrap();
+        (a, rhs)
+    }
+
+    #[test]
+    fn poisson_1d_two_node_blocks_matches_dense_lu() {
+        let ne = 40;
+        let n = ne + 1;
+        let blocks: Vec<Vec<usize>> = (0..ne).map(|e| vec![e, e + 1]).collect();
+        let pat = Arc::new(SparsePattern::new(n, &refs(&blocks), &[]).unwrap());
+        assert_eq!(pat.nnz(), n + 2 * ne);
+        let mut a = SparseMatrix::new(pat.clone());
+        for e in 0..ne {
+            let k = 1.0 + e as f64 * 0.1;
+            a.add_block(e, &[k, -k, -k, k]).unwrap();
+        }
+        let mut b: Vec<f64> = (0..n).map(|i| (i as f64 * 0.3).sin()).collect();
+        a.set_identity_row_col(0).unwrap();
+        b[0] = 0.0;
+        let x_ref = dense_solve(&to_dense(&a), &b);
+        let mut solver = LinearSolver::new(pat).unwrap();
+        solver.factor(&a).unwrap();
+        let mut x = b.clone();
+        solver.solve_in_place(&mut x).unwrap();
+        assert!(rel_err(&x, &x_ref) < 1e-12);
+        assert!(residual(&a, &x, &b) < 1e-13);
+    }
+
+    #[test]
+    fn poisson_2d_q1_blocks_match_dense_lu() {
+        for c in [0.0, 0.3] {
+            let (a, b) = poisson_2d(12, c);
+            let x_ref = dense_solve(&to_dense(&a), &b);
+            let mut solver = LinearSolver::new(a.pattern().clone()).unwrap();
+            solver.factor(&a).unwrap();
+            let mut x = b.clone();
+            solver.solve_in_place(&mut x).unwrap();
+            assert!(rel_err(&x, &x_ref) < 1e-12, "c = {c}");
+        }
+    }
+
+    #[test]
+    fn block_slots_agree_with_binary_search_and_duplicates_sum() {
+        // Block 1 repeats DOF 2.
+        let blocks: Vec<Vec<usize>> = vec![vec![0, 3, 1], vec![2, 4, 2], vec![4, 0]];
+        let pat = Arc::new(SparsePattern::new(6, &refs(&blocks), &[(5, 1)]).unwrap());
+        for b in 0..pat.num_blocks() {
+            let dofs = pat.block_dofs(b);
+            let m = dofs.len();
+            for (a, &i) in dofs.iter().enumerate() {
+                for (c, &j) in dofs.iter().enumerate() {
+                    assert_eq!(
+                        pat.block_slots(b)[a * m + c] as usize,
+                        pat.slot(i, j).unwrap()
+                    );
+                }
+            }
+        }
+        // structurally symmetric extra, full diagonal
+        assert!(pat.slot(5, 1).is_some() && pat.slot(1, 5).is_some());
+        assert!((0..6).all(|i| pat.slot(i, i) == Some(pat.diag_slot(i))));
+        assert_eq!(pat.slot(5, 0), None);
+        let mut a = SparseMatrix::new(pat.clone());
+        a.add_block(1, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0])
+            .unwrap();
+        assert_eq!(a.get(2, 2), 1.0 + 3.0 + 7.0 + 9.0);
+        assert_eq!(a.get(2, 4), 2.0 + 8.0);
+        assert_eq!(a.get(4, 2), 4.0 + 6.0);
+        assert_eq!(a.get(4, 4), 5.0);
+    }
+
+    #[test]
+    fn errors_carry_context() {
+        let blocks: Vec<Vec<usize>> = vec![vec![0, 1], vec![2, 3]];
+        assert!(matches!(
+            SparsePattern::new(3, &refs(&blocks), &[]),
+            Err(LinalgError::IndexOutOfRange { index: 3, n: 3 })
+        ));
+        let pat = Arc::new(SparsePattern::new(4, &refs(&blocks), &[]).unwrap());
+        let mut a = SparseMatrix::new(pat.clone());
+        assert!(matches!(
+            a.add(0, 2, 1.0),
+            Err(LinalgError::NotInPattern { row: 0, col: 2 })
+        ));
+        assert!(matches!(
+            a.add(0, 9, 1.0),
+            Err(LinalgError::IndexOutOfRange { index: 9, n: 4 })
+        ));
+        assert!(matches!(
+            a.add_block(0, &[1.0]),
+            Err(LinalgError::DimensionMismatch { .. })
+        ));
+        let mut solver = LinearSolver::new(pat.clone()).unwrap();
+        assert!(matches!(solver.factor_par(), Par::Seq)); // small system
+        let mut x = vec![1.0; 4];
+        assert!(matches!(
+            solver.solve_in_place(&mut x),
+            Err(LinalgError::NotFactored)
+        ));
+        // Block 1 is [[1, 1], [1, 1]]: numerically singular.
+        a.add_block(0, &[2.0, 1.0, 1.0, 2.0]).unwrap();
+        a.add_block(1, &[1.0, 1.0, 1.0, 1.0]).unwrap();
+        assert!(matches!(
+            solver.factor(&a),
+            Err(LinalgError::Singular { .. })
+        ));
+        assert!(!solver.is_factored());
+        let other = Arc::new(SparsePattern::new(4, &refs(&blocks), &[]).unwrap());
+        assert!(matches!(
+            solver.factor(&SparseMatrix::new(other)),
+            Err(LinalgError::PatternMismatch)
+        ));
+        let e = LinalgError::NotInPattern { row: 1, col: 2 };
+        assert_eq!(e.to_string(), "entry (1, 2) is not in the sparsity pattern");
+    }
+
+    #[test]
+    fn multi_column_solve_equals_column_by_column() {
+        let (a, b) = poisson_2d(10, 0.2);
+        let n = a.n();
+        let mut solver = LinearSolver::new(a.pattern().clone()).unwrap();
+        solver.factor(&a).unwrap();
+        let ncols = 7;
+        let rhs: Vec<f64> = (0..n * ncols)
+            .map(|k| b[k % n] * (1.0 + (k / n) as f64) + (k as f64 * 0.37).cos())
+            .collect();
+        let mut multi = rhs.clone();
+        solver.solve_multi_in_place(&mut multi, ncols).unwrap();
+        for c in 0..ncols {
+            let mut col = rhs[c * n..(c + 1) * n].to_vec();
+            solver.solve_in_place(&mut col).unwrap();
+            for (u, v) in col.iter().zip(&multi[c * n..(c + 1) * n]) {
+                assert_relative_eq!(*u, *v, epsilon = 1e-14, max_relative = 1e-14);
+            }
+        }
+        let s = solver.stats();
+        // the column of the finiteness check in `factor` is not counted
+        assert_eq!(
+            (s.symbolic, s.numeric, s.solve_calls, s.solve_columns),
+            (1, 1, 8, 14)
+        );
+    }
+
+    #[test]
+    fn transpose_solve_matches_dense() {
+        let (a, b) = poisson_2d(8, 0.4);
+        let mut solver = LinearSolver::new(a.pattern().clone()).unwrap();
+        solver.factor(&a).unwrap();
+        let mut x = b.clone();
+        solver.solve_transpose_multi_in_place(&mut x, 1).unwrap();
+        let x_ref = dense_solve(&to_dense(&a).transpose().to_owned(), &b);
+        assert!(rel_err(&x, &x_ref) < 1e-12);
+        let mut atx = vec![0.0; b.len()];
+        a.mul_vec_transpose(&x, &mut atx).unwrap();
+        assert!(rel_err(&atx, &b) < 1e-13);
+    }
+
+    #[test]
+    fn refactor_with_new_values_reuses_symbolic() {
+        let (a, b) = poisson_2d(10, 0.1);
+        let mut solver = LinearSolver::new(a.pattern().clone()).unwrap();
+        solver.factor(&a).unwrap();
+        let mut a2 = a.clone();
+        for (k, v) in a2.values_mut().iter_mut().enumerate() {
+            *v *= 1.0 + 0.3 * ((k as f64) * 0.71).sin();
+        }
+        for i in 0..a2.n() {
+            a2.add(i, i, 0.5).unwrap();
+        }
+        for m in [&a2, &a, &a2] {
+            solver.factor(m).unwrap();
+            let mut x = b.clone();
+            solver.solve_in_place(&mut x).unwrap();
+            assert!(rel_err(&x, &dense_solve(&to_dense(m), &b)) < 1e-12);
+        }
+        assert_eq!(solver.symbolic_count(), 1);
+        assert_eq!(solver.factor_count(), 4);
+    }
+
+    #[test]
+    fn dirichlet_elimination_reproduces_prescribed_values_and_free_equations() {
+        let (n, blocks) = quad_grid(6, 6);
+        let pat = Arc::new(SparsePattern::new(n, &refs(&blocks), &[]).unwrap());
+        let mut a = SparseMatrix::new(pat.clone());
+        let ke = q1_laplace(0.25);
+        for b in 0..blocks.len() {
+            a.add_block(b, &ke).unwrap();
+        }
+        let original = a.clone();
+        let f: Vec<f64> = (0..n).map(|i| (i as f64).sqrt()).collect();
+        let fixed: Vec<(usize, f64)> = (0..=6)
+            .map(|i| (i, 1.0 + i as f64))
+            .chain([(20, -2.0)])
+            .collect();
+        let mut rhs = f.clone();
+        a.apply_dirichlet(&fixed, &mut rhs).unwrap();
+        for &(i, _) in &fixed {
+            for j in 0..n {
+                let expect = if i == j { 1.0 } else { 0.0 };
+                assert_eq!(a.get(i, j), expect);
+                assert_eq!(a.get(j, i), expect);
+            }
+        }
+        let mut solver = LinearSolver::new(pat).unwrap();
+        solver.factor(&a).unwrap();
+        let mut x = rhs.clone();
+        solver.solve_in_place(&mut x).unwrap();
+        let mut r = vec![0.0; n];
+        original.mul_vec(&x, &mut r).unwrap();
+        for i in 0..n {
+            match fixed.iter().find(|p| p.0 == i) {
+                Some(&(_, u)) => assert_relative_eq!(x[i], u, epsilon = 1e-13),
+                None => {
+                    assert_relative_eq!(r[i], f[i], epsilon = 1e-11, max_relative = 1e-12)
+                }
+            }
+        }
+    }
+
+    /// Deterministic, irregular local matrix of block `b` (size m x m).
+    fn local_values(b: usize, out: &mut [f64]) {
+        for (k, v) in out.iter_mut().enumerate() {
+            *v = ((b * 31 + k * 7) as f64 * 0.123).sin() * 10f64.powi((k % 5) as i32 - 2);
+        }
+    }
+
+    fn irregular_pattern(n: usize, nb: usize) -> Arc<SparsePattern> {
+        let blocks: Vec<Vec<usize>> = (0..nb)
+            .map(|b| {
+                let m = 2 + b % 6;
+                (0..m)
+                    .map(|l| (b * 13 + l * l * 7 + (l % 2) * b) % n)
+                    .collect()
+            })
+            .collect();
+        Arc::new(SparsePattern::new(n, &refs(&blocks), &[(0, n - 1)]).unwrap())
+    }
+
+    #[test]
+    fn parallel_assembly_is_bit_identical_to_sequential() {
+        // Several assembly chunks; blocks have repeated DOFs.
+        let pat = irregular_pattern(500, 30_000);
+        assert!(pat.chunk_ptr.len() > 2);
+        let mut seq = SparseMatrix::new(pat.clone());
+        let mut buf = Vec::new();
+        for b in 0..pat.num_blocks() {
+            buf.resize(pat.block_slots(b).len(), 0.0);
+            local_values(b, &mut buf);
+            seq.add_block(b, &buf).unwrap();
+        }
+        for threads in [1, 2, 3] {
+            let mut par = SparseMatrix::new(pat.clone());
+            pool(threads).install(|| par.assemble_blocks_par(local_values));
+            assert!(
+                seq.values()
+                    .iter()
+                    .zip(par.values())
+                    .all(|(x, y)| x.to_bits() == y.to_bits()),
+                "threads = {threads}"
+            );
+        }
+    }
+
+    #[test]
+    fn parallel_assembly_reports_lowest_failing_block_and_reuses_scratch() {
+        let pat = irregular_pattern(300, 20_000);
+        let inits = AtomicUsize::new(0);
+        for threads in [1, 2] {
+            let mut m = SparseMatrix::new(pat.clone());
+            let r = pool(threads).install(|| {
+                m.try_assemble_blocks_par_with(
+                    || {
+                        inits.fetch_add(1, Ordering::Relaxed);
+                        vec![0.0; 64]
+                    },
+                    |scratch, b, out| {
+                        if b == 7_001 || b == 15_000 {
+                            return Err(b);
+                        }
+                        scratch[0] += 1.0;
+                        local_values(b, out);
+                        Ok(())
+                    },
+                )
+            });
+            assert_eq!(r, Err(7_001));
+        }
+        // a handful of scratch values per thread and call, not one per block
+        assert!(inits.load(Ordering::Relaxed) < 50);
+    }
+
+    #[test]
+    fn refine_improves_solution_from_perturbed_factorization() {
+        let (a, b) = poisson_2d(12, 0.2);
+        let mut perturbed = a.clone();
+        for (k, v) in perturbed.values_mut().iter_mut().enumerate() {
+            *v *= 1.0 + 1e-3 * ((k as f64) * 1.3).sin();
+        }
+        let mut solver = LinearSolver::new(a.pattern().clone()).unwrap();
+        solver.factor(&perturbed).unwrap();
+        let mut x = b.clone();
+        solver.solve_in_place(&mut x).unwrap();
+        let r0 = solver.refine(&a, &b, &mut x, 0).unwrap();
+        assert!(r0 > 1e-6, "perturbation too small to test: {r0}");
+        let r1 = solver.refine(&a, &b, &mut x, 1).unwrap();
+        // contraction ~ |A'^-1 (A' - A)| ~ 4e-3 per step here
+        let r8 = solver.refine(&a, &b, &mut x, 7).unwrap();
+        assert!(r1 < 1e-2 * r0 && r8 < 1e-13, "{r0} {r1} {r8}");
+        assert!(rel_err(&x, &dense_solve(&to_dense(&a), &b)) < 1e-12);
+        // multi-column refine
+        let n = a.n();
+        let bb: Vec<f64> = b.iter().copied().chain((0..n).map(|i| i as f64)).collect();
+        let mut xx = bb.clone();
+        solver.solve_multi_in_place(&mut xx, 2).unwrap();
+        let r = solver.refine_multi(&a, &bb, &mut xx, 2, 8).unwrap();
+        assert!(r < 1e-13 && xx.len() == 2 * n);
+    }
+
+    #[test]
+    fn cholesky_paths_match_lu_on_spd_poisson() {
+        let (a, b) = poisson_2d(12, 0.0);
+        let mut lu = LinearSolver::new(a.pattern().clone()).unwrap();
+        lu.factor(&a).unwrap();
+        let mut x_lu = b.clone();
+        lu.solve_in_place(&mut x_lu).unwrap();
+        for kind in [FactorKind::Llt, FactorKind::Ldlt] {
+            let opts = SolverOptions {
+                kind,
+                ..Default::default()
+            };
+            let mut s = LinearSolver::with_options(a.pattern().clone(), opts).unwrap();
+            for _ in 0..2 {
+                s.factor(&a).unwrap();
+            }
+            let mut x = b.clone();
+            s.solve_in_place(&mut x).unwrap();
+            assert!(rel_err(&x, &x_lu) < 1e-12, "{kind:?}");
+            let mut xt = b.clone();
+            s.solve_transpose_multi_in_place(&mut xt, 1).unwrap();
+            assert_eq!(x, xt);
+            assert_eq!(s.symbolic_count(), 1);
+        }
+        // LLT rejects an indefinite matrix
+        let mut neg = a.clone();
+        neg.values_mut().iter_mut().for_each(|v| *v = -*v);
+        let opts = SolverOptions {
+            kind: FactorKind::Llt,
+            ..Default::default()
+        };
+        let mut s = LinearSolver::with_options(a.pattern().clone(), opts).unwrap();
+        assert!(matches!(
+            s.factor(&neg),
+            Err(LinalgError::NotPositiveDefinite { .. })
+        ));
+    }
+
+    #[test]
+    fn solver_is_send_and_sync() {
+        fn check<T: Send + Sync>() {}
+        check::<LinearSolver>();
+        check::<SparseMatrix>();
+        check::<SparsePattern>();
+    }
+
+    /// Structured hex8 mesh of `ne^3` elements, 3 DOFs per node: blocks of 24 DOFs.
+    fn hex8_blocks(ne: usize) -> (usize, Vec<Vec<usize>>) {
+        let nn = ne + 1;
+        let node = |i: usize, j: usize, k: usize| (k * nn + j) * nn + i;
+        let mut blocks = Vec::with_capacity(ne * ne * ne);
+        for k in 0..ne {
+            for j in 0..ne {
+                for i in 0..ne {
+                    let corners = [
+                        node(i, j, k),
+                        node(i + 1, j, k),
+                        node(i + 1, j + 1, k),
+                        node(i, j + 1, k),
+                        node(i, j, k + 1),
+                        node(i + 1, j, k + 1),
+                        node(i + 1, j + 1, k + 1),
+                        node(i, j + 1, k + 1),
+                    ];
+                    blocks.push(
+                        corners
+                            .iter()
+                            .flat_map(|&c| (0..3).map(move |d| 3 * c + d))
+                            .collect(),
+                    );
+                }
+            }
+        }
+        (3 * nn * nn * nn, blocks)
+    }
+
+    /// Nonsingular 24x24 local matrix (graph Laplacian + shift + optional skew part).
+    fn hex8_local(b: usize, out: &mut [f64], skew: f64) {
+        for a in 0..24 {
+            for c in 0..24 {
+                out[a * 24 + c] = if a == c {
+                    23.1
+                } else {
+                    -1.0 + skew * (((a * 5 + c * 3 + b) % 17) as f64 / 17.0 - 0.5)
+                };
+            }
+        }
+    }
+
+    /// A realistic element cost: K = sum over 8 points of B^T D B, B 6x24.
+    fn hex8_btdb(b: usize, out: &mut [f64]) {
+        let mut d = [[0.0; 6]; 6];
+        for (i, row) in d.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = if i == j {
+                    2.0
+                } else if i < 3 && j < 3 {
+                    1.0
+                } else {
+                    0.0
+                };
+            }
+        }
+        let mut bm = [[0.0; 24]; 6];
+        let mut db = [[0.0; 24]; 6];
+        for gp in 0..8 {
+            for (i, row) in bm.iter_mut().enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
+                    *v = (((i * 24 + j + gp * 7 + b) % 13) as f64 - 6.0) * 0.1;
+                }
+            }
+            for i in 0..6 {
+                for j in 0..24 {
+                    db[i][j] = (0..6).map(|k| d[i][k] * bm[k][j]).sum();
+                }
+            }
+            for a in 0..24 {
+                for c in 0..24 {
+                    let mut s = 0.0;
+                    for k in 0..6 {
+                        s += bm[k][a] * db[k][c];
+                    }
+                    out[a * 24 + c] += s;
+                }
+            }
+        }
+    }
+
+    fn best_of<R>(reps: usize, mut f: impl FnMut() -> R) -> (f64, R) {
+        let mut best = f64::INFINITY;
+        let mut last = None;
+        for _ in 0..reps {
+            let t = std::time::Instant::now();
+            let r = f();
+            best = best.min(t.elapsed().as_secs_f64());
+            last = Some(r);
+        }
+        (best, last.unwrap())
+    }
+
+    #[test]
+    #[ignore = "timing printout; run with --release -- --ignored --nocapture"]
+    fn timing_hex8_pattern() {
+        let ms = |t: f64| format!("{:9.2} ms", t * 1e3);
+        // ---- assembly: 31^3 = 29791 blocks of 24x24
+        let (n, blocks) = hex8_blocks(31);
+        let (t, pat) = best_of(1, || {
+            Arc::new(SparsePattern::new(n, &refs(&blocks), &[]).unwrap())
+        });
+        println!(
+            "assembly mesh: n = {n}, blocks = {}, nnz = {}, pattern build {}",
+            blocks.len(),
+            pat.nnz(),
+            ms(t)
+        );
+        type Kernel = fn(usize, &mut [f64]);
+        let kernels: [(&str, Kernel); 2] = [
+            ("cheap local (fill only)", |b, out| hex8_local(b, out, 0.2)),
+            ("B^T D B, 8 points", hex8_btdb),
+        ];
+        for (name, f) in kernels {
+            let mut m = SparseMatrix::new(pat.clone());
+            let mut buf = vec![0.0; 576];
+            let (t_seq, _) = best_of(5, || {
+                m.zero();
+                for b in 0..pat.num_blocks() {
+                    buf.fill(0.0);
+                    f(b, &mut buf);
+                    m.add_block(b, &buf).unwrap();
+                }
+            });
+            let reference = m.values().to_vec();
+            print!("  {name:24}: sequential add_block {}", ms(t_seq));
+            for threads in [1, 2] {
+                let p = pool(threads);
+                let (t_buf, _) = best_of(5, || {
+                    m.zero();
+                    p.install(|| m.assemble_blocks_par(f));
+                });
+                assert_eq!(m.values(), &reference[..]);
+                print!(" | {threads} thr: assemble_blocks_par {}", ms(t_buf));
+            }
+            println!();
+        }
+
+        // ---- solver: ~30k DOF (and smaller systems, where parallel overhead shows)
+        for ne in [8, 13, 21] {
+            let (n, blocks) = hex8_blocks(ne);
+            let (t_pat, pat) = best_of(1, || {
+                Arc::new(SparsePattern::new(n, &refs(&blocks), &[]).unwrap())
+            });
+            let mut a = SparseMatrix::new(pat.clone());
+            a.assemble_blocks_par(|b, out| hex8_local(b, out, 0.2));
+            let mut spd = SparseMatrix::new(pat.clone());
+            spd.assemble_blocks_par(|b, out| hex8_local(b, out, 0.0));
+            println!(
+                "solver mesh: n = {n}, nnz = {} ({:.0}/row), pattern build {}",
+                pat.nnz(),
+                pat.nnz() as f64 / n as f64,
+                ms(t_pat)
+            );
+            let b: Vec<f64> = (0..n).map(|i| (i as f64 * 0.1).sin()).collect();
+            let b10: Vec<f64> = (0..10 * n).map(|i| (i as f64 * 0.1).sin()).collect();
+            // Seq and rayon(2) interleaved, best of several runs (the machine is shared).
+            let pars = [("Seq", Par::Seq), ("rayon(2)", Par::rayon(2))];
+            for kind in [FactorKind::Lu, FactorKind::Llt] {
+                let m = if kind == FactorKind::Lu { &a } else { &spd };
+                let mut solvers = Vec::new();
+                let mut t = [[f64::INFINITY; 5]; 2];
+                for (p, &(_, par)) in pars.iter().enumerate() {
+                    let opts = SolverOptions {
+                        kind,
+                        factor_par: Some(par),
+                        solve_par: par,
+                        check_finite: false,
+                    };
+                    let (t_sym, s) =
+                        best_of(1, || LinearSolver::with_options(pat.clone(), opts).unwrap());
+                    t[p][0] = t_sym;
+                    solvers.push(s);
+                }
+                for _ in 0..3 {
+                    for (p, s) in solvers.iter_mut().enumerate() {
+                        t[p][1] = t[p][1].min(best_of(1, || s.factor(m).unwrap()).0);
+                    }
+                }
+                for _ in 0..7 {
+                    for (p, s) in solvers.iter().enumerate() {
+                        let (t1, x) = best_of(1, || {
+                            let mut x = b.clone();
+                            s.solve_in_place(&mut x).unwrap();
+                            x
+                        });
+                        let (t10, x10) = best_of(1, || {
+                            let mut x = b10.clone();
+                            s.solve_multi_in_place(&mut x, 10).unwrap();
+                            x
+                        });
+                        let (tr, _) = best_of(1, || {
+                            let mut y = x.clone();
+                            s.refine(m, &b, &mut y, 1).unwrap()
+                        });
+                        assert!(residual(m, &x, &b) < 1e-10);
+                        assert!(residual(m, &x10[9 * n..], &b10[9 * n..]) < 1e-10);
+                        t[p][2] = t[p][2].min(t1);
+                        t[p][3] = t[p][3].min(t10);
+                        t[p][4] = t[p][4].min(tr);
+                    }
+                }
+                let (t_mv, _) = best_of(5, || {
+                    let mut y = vec![0.0; n];
+                    m.mul_vec(&b, &mut y).unwrap();
+                    y
+                });
+                println!("  mul_vec {}", ms(t_mv));
+                for (p, (pname, _)) in pars.iter().enumerate() {
+                    println!(
+                        "  {kind:?} {pname:9}: symbolic {} numeric {} solve(1) {} solve(10) {} refine(1 step) {}",
+                        ms(t[p][0]),
+                        ms(t[p][1]),
+                        ms(t[p][2]),
+                        ms(t[p][3]),
+                        ms(t[p][4])
+                    );
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn random_diagonally_dominant_unsymmetric_systems_solve(
+            n in 1usize..40,
+            raw_blocks in proptest::collection::vec(proptest::collection::vec(0usize..1000, 1..6), 0..30),
+            extra in proptest::collection::vec((0usize..1000, 0usize..1000), 0..10),
+            seed in 0u64..1000,
+        ) {
+            let blocks: Vec<Vec<usize>> = raw_blocks.iter().map(|b| b.iter().map(|d| d % n).collect()).collect();
+            let extra: Vec<(usize, usize)> = extra.iter().map(|&(i, j)| (i % n, j % n)).collect();
+            let pat = Arc::new(SparsePattern::new(n, &refs(&blocks), &extra).unwrap());
+            let mut a = SparseMatrix::new(pat.clone());
+            let val = |k: usize| (((k as u64 + 1) * (seed + 7)) as f64 * 0.6180339887).fract() * 2.0 - 1.0;
+            for b in 0..pat.num_blocks() {
+                let m = pat.block_dofs(b).len();
+                let local: Vec<f64> = (0..m * m).map(|k| val(k + 100 * b)).collect();
+                a.add_block(b, &local).unwrap();
+            }
+            for (e, &(i, j)) in extra.iter().enumerate() {
+                a.add(i, j, val(e + 7777)).unwrap();
+            }
+            // make strictly diagonally dominant by rows
+            let mut rowsum = vec![0.0; n];
+            let (cp, ri) = (pat.col_ptr(), pat.row_idx());
+            for j in 0..n {
+                for k in cp[j]..cp[j + 1] {
+                    if ri[k] != j {
+                        rowsum[ri[k]] += a.values()[k].abs();
+                    }
+                }
+            }
+            for i in 0..n {
+                let s = pat.diag_slot(i);
+                a.values_mut()[s] = rowsum[i] + 0.5 + val(i + 999).abs();
+            }
+            let b: Vec<f64> = (0..n).map(|i| val(i + 5000)).collect();
+            let mut solver = LinearSolver::new(pat).unwrap();
+            solver.factor(&a).unwrap();
+            let mut x = b.clone();
+            solver.solve_in_place(&mut x).unwrap();
+            let mut ax = vec![0.0; n];
+            a.mul_vec(&x, &mut ax).unwrap();
+            let res = rel_err(&ax, &b);
+            prop_assert!(res < 1e-10, "residual {}", res);
+        }
     }
 }

@@ -93,11 +93,11 @@ fn run(scene_name: &str, out: Option<PathBuf>) -> Result<(), String> {
         res.cost.wall_seconds
     );
     let last = res.states.len() - 1;
-    for r in &model.responses {
+    for (k, r) in model.responses.iter().enumerate() {
         println!(
             "  {:<24} {:>16.8e}",
             r.name,
-            r.value(&res.states[last], &res.residuals[last], &res.histories[last])
+            res.response_value(&model, k, last)
         );
     }
     println!("written to {}", dir.display());

@@ -118,11 +118,13 @@ pub struct Prescribed {
     pub amplitude: Amplitude,
 }
 
-/// A nodal force on each node of a set: `f_c(t) = value * amplitude(t)` per node.
+/// A total force `value * amplitude(t)` in `component`, shared by `nodes` with `weights`
+/// (summing to one: tributary areas of a face set, or equal shares of a node set).
 #[derive(Clone, Debug)]
 pub struct NodalLoad {
     pub name: String,
     pub nodes: Vec<usize>,
+    pub weights: Vec<f64>,
     pub component: usize,
     pub value: f64,
     pub amplitude: Amplitude,
@@ -341,11 +343,15 @@ impl Model {
                 }
             }
             DesignParam::RigidMotion { pair, index } => {
-                if let crate::contact::Target::Rigid { motion, .. } = &mut self.contacts[pair].target {
+                if let crate::contact::Target::Rigid { motion, .. } =
+                    &mut self.contacts[pair].target
+                {
                     motion[index].value = v;
                 }
             }
-            DesignParam::TangentialStiffness { pair } => self.contacts[pair].tangential_stiffness = v,
+            DesignParam::TangentialStiffness { pair } => {
+                self.contacts[pair].tangential_stiffness = v
+            }
         }
     }
 

@@ -52,10 +52,11 @@ pub fn write_history_csv(path: &Path, model: &Model, res: &Results) -> Result<()
             )
         };
         let _ = write!(s, "{k},{t:.10e},{it},{cb},{rn:.6e}");
-        for r in &model.responses {
-            let v = match (res.states.get(k), res.residuals.get(k)) {
-                (Some(z), Some(rr)) => r.value(z, rr, res.histories.get(k).map(|h| h.as_slice()).unwrap_or(&[])),
-                _ => f64::NAN,
+        for r in 0..model.responses.len() {
+            let v = if k < res.states.len() {
+                res.response_value(model, r, k)
+            } else {
+                f64::NAN
             };
             let _ = write!(s, ",{v:.12e}");
         }

@@ -6,7 +6,21 @@
 //! responses are differentiated with the same machinery as the residual, never by differencing
 //! printed numbers.
 
+use crate::contact::assembly::ContactEval;
 use crate::scalar::Scalar;
+
+/// The converged state a response is evaluated at.
+pub struct ResponseInput<'a, S: Scalar> {
+    pub z: &'a [S],
+    /// Residual (reactions at prescribed unknowns).
+    pub residual: &'a [S],
+    /// Committed history.
+    pub hist: &'a [S],
+    /// Contact results, if the model has contact.
+    pub contact: Option<&'a ContactEval<S>>,
+    /// First flat hitting-node index of each pair.
+    pub flat: Option<&'a [usize]>,
+}
 
 /// What a response measures.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -16,6 +30,10 @@ pub enum ResponseKind {
     Reaction { nodes: Vec<usize>, component: usize },
     /// Mean displacement of `nodes` in `component`.
     Displacement { nodes: Vec<usize>, component: usize },
+    /// Force exerted on the target of contact pair `pair` in `component`.
+    TargetForce { pair: usize, component: usize },
+    /// Normal contact force over tributary area at hitting node `node` of pair `pair`.
+    ContactPressure { pair: usize, node: usize, area: f64 },
     /// One history scalar (e.g. the equivalent plastic strain of a Gauss point), by its index
     /// in the global history vector.
     History { index: usize },
@@ -29,8 +47,9 @@ pub struct Response {
 }
 
 impl Response {
-    /// Value at unknowns `z` with residual `residual` and committed history `hist`.
-    pub fn value<S: Scalar>(&self, z: &[S], residual: &[S], hist: &[S]) -> S {
+    /// Value at a converged state.
+    pub fn value<S: Scalar>(&self, at: &ResponseInput<'_, S>) -> S {
+        let (z, residual, hist) = (at.z, at.residual, at.hist);
         match &self.kind {
             ResponseKind::Reaction { nodes, component } => nodes
                 .iter()
@@ -42,6 +61,14 @@ impl Response {
                 sum / nodes.len() as f64
             }
             ResponseKind::History { index } => hist[*index],
+            ResponseKind::TargetForce { pair, component } => match at.contact {
+                Some(c) => -c.pair_force[*pair][*component],
+                None => S::zero(),
+            },
+            ResponseKind::ContactPressure { pair, node, area } => match (at.contact, at.flat) {
+                (Some(c), Some(flat)) => c.normal_force[flat[*pair] + node] / *area,
+                _ => S::zero(),
+            },
         }
     }
 }

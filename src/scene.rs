@@ -5,6 +5,9 @@
 //! the model pays only for what is declared (no history for elastic bodies, no internal
 //! unknowns for plain hex8).
 
+use crate::contact::friction::Coulomb;
+use crate::contact::geometry::RigidSurface;
+use crate::contact::{ContactPair, Friction, NormalLaw, RigidMotion, Target};
 use crate::element::{Hex8Formulation, Kinematics, Spring};
 use crate::material::{J2Plasticity, StVenantKirchhoff};
 use crate::mesh::{Axis, BlockSpec, Mesh, Zone};
@@ -98,7 +101,10 @@ impl MaterialSpec {
                 positive(*sigma_y, &format!("{at}.sigma_y"))?;
                 finite(*hardening, &format!("{at}.H"))?;
                 if *hardening < 0.0 {
-                    return Err(invalid(&format!("{at}.H"), "softening (H < 0) is not supported"));
+                    return Err(invalid(
+                        &format!("{at}.H"),
+                        "softening (H < 0) is not supported",
+                    ));
                 }
                 if sigma_inf.is_some() != delta.is_some() {
                     return Err(invalid(
@@ -200,6 +206,91 @@ pub struct StepSpec {
     pub increments: usize,
 }
 
+/// An analytic rigid surface (undisplaced position).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "shape", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum RigidSpec {
+    /// Plane through `point`, `normal` pointing out of the rigid body (towards the deformable
+    /// one).
+    Plane { point: [f64; 3], normal: [f64; 3] },
+    /// Cylinder (contact on its outside).
+    Cylinder {
+        axis_point: [f64; 3],
+        axis: [f64; 3],
+        radius: f64,
+    },
+    /// Box with rounded edges and corners.
+    RoundedBox {
+        center: [f64; 3],
+        half_extents: [f64; 3],
+        radius: f64,
+    },
+}
+
+/// One component of a rigid target's translation, `value * amplitude(t)`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSpec {
+    pub component: Component,
+    pub value: f64,
+    #[serde(default = "ramp")]
+    pub amplitude: Vec<(f64, f64)>,
+}
+
+/// The target of a contact pair.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+pub enum TargetSpec {
+    /// A face set of a deformable body (e.g. `"upper.ymin"`).
+    Faces(String),
+    /// An analytic rigid surface and its prescribed translation.
+    Rigid {
+        surface: RigidSpec,
+        #[serde(default)]
+        motion: Vec<MotionSpec>,
+    },
+}
+
+/// A friction law with named parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "law", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum FrictionSpec {
+    /// Coulomb with penalty stick.
+    Coulomb { mu: f64 },
+}
+
+/// A contact pair.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    pub name: String,
+    /// Hitting nodes: a face set (tributary areas from its faces) or a node set (unit areas).
+    pub hitting: String,
+    pub target: TargetSpec,
+    /// Normal law; default Lagrange multipliers.
+    #[serde(default = "lagrange")]
+    pub normal: NormalLaw,
+    /// Friction law; none = frictionless.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<FrictionSpec>,
+    /// Tangential penalty stiffness per hitting node (force per length); default
+    /// 100 x the constraint scale.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tangential_stiffness: Option<f64>,
+    /// Scale of the multiplier rows (force per length); default E_max x sqrt(mean area), or
+    /// the largest spring stiffness for models without bodies.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub constraint_scale: Option<f64>,
+    /// Candidate target faces lie within this distance of a hitting node (reference
+    /// configuration); default 3 x the largest face diagonal.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub search_radius: Option<f64>,
+}
+
+fn lagrange() -> NormalLaw {
+    NormalLaw::Lagrange
+}
+
 /// A scalar response of the converged state.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
@@ -215,6 +306,19 @@ pub enum ResponseSpec {
         name: String,
         set: String,
         component: Component,
+    },
+    /// Force exerted on the target of a contact pair (the reaction of a rigid target).
+    TargetForce {
+        name: String,
+        pair: String,
+        component: Component,
+    },
+    /// Contact pressure (normal force / tributary area) at every hitting node of a pair: one
+    /// response per node, named `NAME[i]`, ordered along `along`.
+    PressureProfile {
+        name: String,
+        pair: String,
+        along: Component,
     },
     /// A history variable of one Gauss point: `element` counts within the body, `point` is
     /// the Gauss point (0-7), `variable` names a history entry of the body's material
@@ -234,6 +338,8 @@ impl ResponseSpec {
         match self {
             ResponseSpec::Reaction { name, .. }
             | ResponseSpec::Displacement { name, .. }
+            | ResponseSpec::TargetForce { name, .. }
+            | ResponseSpec::PressureProfile { name, .. }
             | ResponseSpec::History { name, .. } => name,
         }
     }
@@ -256,6 +362,8 @@ pub struct Scene {
     pub prescribed: Vec<PrescribedSpec>,
     #[serde(default)]
     pub loads: Vec<LoadSpec>,
+    #[serde(default)]
+    pub contacts: Vec<ContactSpec>,
     pub steps: Vec<StepSpec>,
     #[serde(default)]
     pub responses: Vec<ResponseSpec>,
@@ -488,12 +596,20 @@ impl Scene {
             let at = format!("loads[{i}]");
             finite(l.value, &format!("{at}.value"))?;
             let nodes = set(&l.set, &format!("{at}.set"))?;
-            let per_node = l.value / nodes.len() as f64;
+            let weights = match mesh.face_sets.get(&l.set) {
+                Some(faces) if !faces.is_empty() => {
+                    let area = tributary_areas(&mesh, faces, &nodes);
+                    let total: f64 = area.iter().sum();
+                    area.iter().map(|a| a / total).collect()
+                }
+                _ => vec![1.0 / nodes.len() as f64; nodes.len()],
+            };
             loads.push(NodalLoad {
                 name: l.name.clone(),
                 nodes,
+                weights,
                 component: l.component.index(),
-                value: per_node,
+                value: l.value,
                 amplitude: amplitude(&l.amplitude, &format!("{at}.amplitude"))?,
             });
         }
@@ -528,6 +644,7 @@ impl Scene {
             }
             t0 = s.end;
         }
+        let contacts = self.build_contacts(&mesh, &bodies, &springs, &amplitude)?;
         let mut responses = Vec::new();
         let mut history_refs: Vec<(usize, usize, usize, usize, usize)> = Vec::new();
         for (i, r) in self.responses.iter().enumerate() {
@@ -545,6 +662,32 @@ impl Scene {
                     nodes: set(s, &field)?,
                     component: component.index(),
                 },
+                ResponseSpec::TargetForce {
+                    pair, component, ..
+                } => ResponseKind::TargetForce {
+                    pair: contact_index(&contacts, pair, &format!("responses[{i}].pair"))?,
+                    component: component.index(),
+                },
+                ResponseSpec::PressureProfile { name, pair, along } => {
+                    let p = contact_index(&contacts, pair, &format!("responses[{i}].pair"))?;
+                    let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+                    let c = &contacts[p];
+                    let mut order: Vec<usize> = (0..c.hitting.len()).collect();
+                    order.sort_by(|a, b| {
+                        x[c.hitting[*a]][along.index()].total_cmp(&x[c.hitting[*b]][along.index()])
+                    });
+                    for (k, node) in order.iter().enumerate() {
+                        responses.push(Response {
+                            name: format!("{name}[{k}]"),
+                            kind: ResponseKind::ContactPressure {
+                                pair: p,
+                                node: *node,
+                                area: c.area[*node],
+                            },
+                        });
+                    }
+                    continue;
+                }
                 ResponseSpec::History {
                     body,
                     element,
@@ -557,7 +700,9 @@ impl Scene {
                         .iter()
                         .enumerate()
                         .find(|(_, b)| &b.name == body)
-                        .ok_or_else(|| invalid(&format!("{at}.body"), format!("no body '{body}'")))?;
+                        .ok_or_else(|| {
+                            invalid(&format!("{at}.body"), format!("no body '{body}'"))
+                        })?;
                     let names = b.material.history_names();
                     let var = names.iter().position(|n| n == variable).ok_or_else(|| {
                         invalid(
@@ -597,7 +742,7 @@ impl Scene {
             prescribed,
             loads,
             times,
-            contacts: Vec::new(),
+            contacts,
             responses,
             solver: self.solver.clone(),
         };
@@ -614,6 +759,262 @@ impl Scene {
     }
 }
 
+/// Tributary area of each of `nodes` (sorted) over `faces`: a quarter of each face's area.
+fn tributary_areas(mesh: &Mesh, faces: &[[usize; 4]], nodes: &[usize]) -> Vec<f64> {
+    let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+    let mut sorted: Vec<usize> = nodes.to_vec();
+    sorted.sort();
+    let mut area = vec![0.0; nodes.len()];
+    for f in faces {
+        let a = (x[f[1]] - x[f[0]]).cross(&(x[f[3]] - x[f[0]])).norm() * 0.5
+            + (x[f[3]] - x[f[2]]).cross(&(x[f[1]] - x[f[2]])).norm() * 0.5;
+        for n in f {
+            if let Some(k) = nodes.iter().position(|m| m == n) {
+                area[k] += a / 4.0;
+            }
+        }
+    }
+    area
+}
+
+/// Validates and builds an amplitude, naming the field in errors.
+type AmplitudeBuilder<'a> = dyn Fn(&[(f64, f64)], &str) -> Result<Amplitude, SceneError> + 'a;
+
+fn contact_index(contacts: &[ContactPair], name: &str, field: &str) -> Result<usize, SceneError> {
+    contacts.iter().position(|c| c.name == name).ok_or_else(|| {
+        invalid(
+            field,
+            format!(
+                "no contact pair '{name}' (pairs: {})",
+                contacts
+                    .iter()
+                    .map(|c| c.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )
+    })
+}
+
+fn vec3(v: [f64; 3], field: &str) -> Result<nalgebra::Vector3<f64>, SceneError> {
+    for x in v {
+        finite(x, field)?;
+    }
+    Ok(nalgebra::Vector3::from(v))
+}
+
+impl Scene {
+    fn build_contacts(
+        &self,
+        mesh: &Mesh,
+        bodies: &[Body],
+        springs: &[Spring],
+        amplitude: &AmplitudeBuilder<'_>,
+    ) -> Result<Vec<ContactPair>, SceneError> {
+        let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+        let mut out = Vec::new();
+        for (ci, c) in self.contacts.iter().enumerate() {
+            let at = format!("contacts[{ci}]");
+            if self.contacts[..ci].iter().any(|o| o.name == c.name) {
+                return Err(invalid(
+                    &format!("{at}.name"),
+                    format!("pair '{}' defined twice", c.name),
+                ));
+            }
+            // hitting nodes and their tributary areas
+            let (hitting, area) = if let Some(faces) = mesh.face_sets.get(&c.hitting) {
+                let mut nodes: Vec<usize> = faces.iter().flatten().copied().collect();
+                nodes.sort();
+                nodes.dedup();
+                let area = tributary_areas(mesh, faces, &nodes);
+                (nodes, area)
+            } else if let Some(nodes) = mesh.node_sets.get(&c.hitting) {
+                if nodes.is_empty() {
+                    return Err(invalid(
+                        &format!("{at}.hitting"),
+                        format!("node set '{}' is empty", c.hitting),
+                    ));
+                }
+                (nodes.clone(), vec![1.0; nodes.len()])
+            } else {
+                return Err(invalid(
+                    &format!("{at}.hitting"),
+                    format!("no face set or node set named '{}'", c.hitting),
+                ));
+            };
+            let (target, candidates, diag) = match &c.target {
+                TargetSpec::Faces(name) => {
+                    let faces = mesh.face_sets.get(name).ok_or_else(|| {
+                        invalid(
+                            &format!("{at}.target"),
+                            format!("no face set named '{name}'"),
+                        )
+                    })?;
+                    if faces.is_empty() {
+                        return Err(invalid(
+                            &format!("{at}.target"),
+                            format!("face set '{name}' is empty"),
+                        ));
+                    }
+                    let diag = faces
+                        .iter()
+                        .map(|f| (x[f[2]] - x[f[0]]).norm().max((x[f[3]] - x[f[1]]).norm()))
+                        .fold(0.0f64, f64::max);
+                    let radius = c.search_radius.unwrap_or(3.0 * diag);
+                    positive(radius, &format!("{at}.search_radius"))?;
+                    let mut candidates = Vec::new();
+                    for &s in &hitting {
+                        let cands: Vec<usize> = faces
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, f)| {
+                                let centre = (x[f[0]] + x[f[1]] + x[f[2]] + x[f[3]]) / 4.0;
+                                (x[s] - centre).norm() <= radius && !f.contains(&s)
+                            })
+                            .map(|(k, _)| k)
+                            .collect();
+                        candidates.push(cands);
+                    }
+                    (
+                        Target::Faces {
+                            faces: faces.clone(),
+                        },
+                        candidates,
+                        diag,
+                    )
+                }
+                TargetSpec::Rigid { surface, motion } => {
+                    let sf = format!("{at}.target.surface");
+                    let surface = match surface {
+                        RigidSpec::Plane { point, normal } => RigidSurface::Plane {
+                            point: vec3(*point, &sf)?,
+                            normal: vec3(*normal, &sf)?,
+                        },
+                        RigidSpec::Cylinder {
+                            axis_point,
+                            axis,
+                            radius,
+                        } => {
+                            positive(*radius, &format!("{sf}.radius"))?;
+                            RigidSurface::Cylinder {
+                                axis_point: vec3(*axis_point, &sf)?,
+                                axis: vec3(*axis, &sf)?,
+                                radius: *radius,
+                            }
+                        }
+                        RigidSpec::RoundedBox {
+                            center,
+                            half_extents,
+                            radius,
+                        } => {
+                            for h in half_extents {
+                                positive(*h, &format!("{sf}.half_extents"))?;
+                            }
+                            finite(*radius, &format!("{sf}.radius"))?;
+                            if *radius < 0.0 || half_extents.iter().any(|h| *radius > *h) {
+                                return Err(invalid(
+                                    &format!("{sf}.radius"),
+                                    "needs 0 <= radius <= every half extent",
+                                ));
+                            }
+                            RigidSurface::RoundedBox {
+                                center: vec3(*center, &sf)?,
+                                half_extents: vec3(*half_extents, &sf)?,
+                                radius: *radius,
+                            }
+                        }
+                    };
+                    let mut m = Vec::new();
+                    for (k, ms) in motion.iter().enumerate() {
+                        let f = format!("{at}.target.motion[{k}]");
+                        finite(ms.value, &format!("{f}.value"))?;
+                        m.push(RigidMotion {
+                            component: ms.component.index(),
+                            value: ms.value,
+                            amplitude: amplitude(&ms.amplitude, &format!("{f}.amplitude"))?,
+                        });
+                    }
+                    (
+                        Target::Rigid { surface, motion: m },
+                        vec![Vec::new(); hitting.len()],
+                        0.0,
+                    )
+                }
+            };
+            if let Target::Faces { .. } = target {
+                if let Some(k) = candidates.iter().position(|c| c.is_empty()) {
+                    return Err(invalid(
+                        &format!("{at}.search_radius"),
+                        format!(
+                            "hitting node {} has no target face within the search radius {:.3e} (largest face diagonal {diag:.3e})",
+                            hitting[k],
+                            c.search_radius.unwrap_or(3.0 * diag)
+                        ),
+                    ));
+                }
+            }
+            let friction = match &c.friction {
+                None => None,
+                Some(FrictionSpec::Coulomb { mu }) => {
+                    finite(*mu, &format!("{at}.friction.mu"))?;
+                    if *mu < 0.0 {
+                        return Err(invalid(
+                            &format!("{at}.friction.mu"),
+                            format!("must be >= 0, got {mu}"),
+                        ));
+                    }
+                    Some(Friction::Coulomb(Coulomb::new(*mu)))
+                }
+            };
+            if let NormalLaw::Penalty { stiffness } = c.normal {
+                positive(stiffness, &format!("{at}.normal.stiffness"))?;
+            }
+            let scale = match c.constraint_scale {
+                Some(k) => {
+                    positive(k, &format!("{at}.constraint_scale"))?;
+                    k
+                }
+                None => {
+                    let e = bodies
+                        .iter()
+                        .map(|b| b.material.params()[0])
+                        .fold(0.0f64, f64::max);
+                    let mean_area = area.iter().sum::<f64>() / area.len() as f64;
+                    let ks = springs
+                        .iter()
+                        .flat_map(|s| s.stiffness.iter().flatten().map(|v| v.abs()))
+                        .fold(0.0f64, f64::max);
+                    let k = if e > 0.0 { e * mean_area.sqrt() } else { ks };
+                    if k > 0.0 {
+                        k
+                    } else {
+                        1.0
+                    }
+                }
+            };
+            let eps_t = match c.tangential_stiffness {
+                Some(k) => {
+                    positive(k, &format!("{at}.tangential_stiffness"))?;
+                    k
+                }
+                None => 100.0 * scale,
+            };
+            out.push(ContactPair {
+                name: c.name.clone(),
+                hitting,
+                area,
+                target,
+                normal: c.normal,
+                friction,
+                tangential_stiffness: eps_t,
+                constraint_scale: scale,
+                candidates,
+            });
+        }
+        Ok(out)
+    }
+}
+
 /// Names and one-line descriptions of the built-in scenes.
 pub fn builtin_list() -> Vec<(&'static str, &'static str)> {
     vec![
@@ -625,6 +1026,11 @@ pub fn builtin_list() -> Vec<(&'static str, &'static str)> {
             "uniaxial-j2",
             "one hex8, J2 with linear hardening, uniaxial stress, strain cycle 0 -> +0.01 -> -0.01 (oracles 1)",
         ),
+        ("klarbring-2dof", "node with coupled stiffness on a rigid plane, Coulomb friction, load cycle (oracles 6)"),
+        ("jenkins", "spring and Coulomb slider under a cyclic base displacement (oracles 5)"),
+        ("strip-pullout", "strip on a rigid plane pulled at one end, partial slip, unloading (oracles 7)"),
+        ("hertz", "rigid cylinder on a plane-strain block, load control (oracles 4)"),
+        ("contact-patch", "two blocks with matching meshes under uniform pressure, frictional"),
         (
             "cantilever-small",
             "elastic cantilever, L/h = 20, small tip load: P L^3/(3 E I) (oracles 3)",
@@ -638,6 +1044,11 @@ pub fn builtin(name: &str) -> Option<Scene> {
         "cantilever" => Some(cantilever(&CantileverSpec::large_deflection())),
         "cantilever-small" => Some(cantilever(&CantileverSpec::small_deflection())),
         "uniaxial-j2" => Some(uniaxial_j2(Kinematics::Small, 10)),
+        "klarbring-2dof" => Some(klarbring_2dof(10)),
+        "jenkins" => Some(jenkins(10)),
+        "strip-pullout" => Some(strip_pullout(&StripSpec::default())),
+        "hertz" => Some(hertz(&HertzSpec::default())),
+        "contact-patch" => Some(contact_patch(Some(0.3))),
         _ => None,
     }
 }
@@ -744,6 +1155,7 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
             value: 0.0,
             amplitude: ramp(),
         }],
+        contacts: vec![],
         loads: vec![LoadSpec {
             name: "tip".into(),
             set: "beam.xmax".into(),
@@ -826,6 +1238,7 @@ pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene 
             },
         ],
         loads: vec![],
+        contacts: vec![],
         steps: vec![
             StepSpec {
                 end: 1.0,
@@ -855,6 +1268,537 @@ pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene 
                 variable: "alpha".into(),
             },
         ],
+        solver: SolverSettings::default(),
+    }
+}
+
+fn fixed_set(name: &str, set: &str, components: &[Component]) -> PrescribedSpec {
+    PrescribedSpec {
+        name: name.into(),
+        set: set.into(),
+        components: components.to_vec(),
+        value: 0.0,
+        amplitude: ramp(),
+    }
+}
+
+fn block_body(
+    name: &str,
+    origin: [f64; 3],
+    axes: [Axis; 3],
+    material: MaterialSpec,
+    kinematics: Kinematics,
+) -> BodySpec {
+    let [x, y, z] = axes;
+    BodySpec {
+        block: BlockSpec {
+            name: name.into(),
+            origin,
+            x,
+            y,
+            z,
+        },
+        material,
+        kinematics,
+        formulation: Hex8Formulation::IncompatibleModes,
+    }
+}
+
+fn graded(length: f64, fine_fraction: f64, fine: usize, coarse: usize, ratio: f64) -> Axis {
+    Axis {
+        length,
+        zones: vec![
+            Zone {
+                fraction: fine_fraction,
+                elements: fine,
+                ratio: 1.0,
+            },
+            Zone {
+                fraction: 1.0 - fine_fraction,
+                elements: coarse,
+                ratio,
+            },
+        ],
+    }
+}
+
+/// shared/oracles.md section 6: a node at the origin with stiffness
+/// `K = [[k11, k12], [k12, k22]]` against the rigid plane y = 0, normal load `F_n = -1`, tangential
+/// load `F_t` 0 -> 0.6 (t = 1) -> -0.6 (t = 3) -> 0.6 (t = 5), Coulomb `mu = 0.3`.
+pub fn klarbring_2dof(increments_per_unit: usize) -> Scene {
+    Scene {
+        name: "klarbring-2dof".into(),
+        description: "Two-degree-of-freedom frictional system (shared/oracles.md section 6)."
+            .into(),
+        bodies: vec![],
+        free_nodes: vec![FreeNodeSpec {
+            name: "node".into(),
+            x: [0.0; 3],
+        }],
+        springs: vec![SpringSpec {
+            a: "node".into(),
+            b: None,
+            stiffness: [[1.0, 0.5, 0.0], [0.5, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        }],
+        prescribed: vec![],
+        loads: vec![
+            LoadSpec {
+                name: "Fn".into(),
+                set: "node".into(),
+                component: Component::Y,
+                value: -1.0,
+                amplitude: vec![(0.0, 1.0), (5.0, 1.0)],
+            },
+            LoadSpec {
+                name: "Ft".into(),
+                set: "node".into(),
+                component: Component::X,
+                value: 0.6,
+                amplitude: vec![(0.0, 0.0), (1.0, 1.0), (3.0, -1.0), (5.0, 1.0)],
+            },
+        ],
+        contacts: vec![ContactSpec {
+            name: "plane".into(),
+            hitting: "node".into(),
+            target: TargetSpec::Rigid {
+                surface: RigidSpec::Plane {
+                    point: [0.0; 3],
+                    normal: [0.0, 1.0, 0.0],
+                },
+                motion: vec![],
+            },
+            normal: NormalLaw::Lagrange,
+            friction: Some(FrictionSpec::Coulomb { mu: 0.3 }),
+            // The oracle's stick is rigid; the penalty leaves an elastic slip |t| / eps_T in
+            // stick phases (1e-7 here). Slipping states, where the worked values are, do not
+            // depend on it. A stiffer penalty buys little: the stick force's round-off grows
+            // as eps_T |u| 1e-16.
+            tangential_stiffness: Some(1e6),
+            constraint_scale: Some(1.0),
+            search_radius: None,
+        }],
+        steps: vec![StepSpec {
+            end: 5.0,
+            increments: 5 * increments_per_unit,
+        }],
+        responses: vec![
+            ResponseSpec::Displacement {
+                name: "u".into(),
+                set: "node".into(),
+                component: Component::X,
+            },
+            ResponseSpec::TargetForce {
+                name: "plane-force-x".into(),
+                pair: "plane".into(),
+                component: Component::X,
+            },
+            ResponseSpec::TargetForce {
+                name: "plane-force-y".into(),
+                pair: "plane".into(),
+                component: Component::Y,
+            },
+        ],
+        // the oracle is exact: converge close to round-off (the stick force carries
+        // eps_T |u| 1e-16 ~ 1e-11 of noise), not to the default 1e-9
+        solver: SolverSettings {
+            force_tol: 1e-11,
+            ..SolverSettings::default()
+        },
+    }
+}
+
+/// shared/oracles.md section 5: a slider (node on the rigid plane y = 0 under the normal force
+/// `N = 1`) tied by a spring `k = 1` to a base whose displacement `U(t)` cycles 0 -> U_a (t = 1)
+/// -> -U_a (t = 3) -> U_a (t = 5), `U_a = 1`, Coulomb `mu = 0.3`.
+pub fn jenkins(increments_per_unit: usize) -> Scene {
+    Scene {
+        name: "jenkins".into(),
+        description: "Jenkins element: spring and Coulomb slider (shared/oracles.md section 5)."
+            .into(),
+        bodies: vec![],
+        free_nodes: vec![
+            FreeNodeSpec {
+                name: "slider".into(),
+                x: [0.0; 3],
+            },
+            FreeNodeSpec {
+                name: "base".into(),
+                x: [-1.0, 0.0, 0.0],
+            },
+        ],
+        springs: vec![
+            SpringSpec {
+                a: "slider".into(),
+                b: Some("base".into()),
+                stiffness: [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+            },
+            // holds the slider in y before contact closes and in z (no effect in contact)
+            SpringSpec {
+                a: "slider".into(),
+                b: None,
+                stiffness: [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            },
+        ],
+        prescribed: vec![
+            PrescribedSpec {
+                name: "U".into(),
+                set: "base".into(),
+                components: vec![Component::X],
+                value: 1.0,
+                amplitude: vec![(0.0, 0.0), (1.0, 1.0), (3.0, -1.0), (5.0, 1.0)],
+            },
+            fixed_set("base-yz", "base", &[Component::Y, Component::Z]),
+        ],
+        loads: vec![LoadSpec {
+            name: "N".into(),
+            set: "slider".into(),
+            component: Component::Y,
+            value: -1.0,
+            amplitude: vec![(0.0, 1.0), (5.0, 1.0)],
+        }],
+        contacts: vec![ContactSpec {
+            name: "plane".into(),
+            hitting: "slider".into(),
+            target: TargetSpec::Rigid {
+                surface: RigidSpec::Plane {
+                    point: [0.0; 3],
+                    normal: [0.0, 1.0, 0.0],
+                },
+                motion: vec![],
+            },
+            normal: NormalLaw::Lagrange,
+            friction: Some(FrictionSpec::Coulomb { mu: 0.3 }),
+            tangential_stiffness: Some(1e6),
+            constraint_scale: Some(1.0),
+            search_radius: None,
+        }],
+        steps: vec![StepSpec {
+            end: 5.0,
+            increments: 5 * increments_per_unit,
+        }],
+        responses: vec![
+            ResponseSpec::Reaction {
+                name: "T".into(),
+                set: "base".into(),
+                component: Component::X,
+            },
+            ResponseSpec::Displacement {
+                name: "slider-u".into(),
+                set: "slider".into(),
+                component: Component::X,
+            },
+        ],
+        // the oracle is exact: converge close to round-off (the stick force carries
+        // eps_T |u| 1e-16 ~ 1e-11 of noise), not to the default 1e-9
+        solver: SolverSettings {
+            force_tol: 1e-11,
+            ..SolverSettings::default()
+        },
+    }
+}
+
+/// Parameters of the strip pull-out scene (shared/oracles.md section 7).
+#[derive(Clone, Debug)]
+pub struct StripSpec {
+    pub length: f64,
+    pub thickness: f64,
+    pub width: f64,
+    pub young: f64,
+    pub mu: f64,
+    /// Normal load per unit length.
+    pub n: f64,
+    /// Largest pull force.
+    pub force: f64,
+    pub elements: usize,
+    pub increments_per_unit: usize,
+}
+
+impl Default for StripSpec {
+    fn default() -> Self {
+        StripSpec {
+            // the 1D oracle holds where the slip zone exceeds 20 thicknesses (F > 1 here);
+            // thinner strips or longer slip zones need many Newton iterations per increment
+            // (the slip front advances node by node) - see the closing note of issue 4
+            length: 10.0,
+            thickness: 0.1,
+            width: 0.1,
+            young: 1e5,
+            mu: 0.5,
+            n: 1.0,
+            force: 1.5,
+            elements: 100,
+            increments_per_unit: 10,
+        }
+    }
+}
+
+/// A strip on the rigid plane y = 0 under a normal load `n` per unit length, pulled at
+/// x = L by a force F: 0 -> F_1 (t = 1) -> 0 (t = 2). Small kinematics, nu = 0.
+pub fn strip_pullout(s: &StripSpec) -> Scene {
+    Scene {
+        name: "strip-pullout".into(),
+        description: format!(
+            "Frictional strip pull-out (shared/oracles.md section 7): L = {}, t = {}, b = {}, E = {}, mu = {}, n = {}, F1 = {}.",
+            s.length, s.thickness, s.width, s.young, s.mu, s.n, s.force
+        ),
+        bodies: vec![block_body(
+            "strip",
+            [0.0; 3],
+            [
+                Axis::uniform(s.length, s.elements),
+                Axis::uniform(s.thickness, 1),
+                Axis::uniform(s.width, 1),
+            ],
+            MaterialSpec::Svk {
+                young: s.young,
+                nu: 0.0,
+            },
+            Kinematics::Small,
+        )],
+        free_nodes: vec![],
+        springs: vec![],
+        prescribed: vec![fixed_set("plane-z", "strip.all", &[Component::Z])],
+        loads: vec![
+            LoadSpec {
+                name: "n".into(),
+                set: "strip.ymax".into(),
+                component: Component::Y,
+                value: -s.n * s.length,
+                amplitude: vec![(0.0, 1.0), (2.0, 1.0)],
+            },
+            LoadSpec {
+                name: "F".into(),
+                set: "strip.xmax".into(),
+                component: Component::X,
+                value: s.force,
+                amplitude: vec![(0.0, 0.0), (1.0, 1.0), (2.0, 0.0)],
+            },
+        ],
+        contacts: vec![ContactSpec {
+            name: "ground".into(),
+            hitting: "strip.ymin".into(),
+            target: TargetSpec::Rigid {
+                surface: RigidSpec::Plane {
+                    point: [0.0; 3],
+                    normal: [0.0, 1.0, 0.0],
+                },
+                motion: vec![],
+            },
+            normal: NormalLaw::Lagrange,
+            friction: Some(FrictionSpec::Coulomb { mu: s.mu }),
+            tangential_stiffness: Some(1e4 * s.young * s.thickness * s.width * s.elements as f64 / s.length),
+            constraint_scale: None,
+            search_radius: None,
+        }],
+        steps: vec![StepSpec {
+            end: 2.0,
+            increments: 2 * s.increments_per_unit,
+        }],
+        responses: vec![ResponseSpec::Displacement {
+            name: "u0".into(),
+            set: "strip.xmax".into(),
+            component: Component::X,
+        }],
+        solver: SolverSettings::default(),
+    }
+}
+
+/// Parameters of the Hertz line-contact scene (shared/oracles.md section 4).
+#[derive(Clone, Debug)]
+pub struct HertzSpec {
+    pub radius: f64,
+    pub young: f64,
+    pub nu: f64,
+    /// Target half-width; the load is `P = a^2 pi E* / (4 R)` per unit length.
+    pub half_width: f64,
+    /// Elements across the target half-width.
+    pub elements_across: usize,
+}
+
+impl Default for HertzSpec {
+    fn default() -> Self {
+        HertzSpec {
+            radius: 10.0,
+            young: 1e5,
+            nu: 0.3,
+            half_width: 0.5,
+            elements_across: 12,
+        }
+    }
+}
+
+impl HertzSpec {
+    /// Plane-strain modulus `E* = E / (1 - nu^2)`.
+    pub fn e_star(&self) -> f64 {
+        self.young / (1.0 - self.nu * self.nu)
+    }
+    /// Load per unit length giving the target half-width.
+    pub fn load(&self) -> f64 {
+        self.half_width.powi(2) * std::f64::consts::PI * self.e_star() / (4.0 * self.radius)
+    }
+}
+
+/// Half model (x >= 0) of a plane-strain block pushed by a bottom pressure against a rigid
+/// cylinder of radius R whose lowest line touches the block's top at x = 0 (load control).
+pub fn hertz(h: &HertzSpec) -> Scene {
+    let a = h.half_width;
+    let side = 10.0 * a; // half width of the block: 20a x 20a overall
+    let depth = 20.0 * a;
+    let fine = h.elements_across * 2; // fine zone 0..2a
+    let thickness = a / h.elements_across as f64;
+    Scene {
+        name: "hertz".into(),
+        description: format!(
+            "Hertz line contact, plane strain: rigid cylinder R = {} on an elastic block E = {}, nu = {}, P = {:.6e} per unit length for a = {}.",
+            h.radius, h.young, h.nu, h.load(), a
+        ),
+        bodies: vec![block_body(
+            "block",
+            [0.0, -depth, 0.0],
+            [
+                graded(side, 0.2, fine, 12, 8.0),
+                Axis {
+                    length: depth,
+                    zones: vec![
+                        Zone {
+                            fraction: 0.9,
+                            elements: 14,
+                            ratio: 1.0 / 10.0,
+                        },
+                        Zone {
+                            fraction: 0.1,
+                            elements: fine,
+                            ratio: 1.0,
+                        },
+                    ],
+                },
+                Axis::uniform(thickness, 1),
+            ],
+            MaterialSpec::Svk {
+                young: h.young,
+                nu: h.nu,
+            },
+            Kinematics::Small,
+        )],
+        free_nodes: vec![],
+        springs: vec![],
+        prescribed: vec![
+            fixed_set("symmetry", "block.xmin", &[Component::X]),
+            fixed_set("plane-strain", "block.all", &[Component::Z]),
+        ],
+        loads: vec![LoadSpec {
+            name: "P".into(),
+            set: "block.ymin".into(),
+            component: Component::Y,
+            value: 0.5 * h.load() * thickness,
+            amplitude: ramp(),
+        }],
+        contacts: vec![ContactSpec {
+            name: "cylinder".into(),
+            hitting: "block.ymax".into(),
+            target: TargetSpec::Rigid {
+                surface: RigidSpec::Cylinder {
+                    axis_point: [0.0, h.radius, 0.0],
+                    axis: [0.0, 0.0, 1.0],
+                    radius: h.radius,
+                },
+                motion: vec![],
+            },
+            normal: NormalLaw::Lagrange,
+            friction: None,
+            tangential_stiffness: None,
+            constraint_scale: None,
+            search_radius: None,
+        }],
+        steps: vec![StepSpec {
+            end: 1.0,
+            increments: 4,
+        }],
+        responses: vec![
+            ResponseSpec::PressureProfile {
+                name: "p".into(),
+                pair: "cylinder".into(),
+                along: Component::X,
+            },
+            ResponseSpec::TargetForce {
+                name: "cylinder-force-y".into(),
+                pair: "cylinder".into(),
+                component: Component::Y,
+            },
+        ],
+        solver: SolverSettings::default(),
+    }
+}
+
+/// Contact patch test: a block pressed by a uniform pressure onto another with a matching mesh;
+/// symmetry planes x = 0 and z = 0, the lower block's bottom fixed in y.
+pub fn contact_patch(friction: Option<f64>) -> Scene {
+    let material = MaterialSpec::Svk {
+        young: 1000.0,
+        nu: 0.3,
+    };
+    let axes = || {
+        [
+            Axis::uniform(2.0, 4),
+            Axis::uniform(1.0, 2),
+            Axis::uniform(2.0, 4),
+        ]
+    };
+    Scene {
+        name: "contact-patch".into(),
+        description:
+            "Contact patch test: two blocks with matching meshes under a uniform pressure.".into(),
+        bodies: vec![
+            block_body(
+                "lower",
+                [0.0; 3],
+                axes(),
+                material.clone(),
+                Kinematics::Small,
+            ),
+            block_body(
+                "upper",
+                [0.0, 1.0, 0.0],
+                axes(),
+                material,
+                Kinematics::Small,
+            ),
+        ],
+        free_nodes: vec![],
+        springs: vec![],
+        prescribed: vec![
+            fixed_set("lower-x", "lower.xmin", &[Component::X]),
+            fixed_set("upper-x", "upper.xmin", &[Component::X]),
+            fixed_set("lower-z", "lower.zmin", &[Component::Z]),
+            fixed_set("upper-z", "upper.zmin", &[Component::Z]),
+            fixed_set("lower-y", "lower.ymin", &[Component::Y]),
+        ],
+        loads: vec![LoadSpec {
+            name: "p".into(),
+            set: "upper.ymax".into(),
+            component: Component::Y,
+            value: -4.0 * 10.0,
+            amplitude: ramp(),
+        }],
+        contacts: vec![ContactSpec {
+            name: "interface".into(),
+            hitting: "upper.ymin".into(),
+            target: TargetSpec::Faces("lower.ymax".into()),
+            normal: NormalLaw::Lagrange,
+            friction: friction.map(|mu| FrictionSpec::Coulomb { mu }),
+            tangential_stiffness: None,
+            constraint_scale: None,
+            search_radius: None,
+        }],
+        steps: vec![StepSpec {
+            end: 1.0,
+            increments: 1,
+        }],
+        responses: vec![ResponseSpec::PressureProfile {
+            name: "p".into(),
+            pair: "interface".into(),
+            along: Component::X,
+        }],
         solver: SolverSettings::default(),
     }
 }

@@ -121,6 +121,9 @@ impl Parameter {
     ///   (one shared value);
     /// * `BODY.PARAM`: that material parameter of one body;
     /// * `BODY.length.x|y|z`, `BODY.origin.x|y|z`: a shape parameter of a body's block;
+    /// * `PAIR.mu` (any friction-law parameter), `PAIR.eps_t`, `PAIR.motion[K]`: a contact
+    ///   pair's friction parameter, tangential penalty, or rigid-target motion magnitude; a bare
+    ///   friction parameter name (`mu`) is shared by every pair that has it;
     /// * `load.NAME`, `prescribed.NAME`: the magnitude of a nodal load or prescribed displacement.
     pub fn by_name(model: &Model, name: &str) -> Result<Self, AnalysisError> {
         let err = |why: String| AnalysisError::Sensitivity(format!("parameter '{name}': {why}"));
@@ -155,10 +158,50 @@ impl Parameter {
                     .ok_or_else(|| err(format!("no body '{body}'")))?;
                 let axis = axis(a)?;
                 targets.push(if *kind == "length" {
-                    DesignParam::BlockLength { block: b.block, axis }
+                    DesignParam::BlockLength {
+                        block: b.block,
+                        axis,
+                    }
                 } else {
-                    DesignParam::BlockOrigin { block: b.block, axis }
+                    DesignParam::BlockOrigin {
+                        block: b.block,
+                        axis,
+                    }
                 });
+            }
+            [pair, param] if model.contacts.iter().any(|c| c.name == *pair) => {
+                let (pi, c) = model
+                    .contacts
+                    .iter()
+                    .enumerate()
+                    .find(|(_, c)| c.name == *pair)
+                    .expect("checked");
+                if *param == "eps_t" {
+                    targets.push(DesignParam::TangentialStiffness { pair: pi });
+                } else if let Some(k) = param.strip_prefix("motion") {
+                    let index: usize = k
+                        .trim_matches(|ch| ch == '[' || ch == ']')
+                        .parse()
+                        .map_err(|_| err("use PAIR.motion[K]".into()))?;
+                    targets.push(DesignParam::RigidMotion { pair: pi, index });
+                } else {
+                    let f = c
+                        .friction
+                        .as_ref()
+                        .ok_or_else(|| err(format!("pair '{pair}' is frictionless")))?;
+                    let index =
+                        f.param_names()
+                            .iter()
+                            .position(|n| n == param)
+                            .ok_or_else(|| {
+                                err(format!(
+                                    "friction law '{}' has parameters {:?}",
+                                    f.name(),
+                                    f.param_names()
+                                ))
+                            })?;
+                    targets.push(DesignParam::Friction { pair: pi, index });
+                }
             }
             [body, param] => {
                 let (bi, b) = model
@@ -187,17 +230,23 @@ impl Parameter {
                         targets.push(DesignParam::Material { body: bi, index });
                     }
                 }
+                for (pi, c) in model.contacts.iter().enumerate() {
+                    if let Some(f) = &c.friction {
+                        if let Some(index) = f.param_names().iter().position(|n| n == param) {
+                            targets.push(DesignParam::Friction { pair: pi, index });
+                        }
+                    }
+                }
             }
             _ => {}
         }
         if targets.is_empty() {
             return Err(err("matches nothing in this model".into()));
         }
-        let value = model.param_value(targets[0]).expect("resolved target exists");
-        if targets
-            .iter()
-            .any(|t| model.param_value(*t) != Some(value))
-        {
+        let value = model
+            .param_value(targets[0])
+            .expect("resolved target exists");
+        if targets.iter().any(|t| model.param_value(*t) != Some(value)) {
             return Err(err(
                 "its targets have different values; name one of them (BODY.PARAM)".into(),
             ));
@@ -260,6 +309,25 @@ pub struct Kink {
     pub distance: f64,
 }
 
+/// Derivatives `[r][p]` with every flagged point forced onto each side of its transition.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct OneSided {
+    /// Elastic / stick / open side.
+    pub lower: Vec<Vec<f64>>,
+    /// Plastic / slip / closed side.
+    pub upper: Vec<Vec<f64>>,
+}
+
+/// What one in-line method computes at an increment.
+struct Step {
+    /// `[r][p]`: total derivative of each response.
+    dresp: Vec<Vec<f64>>,
+    /// `dh_n/db`, parameter-major.
+    dhist: Vec<f64>,
+    /// `dz_n/db` per parameter.
+    dz: Vec<Vec<f64>>,
+}
+
 /// Sensitivities at one converged increment.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct IncrementSensitivity {
@@ -271,9 +339,8 @@ pub struct IncrementSensitivity {
     pub derivatives: Vec<Vec<f64>>,
     /// Flagged non-differentiable points.
     pub kinks: Vec<Kink>,
-    /// One-sided derivatives where kinks were flagged (DDM): `[r][p]` with every flagged point
-    /// on the elastic (stick) branch, and on the plastic (slip) branch.
-    pub one_sided: Option<(Vec<Vec<f64>>, Vec<Vec<f64>>)>,
+    /// One-sided derivatives where kinks were flagged (DDM).
+    pub one_sided: Option<OneSided>,
     /// `dz/db` for every parameter (only when requested).
     #[serde(skip)]
     pub state_derivative: Option<Vec<Vec<f64>>>,
@@ -311,6 +378,9 @@ pub struct Engine<'a> {
     /// `dh/db`, parameter-major: `dhist[p * n_history + i]`.
     dhist: Vec<f64>,
     exact: Option<LinearSolver>,
+    /// Tangent to solve with instead of the Newton one (one-sided derivatives: the tangent of
+    /// the forced branches).
+    forced_tangent: Option<crate::linalg::SparseMatrix>,
     pub results: SensitivityResults,
 }
 
@@ -322,6 +392,7 @@ impl<'a> Engine<'a> {
             keep_state_derivative: false,
             dhist: vec![0.0; nh * params.len()],
             exact: None,
+            forced_tangent: None,
             results: SensitivityResults {
                 method: Some(settings.method),
                 beta: settings.beta,
@@ -424,7 +495,12 @@ impl<'a> Engine<'a> {
     }
 
     /// Solve `K X = RHS` (columns stored column-major) with the chosen tangent.
-    fn solve(&mut self, c: &Converged<'_>, rhs: &mut [f64], ncols: usize) -> Result<(), AnalysisError> {
+    fn solve(
+        &mut self,
+        c: &Converged<'_>,
+        rhs: &mut [f64],
+        ncols: usize,
+    ) -> Result<(), AnalysisError> {
         let n = c.z.len();
         let converged_k = || {
             let mut k = c.tangent.clone();
@@ -435,9 +511,21 @@ impl<'a> Engine<'a> {
             }
             k
         };
-        let use_exact = self.settings.tangent == TangentChoice::Exact || c.last_factor.is_none();
+        let use_exact = self.settings.tangent == TangentChoice::Exact
+            || c.last_factor.is_none()
+            || self.forced_tangent.is_some();
         if use_exact {
-            let k = converged_k();
+            let k = match self.forced_tangent.take() {
+                Some(mut k) => {
+                    for (d, fixed) in c.constrained.iter().enumerate() {
+                        if *fixed {
+                            k.set_identity_row_col(d).expect("in range");
+                        }
+                    }
+                    k
+                }
+                None => converged_k(),
+            };
             if self.exact.is_none() {
                 self.exact = Some(LinearSolver::new(c.assembler.pattern.clone())?);
             }
@@ -466,7 +554,7 @@ impl<'a> Engine<'a> {
         c: &Converged<'_>,
         ks: &[usize],
         frozen: &Frozen<'_>,
-    ) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>), AnalysisError> {
+    ) -> Result<Step, AnalysisError> {
         let n = c.z.len();
         let nh = c.hist_prev.len();
         let ne = c.model.mesh.elements.len();
@@ -505,8 +593,16 @@ impl<'a> Engine<'a> {
             })
             .collect();
         let mut ev = Evaluation::<S>::new(c.assembler, ne);
-        c.assembler
-            .evaluate(c.model, &lifted, &z, &hist, c.time, Some(frozen), None, &mut ev)?;
+        c.assembler.evaluate(
+            c.model,
+            &lifted,
+            &z,
+            &hist,
+            c.time,
+            Some(frozen),
+            None,
+            &mut ev,
+        )?;
         self.results.cost.residual_evaluations += 1;
         // pseudo-loads, column-major
         let mut rhs = vec![0.0; n * np];
@@ -536,29 +632,33 @@ impl<'a> Engine<'a> {
                 S::with_parts(c.z[i], &parts)
             })
             .collect();
-        c.assembler
-            .evaluate(c.model, &lifted, &z, &hist, c.time, Some(frozen), None, &mut ev)?;
+        c.assembler.evaluate(
+            c.model,
+            &lifted,
+            &z,
+            &hist,
+            c.time,
+            Some(frozen),
+            None,
+            &mut ev,
+        )?;
         self.results.cost.residual_evaluations += 1;
         let mut dresp = vec![vec![0.0; np]; c.model.responses.len()];
         for (r, resp) in c.model.responses.iter().enumerate() {
-            let v = resp.value(&z, &ev.residual, &ev.hist_new);
+            let v = resp.value(&ev.response_input(&z, c.assembler));
             for (j, d) in dresp[r].iter_mut().enumerate() {
                 *d = v.part(j);
             }
         }
-        let dh: Vec<Vec<f64>> = (0..np)
-            .map(|j| ev.hist_new.iter().map(|h| h.part(j)).collect())
+        let dhist: Vec<f64> = (0..np)
+            .flat_map(|j| ev.hist_new.iter().map(move |h| h.part(j)))
             .collect();
         let dz: Vec<Vec<f64>> = (0..np).map(|j| rhs[j * n..(j + 1) * n].to_vec()).collect();
-        Ok((dresp, dh, dz))
+        Ok(Step { dresp, dhist, dz })
     }
 
     /// DDM for all parameters, in chunks of up to 8 through vector duals.
-    fn ddm(
-        &mut self,
-        c: &Converged<'_>,
-        frozen: &Frozen<'_>,
-    ) -> Result<(Vec<Vec<f64>>, Vec<f64>, Vec<Vec<f64>>), AnalysisError> {
+    fn ddm(&mut self, c: &Converged<'_>, frozen: &Frozen<'_>) -> Result<Step, AnalysisError> {
         let np = self.params.len();
         let nr = c.model.responses.len();
         let nh = c.hist_prev.len();
@@ -567,21 +667,25 @@ impl<'a> Engine<'a> {
         let mut dz_all = vec![Vec::new(); np];
         let all: Vec<usize> = (0..np).collect();
         for chunk in all.chunks(8) {
-            let (dr, dh, dz) = match chunk.len() {
+            let out = match chunk.len() {
                 1 => self.ddm_chunk::<Dual64>(c, chunk, frozen)?,
                 2 => self.ddm_chunk::<DualSVec64<2>>(c, chunk, frozen)?,
                 3 | 4 => self.ddm_chunk::<DualSVec64<4>>(c, chunk, frozen)?,
                 _ => self.ddm_chunk::<DualSVec64<8>>(c, chunk, frozen)?,
             };
             for (j, &k) in chunk.iter().enumerate() {
-                for r in 0..nr {
-                    dresp[r][k] = dr[r][j];
+                for (row, src) in dresp.iter_mut().zip(&out.dresp) {
+                    row[k] = src[j];
                 }
-                dhist[k * nh..(k + 1) * nh].copy_from_slice(&dh[j]);
-                dz_all[k] = dz[j].clone();
+                dhist[k * nh..(k + 1) * nh].copy_from_slice(&out.dhist[j * nh..(j + 1) * nh]);
+                dz_all[k] = out.dz[j].clone();
             }
         }
-        Ok((dresp, dhist, dz_all))
+        Ok(Step {
+            dresp,
+            dhist,
+            dz: dz_all,
+        })
     }
 
     /// f64 evaluation at the design perturbed by `sign * db` along parameter `k`, with the
@@ -616,11 +720,7 @@ impl<'a> Engine<'a> {
     }
 
     /// SDM (forward or central) for all parameters.
-    fn sdm(
-        &mut self,
-        c: &Converged<'_>,
-        central: bool,
-    ) -> Result<(Vec<Vec<f64>>, Vec<f64>, Vec<Vec<f64>>), AnalysisError> {
+    fn sdm(&mut self, c: &Converged<'_>, central: bool) -> Result<Step, AnalysisError> {
         let np = self.params.len();
         let n = c.z.len();
         let nh = c.hist_prev.len();
@@ -667,7 +767,13 @@ impl<'a> Engine<'a> {
         let mut dz_all = Vec::with_capacity(np);
         for k in 0..np {
             let dz: Vec<f64> = (0..n)
-                .map(|i| if c.constrained[i] { dzc[k][i] } else { rhs[k * n + i] })
+                .map(|i| {
+                    if c.constrained[i] {
+                        dzc[k][i]
+                    } else {
+                        rhs[k * n + i]
+                    }
+                })
                 .collect();
             let db = self.params[k].step(self.settings.beta);
             self.perturbed(c, k, db, Some(&dz), frozen, &mut ev_p)?;
@@ -678,8 +784,8 @@ impl<'a> Engine<'a> {
                 self.results.cost.residual_evaluations += 1;
                 let zm: Vec<f64> = (0..n).map(|i| c.z[i] - db * dz[i]).collect();
                 for (r, resp) in c.model.responses.iter().enumerate() {
-                    let vp = resp.value(&zp, &ev_p.residual, &ev_p.hist_new);
-                    let vm = resp.value(&zm, &ev_m.residual, &ev_m.hist_new);
+                    let vp = resp.value(&ev_p.response_input(&zp, c.assembler));
+                    let vm = resp.value(&ev_m.response_input(&zm, c.assembler));
                     dresp[r][k] = (vp - vm) / (2.0 * db);
                 }
                 for i in 0..nh {
@@ -687,8 +793,8 @@ impl<'a> Engine<'a> {
                 }
             } else {
                 for (r, resp) in c.model.responses.iter().enumerate() {
-                    let vp = resp.value(&zp, &ev_p.residual, &ev_p.hist_new);
-                    let v0 = resp.value(c.z, &c.eval.residual, &c.eval.hist_new);
+                    let vp = resp.value(&ev_p.response_input(&zp, c.assembler));
+                    let v0 = resp.value(&c.eval.response_input(c.z, c.assembler));
                     dresp[r][k] = (vp - v0) / db;
                 }
                 for i in 0..nh {
@@ -697,7 +803,11 @@ impl<'a> Engine<'a> {
             }
             dz_all.push(dz);
         }
-        Ok((dresp, dhist, dz_all))
+        Ok(Step {
+            dresp,
+            dhist,
+            dz: dz_all,
+        })
     }
 }
 
@@ -705,22 +815,22 @@ impl Observer for Engine<'_> {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
         let t0 = Instant::now();
         let kinks = self.kinks(c);
-        let (dresp, dhist, dz) = match self.settings.method {
-            Method::Ddm => self.ddm(
-                c,
-                &Frozen {
-                    gauss: &c.eval.branches,
-                    contact: &c.eval.contact.choice,
-                },
-            )?,
-            Method::Sdm => self.sdm(c, false)?,
-            Method::SdmCentral => self.sdm(c, true)?,
-            Method::Fdm | Method::FdmCentral => {
-                return Err(AnalysisError::Sensitivity(
-                    "finite differences of reruns are not an in-line method (use run_sensitivity)".into(),
-                ))
-            }
-        };
+        let Step { dresp, dhist, dz } =
+            match self.settings.method {
+                Method::Ddm => self.ddm(
+                    c,
+                    &Frozen {
+                        gauss: &c.eval.branches,
+                        contact: &c.eval.contact.choice,
+                    },
+                )?,
+                Method::Sdm => self.sdm(c, false)?,
+                Method::SdmCentral => self.sdm(c, true)?,
+                Method::Fdm | Method::FdmCentral => return Err(AnalysisError::Sensitivity(
+                    "finite differences of reruns are not an in-line method (use run_sensitivity)"
+                        .into(),
+                )),
+            };
         // one-sided derivatives at flagged points (DDM): force the flagged points on each branch
         let one_sided = if !kinks.is_empty() && self.settings.method == Method::Ddm {
             let saved = self.dhist.clone();
@@ -731,14 +841,14 @@ impl Observer for Engine<'_> {
                 for k in &kinks {
                     match k.kind {
                         "yield" => {
-                            gauss[8 * k.at + k.point] =
-                                [Branch::Elastic, Branch::Plastic][side];
+                            gauss[8 * k.at + k.point] = [Branch::Elastic, Branch::Plastic][side];
                         }
                         "friction" => {
                             contact[k.at].state = [ContactState::Stick, ContactState::Slip][side];
                         }
                         _ => {
-                            let closed = if c.eval.contact.choice[k.at].state == ContactState::Open {
+                            let closed = if c.eval.contact.choice[k.at].state == ContactState::Open
+                            {
                                 // closing: stick is the state a node enters
                                 if self.friction_at(c, k.at) {
                                     ContactState::Stick
@@ -756,13 +866,26 @@ impl Observer for Engine<'_> {
                     gauss: &gauss,
                     contact: &contact,
                 };
-                let (d, _, _) = self.ddm(c, &frozen)?;
-                sides.push(d);
+                // the tangent of the forced branches, at the converged state
+                let mut k = c.tangent.clone();
+                let mut ev = Evaluation::<f64>::new(c.assembler, c.model.mesh.elements.len());
+                c.assembler.evaluate(
+                    c.model,
+                    c.lifted,
+                    c.z,
+                    c.hist_prev,
+                    c.time,
+                    Some(&frozen),
+                    Some(&mut k),
+                    &mut ev,
+                )?;
+                self.forced_tangent = Some(k);
+                sides.push(self.ddm(c, &frozen)?.dresp);
                 self.dhist.clone_from(&saved);
             }
-            let plastic = sides.pop().expect("two sides");
-            let elastic = sides.pop().expect("two sides");
-            Some((elastic, plastic))
+            let upper = sides.pop().expect("two sides");
+            let lower = sides.pop().expect("two sides");
+            Some(OneSided { lower, upper })
         } else {
             None
         };
@@ -771,7 +894,7 @@ impl Observer for Engine<'_> {
             .model
             .responses
             .iter()
-            .map(|r| r.value(c.z, &c.eval.residual, &c.eval.hist_new))
+            .map(|r| r.value(&c.eval.response_input(c.z, c.assembler)))
             .collect();
         self.results.increments.push(IncrementSensitivity {
             increment: c.index,
@@ -780,7 +903,11 @@ impl Observer for Engine<'_> {
             derivatives: dresp,
             kinks,
             one_sided,
-            state_derivative: if self.keep_state_derivative { Some(dz) } else { None },
+            state_derivative: if self.keep_state_derivative {
+                Some(dz)
+            } else {
+                None
+            },
         });
         self.results.cost.wall_seconds += t0.elapsed().as_secs_f64();
         Ok(())
@@ -817,19 +944,19 @@ fn rerun(model: &Model, p: &Parameter, db: f64) -> Result<Results, AnalysisError
 }
 
 /// Response values at the nominal increment times of a run (cutback sub-increments skipped).
-fn responses_at(model: &Model, res: &Results, times: &[f64]) -> Result<Vec<Vec<f64>>, AnalysisError> {
+fn responses_at(
+    model: &Model,
+    res: &Results,
+    times: &[f64],
+) -> Result<Vec<Vec<f64>>, AnalysisError> {
     let mut out = Vec::with_capacity(times.len());
     for t in times {
-        let k = res
-            .times
-            .iter()
-            .position(|x| (x - t).abs() <= 1e-12 * t.abs().max(1.0))
-            .ok_or_else(|| AnalysisError::Sensitivity(format!("rerun has no increment at t = {t}")))?;
+        let k = res.increment_at(*t).ok_or_else(|| {
+            AnalysisError::Sensitivity(format!("rerun has no increment at t = {t}"))
+        })?;
         out.push(
-            model
-                .responses
-                .iter()
-                .map(|r| r.value(&res.states[k], &res.residuals[k], &res.histories[k]))
+            (0..model.responses.len())
+                .map(|r| res.response_value(model, r, k))
                 .collect(),
         );
     }

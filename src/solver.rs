@@ -7,7 +7,9 @@
 //! 2. Iterate: assemble `R(z)` and `K = dR/dz`; the increment has converged when
 //!    `|R_free| <= force_tol * F_ref` (force criterion, `F_ref` = the larger of the external
 //!    load and the reaction norms) or `|dz_{k-1} . R_{k-1}| <= energy_tol * |dz_0 . R_0|`
-//!    (energy criterion). Otherwise `K` (with identity rows and columns at the prescribed
+//!    (energy criterion), or when the last correction is at round-off,
+//!    `|dz_{k-1}| <= 64 eps |z|` (the residual left is the noise of its own evaluation, e.g.
+//!    of a stiff penalty). Otherwise `K` (with identity rows and columns at the prescribed
 //!    unknowns) is factored on the symbolic analysis done once per run, and `z -= K^-1 R`.
 //! 3. On convergence the history is committed and the [`Observer`] is called with the
 //!    converged state and the *last* factorization (that of the iterate before convergence —
@@ -84,7 +86,7 @@ impl Observer for NoObserver {
 }
 
 /// What a primal analysis returns.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Default)]
 pub struct Results {
     /// Time of each converged increment (index 0 is the initial state).
     pub times: Vec<f64>,
@@ -100,6 +102,10 @@ pub struct Results {
     pub branches: Vec<Vec<Branch>>,
     /// Newton records of the converged increments.
     pub records: Vec<IncrementRecord>,
+    /// Contact results per increment (index 0: empty).
+    pub contact: Vec<crate::contact::assembly::ContactEval<f64>>,
+    /// First flat hitting-node index of each contact pair.
+    pub contact_flat: Vec<usize>,
     /// Committed history after the last converged increment.
     pub history: Vec<f64>,
     /// Cost counters.
@@ -141,6 +147,39 @@ pub enum AnalysisError {
     Model(String),
     #[error("sensitivity: {0}")]
     Sensitivity(String),
+}
+
+impl std::fmt::Debug for Results {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "Results {{ {} increments, last t = {:?}, cost: {:?} }}",
+            self.records.len(),
+            self.times.last(),
+            self.cost
+        )
+    }
+}
+
+impl Results {
+    /// Value of response `r` at stored increment `k` (needs `keep_states`).
+    pub fn response_value(&self, model: &Model, r: usize, k: usize) -> f64 {
+        let input = crate::response::ResponseInput {
+            z: &self.states[k],
+            residual: &self.residuals[k],
+            hist: &self.histories[k],
+            contact: self.contact.get(k),
+            flat: Some(&self.contact_flat),
+        };
+        model.responses[r].value(&input)
+    }
+
+    /// Stored increment whose time is `t`, if any.
+    pub fn increment_at(&self, t: f64) -> Option<usize> {
+        self.times
+            .iter()
+            .position(|x| (x - t).abs() <= 1e-12 * t.abs().max(1.0))
+    }
 }
 
 impl AnalysisError {
@@ -272,22 +311,45 @@ impl<'m> Solver<'m> {
         let ne = model.mesh.elements.len();
         let mut res = Results::default();
         let mut z = vec![0.0; n];
-        let mut hist = crate::contact::assembly::initial_history(model, &self.assembler, &self.lifted)
-            .map_err(|e| AnalysisError::Model(e.to_string()))?;
+        let mut hist =
+            crate::contact::assembly::initial_history(model, &self.assembler, &self.lifted)
+                .map_err(|e| AnalysisError::Model(e.to_string()))?;
         let mut eval = Evaluation::<f64>::new(&self.assembler, ne);
         res.times.push(0.0);
         res.states.push(z.clone());
         res.residuals.push(vec![0.0; n]);
         res.histories.push(hist.clone());
+        res.contact_flat = self.assembler.contact.flat.clone();
+        res.contact.push(eval.contact.clone());
         res.stresses.push(vec![nalgebra::Matrix3::zeros(); ne]);
         res.branches.push(vec![Branch::Elastic; 8 * ne]);
         let mut t_prev = 0.0;
         let mut index = 0;
         for &t_end in &model.times {
+            let t_prev_nominal = t_prev;
             let mut step = t_end - t_prev;
             let mut cutbacks = 0;
+            // every attempt (converged or not) within this nominal increment; a budget keeps a
+            // converge-grow-fail cycle from running forever
+            let mut attempts = 0usize;
             while t_prev < t_end - 1e-14 * t_end.abs().max(1.0) {
                 let t = (t_prev + step).min(t_end);
+                attempts += 1;
+                if attempts > 64 * (model.solver.max_cutbacks + 1) {
+                    res.history = hist;
+                    res.cost.wall_seconds = start.elapsed().as_secs_f64();
+                    return Err(AnalysisError::Diverged {
+                        increment: index + 1,
+                        time: t,
+                        step,
+                        cutbacks,
+                        residuals: Vec::new(),
+                        reason: format!(
+                            "{attempts} attempts within the increment ending at t = {t_end} (sub-increments keep failing)"
+                        ),
+                        partial: Box::new(res),
+                    });
+                }
                 let mut z_try = z.clone();
                 self.set_prescribed(&mut z_try, t);
                 let mut record = IncrementRecord {
@@ -325,12 +387,18 @@ impl<'m> Solver<'m> {
                             res.states.push(z.clone());
                             res.residuals.push(eval.residual.clone());
                             res.histories.push(hist.clone());
+                            res.contact.push(eval.contact.clone());
                         }
                         res.stresses.push(eval.cauchy.clone());
                         res.branches.push(eval.branches.clone());
+                        let easy = record.iterations <= 4;
                         res.records.push(record);
                         t_prev = t;
                         cutbacks = 0;
+                        // grow a cut-back step again after an easy increment
+                        if easy {
+                            step = (step * 2.0).min(t_end - t_prev_nominal);
+                        }
                     }
                     Err(why) => {
                         if cutbacks >= model.solver.max_cutbacks {
@@ -388,6 +456,13 @@ impl<'m> Solver<'m> {
         let s = &model.solver;
         let mut energy0 = f64::NAN;
         let mut last_energy = f64::INFINITY;
+        let mut last_correction = f64::INFINITY;
+        // backtracking line search (contact models only: their residual is only piecewise
+        // smooth, and a full Newton step can flip many stick/slip states at once)
+        let line_search = !model.contacts.is_empty();
+        let mut alpha = 1.0;
+        let mut prev_r = f64::INFINITY;
+        let mut last_dz: Vec<f64> = Vec::new();
         let mut first_residual = f64::NAN;
         let mut factored = false;
         for k in 0..=s.max_iterations {
@@ -419,7 +494,7 @@ impl<'m> Solver<'m> {
             let mut f_ext = 0.0;
             for (l, load) in model.loads.iter().enumerate() {
                 let f = self.lifted.loads[l] * load.amplitude.at(t);
-                f_ext += f * f * load.nodes.len() as f64;
+                f_ext += load.weights.iter().map(|w| (f * w).powi(2)).sum::<f64>();
             }
             let f_ref = r_fixed.sqrt().max(f_ext.sqrt());
             record.residuals.push(r_free);
@@ -432,10 +507,23 @@ impl<'m> Solver<'m> {
             }
             let force_ok = r_free <= s.force_tol * f_ref || r_free == 0.0;
             let energy_ok = k > 0 && last_energy <= s.energy_tol * energy0;
-            if force_ok || energy_ok {
+            // the correction is at round-off: Newton cannot move the state any more, the
+            // residual left is the noise of its own evaluation
+            let correction_ok = k > 1 && last_correction <= 64.0 * f64::EPSILON;
+            if force_ok || energy_ok || correction_ok {
                 record.iterations = k;
                 return Ok(factored);
             }
+            if line_search && k > 0 && r_free > prev_r && alpha > 1.0 / 32.0 {
+                // step back to z_prev + (alpha / 2) dz and evaluate again
+                alpha *= 0.5;
+                for (zi, d) in z.iter_mut().zip(&last_dz) {
+                    *zi -= alpha * d;
+                }
+                continue;
+            }
+            alpha = 1.0;
+            prev_r = r_free;
             if k == s.max_iterations {
                 return Err(AttemptFailure::Diverged("iteration limit"));
             }
@@ -479,12 +567,16 @@ impl<'m> Solver<'m> {
                 energy0 = energy;
             }
             last_energy = energy;
+            let dz_norm = dz.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let z_norm = z.iter().map(|v| v * v).sum::<f64>().sqrt();
+            last_correction = dz_norm / z_norm.max(f64::MIN_POSITIVE);
             if !energy.is_finite() {
                 return Err(AttemptFailure::Diverged("non-finite correction"));
             }
             for (zi, d) in z.iter_mut().zip(&dz) {
                 *zi += d;
             }
+            last_dz = dz;
         }
         Err(AttemptFailure::Diverged("iteration limit"))
     }

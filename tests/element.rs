@@ -2,6 +2,9 @@
 //! the uniaxial stretch oracle (shared/oracles.md section 2), the tangent against the dual-number
 //! derivative of the residual, and the real part of dual evaluations against f64.
 
+// Index loops over responses, parameters and unknowns read like the formulas they check.
+#![allow(clippy::needless_range_loop)]
+
 use approx::assert_relative_eq;
 use fricsens::assembly::{Assembler, Evaluation};
 use fricsens::element::hex8::{self, Hex8Input, Hex8Output};

@@ -2,6 +2,9 @@
 //! history sensitivities along the cycle by DDM (exact to round-off on this proportional path)
 //! and SDM, a plastic cantilever.
 
+// Index loops over responses, parameters and unknowns read like the formulas they check.
+#![allow(clippy::needless_range_loop)]
+
 use fricsens::element::Kinematics;
 use fricsens::scene::uniaxial_j2;
 use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
@@ -104,7 +107,10 @@ fn unloading_is_elastic_and_reloading_yields_at_the_hardened_stress() {
         if !loading && E * (0.01 - eps) < sigma_a + SY + H * ep1 - 1e-9 {
             let slope_ok = (inc.values[0] - (sigma_a - E * (0.01 - eps))).abs() < 1e-8 * sigma_a;
             assert!(slope_ok, "t = {}: not elastic unloading", inc.time);
-            assert!((inc.values[2] - alpha_a).abs() < 1e-12, "alpha changed while unloading");
+            assert!(
+                (inc.values[2] - alpha_a).abs() < 1e-12,
+                "alpha changed while unloading"
+            );
         }
     }
 }
@@ -131,7 +137,10 @@ fn sdm_and_fdm_agree_with_ddm_after_the_reversal() {
             let o = other.increments[i].derivatives[0][0];
             // central differences in a piecewise-linear problem: exact up to round-off
             // eps * |sigma| / (beta sigma_y) ~ 1e-16 * 500 / 2.5e-4 ~ 2e-10 (x conditioning)
-            assert!((o - d).abs() < 1e-6 * d.abs().max(1.0), "{name} inc {i}: {o} vs {d}");
+            assert!(
+                (o - d).abs() < 1e-6 * d.abs().max(1.0),
+                "{name} inc {i}: {o} vs {d}"
+            );
         }
     }
 }
@@ -146,7 +155,10 @@ fn large_kinematics_differs_from_small_by_the_order_of_the_strain() {
     let p = [Parameter::by_name(&small, "E").unwrap()];
     let (_, s) = run_sensitivity(&small, &p, &Settings::default()).unwrap();
     let (_, l) = run_sensitivity(&large, &p, &Settings::default()).unwrap();
-    let amplitude = s.increments.iter().fold(0.0f64, |m, i| m.max(i.values[0].abs()));
+    let amplitude = s
+        .increments
+        .iter()
+        .fold(0.0f64, |m, i| m.max(i.values[0].abs()));
     let max_diff = s
         .increments
         .iter()

@@ -1,9 +1,14 @@
 //! Sensitivities of the elastic large-deflection cantilever: DDM against central FDM reruns and
 //! against the elastica (shared/oracles.md section 3); SDM convergence in beta; tangent options.
 
+// Index loops over responses, parameters and unknowns read like the formulas they check.
+#![allow(clippy::needless_range_loop)]
+
 use fricsens::model::Model;
 use fricsens::scene::{cantilever, CantileverSpec};
-use fricsens::sensitivity::{run_sensitivity, Method, Parameter, SensitivityResults, Settings, TangentChoice};
+use fricsens::sensitivity::{
+    run_sensitivity, Method, Parameter, SensitivityResults, Settings, TangentChoice,
+};
 
 fn model(nu: f64) -> (CantileverSpec, Model) {
     let spec = CantileverSpec {
@@ -17,8 +22,17 @@ fn model(nu: f64) -> (CantileverSpec, Model) {
     (spec, m)
 }
 
-fn sens(m: &Model, names: &[&str], method: Method, beta: f64, tangent: TangentChoice) -> SensitivityResults {
-    let params: Vec<Parameter> = names.iter().map(|n| Parameter::by_name(m, n).unwrap()).collect();
+fn sens(
+    m: &Model,
+    names: &[&str],
+    method: Method,
+    beta: f64,
+    tangent: TangentChoice,
+) -> SensitivityResults {
+    let params: Vec<Parameter> = names
+        .iter()
+        .map(|n| Parameter::by_name(m, n).unwrap())
+        .collect();
     let settings = Settings {
         method,
         beta,
@@ -40,7 +54,10 @@ fn ddm_matches_central_fdm_for_e_length_and_nu() {
         for p in 0..names.len() {
             let (x, y) = (a.derivatives[W][p], b.derivatives[W][p]);
             let rel = (x - y).abs() / x.abs();
-            println!("inc {} {}: ddm {x:.10e} fdm {y:.10e} rel {rel:.2e}", a.increment, names[p]);
+            println!(
+                "inc {} {}: ddm {x:.10e} fdm {y:.10e} rel {rel:.2e}",
+                a.increment, names[p]
+            );
             // central FDM truncation ~ beta^2 = 1e-10 and round-off ~ eps / beta ~ 1e-11 (times
             // the Newton tolerance amplification): 1e-6 leaves room for both.
             assert!(rel < 1e-6, "{}: {x} vs {y}", names[p]);
@@ -86,14 +103,23 @@ fn sdm_converges_with_order_one_and_two_in_beta_and_stays_bounded() {
     // slopes fitted over beta in [1e-5, 1e-2]
     let betas: [f64; 4] = [1e-2, 1e-3, 1e-4, 1e-5];
     let slope = |method| {
-        let pts: Vec<(f64, f64)> = betas.iter().map(|b| (b.log10(), err(method, *b).log10())).collect();
+        let pts: Vec<(f64, f64)> = betas
+            .iter()
+            .map(|b| (b.log10(), err(method, *b).log10()))
+            .collect();
         let n = pts.len() as f64;
         let (sx, sy) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
-        let (sxx, sxy) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0 * p.0, a.1 + p.0 * p.1));
+        let (sxx, sxy) = pts
+            .iter()
+            .fold((0.0, 0.0), |a, p| (a.0 + p.0 * p.0, a.1 + p.0 * p.1));
         (n * sxy - sx * sy) / (n * sxx - sx * sx)
     };
     for b in betas {
-        println!("beta {b:e}: forward {:.3e} central {:.3e}", err(Method::Sdm, b), err(Method::SdmCentral, b));
+        println!(
+            "beta {b:e}: forward {:.3e} central {:.3e}",
+            err(Method::Sdm, b),
+            err(Method::SdmCentral, b)
+        );
     }
     let s1 = slope(Method::Sdm);
     let s2 = slope(Method::SdmCentral);

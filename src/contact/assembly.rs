@@ -124,16 +124,16 @@ pub struct ContactError {
     pub failure: ContactFailure,
 }
 
+fn node_disp<S: Scalar>(z: &[S], n: usize) -> Vector3<S> {
+    Vector3::new(z[3 * n], z[3 * n + 1], z[3 * n + 2])
+}
+
 fn node_pos<S: Scalar>(lifted: &Lifted<S>, z: &[S], n: usize) -> Vector3<S> {
-    lifted.coords[n] + Vector3::new(z[3 * n], z[3 * n + 1], z[3 * n + 2])
+    lifted.coords[n] + node_disp(z, n)
 }
 
 /// Rigid translation of a pair's target at time `t`.
-pub fn rigid_translation<S: Scalar>(
-    pair: &ContactPair,
-    values: &[S],
-    t: f64,
-) -> Vector3<S> {
+pub fn rigid_translation<S: Scalar>(pair: &ContactPair, values: &[S], t: f64) -> Vector3<S> {
     let mut d = Vector3::zeros();
     if let Target::Rigid { motion, .. } = &pair.target {
         for (m, v) in motion.iter().zip(values) {
@@ -182,7 +182,9 @@ pub fn evaluate<S: Scalar>(
             let block = &layout.blocks[p][i];
             let lam_dof = layout.lambda[p] + i;
             let h0 = layout.history[p] + nh * i;
-            let x = node_pos(lifted, z, s);
+            let x_ref = lifted.coords[s];
+            let u = node_disp(z, s);
+            let x = x_ref + u;
             let lambda = z[lam_dof];
             let err = |failure| ContactError {
                 pair: pair.name.clone(),
@@ -218,21 +220,31 @@ pub fn evaluate<S: Scalar>(
                 Some(match &pair.target {
                     Target::Faces { faces } => {
                         let af = hist_old[h0].value() as usize;
+                        let f = faces[af.min(faces.len() - 1)];
                         AnchorGeom::Quad {
-                            nodes: faces[af.min(faces.len() - 1)].map(|n| node_pos(lifted, z, n)),
+                            reference: f.map(|n| lifted.coords[n]),
+                            displacement: f.map(|n| node_disp(z, n)),
                             xi: [hist_old[h0 + 1], hist_old[h0 + 2]],
                         }
                     }
                     Target::Rigid { .. } => AnchorGeom::Rigid {
-                        x: Vector3::new(hist_old[h0], hist_old[h0 + 1], hist_old[h0 + 2]),
+                        offset: Vector3::new(hist_old[h0], hist_old[h0 + 1], hist_old[h0 + 2]),
                         d,
                     },
                 })
             } else {
                 None
             };
-            let ko = node_kernel(&x, lambda, &target, anchor.as_ref(), &par, fz.map(|c| c.state))
-                .map_err(err)?;
+            let ko = node_kernel(
+                &x_ref,
+                &u,
+                lambda,
+                &target,
+                anchor.as_ref(),
+                &par,
+                fz.map(|c| c.state),
+            )
+            .map_err(err)?;
             // ---- residual ----
             for c in 0..3 {
                 residual[3 * s + c] -= ko.force[c];
@@ -258,7 +270,9 @@ pub fn evaluate<S: Scalar>(
                         anchor_face = hist_old[h0].value() as usize;
                     }
                     (Target::Rigid { .. }, _) => {
-                        let a = ko.new_anchor - d;
+                        // offset from the node's reference position, in the body's frame:
+                        // sep = u - d - offset
+                        let a = (u - d) - ko.new_separation;
                         hist_new[h0..h0 + 3].copy_from_slice(&[a[0], a[1], a[2]]);
                     }
                     (Target::Faces { faces }, ContactState::Open | ContactState::Closed) => {
@@ -344,7 +358,9 @@ fn local_tangent<S: Scalar>(
     let nh = pair.history_len();
     let h0 = layout.history[p] + nh * i;
     let re3 = |v: Vector3<S>| v.map(|c| c.value());
-    let pos = |n: usize| re3(lifted.coords[n]) + Vector3::new(z[3 * n].value(), z[3 * n + 1].value(), z[3 * n + 2].value());
+    let xref = |n: usize| re3(lifted.coords[n]).map(Ad::from_re);
+    let disp =
+        |n: usize| Vector3::new(z[3 * n].value(), z[3 * n + 1].value(), z[3 * n + 2].value());
     // seeds: slot -> block-local column
     let mut slots: Vec<usize> = Vec::with_capacity(NSEED);
     let seed = |v: f64, col: usize, slots: &mut Vec<usize>| {
@@ -352,11 +368,11 @@ fn local_tangent<S: Scalar>(
         slots.push(col);
         Ad::from_re(v).derivative(k)
     };
-    let xs = pos(s);
-    let x = Vector3::new(
-        seed(xs[0], 0, &mut slots),
-        seed(xs[1], 1, &mut slots),
-        seed(xs[2], 2, &mut slots),
+    let us = disp(s);
+    let u = Vector3::new(
+        seed(us[0], 0, &mut slots),
+        seed(us[1], 1, &mut slots),
+        seed(us[2], 2, &mut slots),
     );
     let local_of = |n: usize| block.target_nodes.iter().position(|&m| m == n);
     let mut seeded_nodes: Vec<(usize, Vector3<Ad>)> = Vec::new();
@@ -364,23 +380,29 @@ fn local_tangent<S: Scalar>(
         if let Some((_, v)) = seeded_nodes.iter().find(|(m, _)| *m == n) {
             return *v;
         }
-        let xn = pos(n);
+        let un = disp(n);
         let col = 3 + 3 * local_of(n).expect("target node in block");
         let v = Vector3::new(
-            seed(xn[0], col, slots),
-            seed(xn[1], col + 1, slots),
-            seed(xn[2], col + 2, slots),
+            seed(un[0], col, slots),
+            seed(un[1], col + 1, slots),
+            seed(un[2], col + 2, slots),
         );
         seeded_nodes.push((n, v));
         v
     };
-    let fparams: Vec<Ad> = lifted.friction[p].iter().map(|v| Ad::from_re(v.value())).collect();
+    let fparams: Vec<Ad> = lifted.friction[p]
+        .iter()
+        .map(|v| Ad::from_re(v.value()))
+        .collect();
     let eps_t = Ad::from_re(lifted.tangential[p].value());
-    let rv: Vec<Ad> = lifted.rigid_motion[p].iter().map(|v| Ad::from_re(v.value())).collect();
+    let rv: Vec<Ad> = lifted.rigid_motion[p]
+        .iter()
+        .map(|v| Ad::from_re(v.value()))
+        .collect();
     let d: Vector3<Ad> = rigid_translation(pair, &rv, time);
     let (target, contact_nodes) = match &pair.target {
         Target::Faces { faces } => {
-            let nodes = faces[face].map(|n| node_ad(n, &mut slots));
+            let nodes = faces[face].map(|n| xref(n) + node_ad(n, &mut slots));
             (
                 TargetGeom::Quad {
                     nodes,
@@ -395,9 +417,9 @@ fn local_tangent<S: Scalar>(
         Some(match &pair.target {
             Target::Faces { faces } => {
                 let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
-                let nodes = faces[af].map(|n| node_ad(n, &mut slots));
                 AnchorGeom::Quad {
-                    nodes,
+                    reference: faces[af].map(xref),
+                    displacement: faces[af].map(|n| node_ad(n, &mut slots)),
                     xi: [
                         Ad::from_re(hist_old[h0 + 1].value()),
                         Ad::from_re(hist_old[h0 + 2].value()),
@@ -405,7 +427,7 @@ fn local_tangent<S: Scalar>(
                 }
             }
             Target::Rigid { .. } => AnchorGeom::Rigid {
-                x: Vector3::new(
+                offset: Vector3::new(
                     Ad::from_re(hist_old[h0].value()),
                     Ad::from_re(hist_old[h0 + 1].value()),
                     Ad::from_re(hist_old[h0 + 2].value()),
@@ -425,7 +447,15 @@ fn local_tangent<S: Scalar>(
         eps_t,
         k: pair.constraint_scale,
     };
-    let ko = node_kernel(&x, lambda, &target, anchor.as_ref(), &par, fz.map(|c| c.state))?;
+    let ko = node_kernel(
+        &xref(s),
+        &u,
+        lambda,
+        &target,
+        anchor.as_ref(),
+        &par,
+        fz.map(|c| c.state),
+    )?;
     let mut kt = vec![0.0; nb * nb];
     let mut add_row = |row: usize, v: &Ad| {
         for (k, &col) in slots.iter().enumerate() {
@@ -473,7 +503,7 @@ pub fn initial_history<S: Scalar>(
             match &pair.target {
                 Target::Rigid { surface, .. } => {
                     let pr = surface.project(&x, &d).map_err(err)?;
-                    let a = pr.point - d;
+                    let a = (pr.point - x) - d;
                     h[h0..h0 + 3].copy_from_slice(&[a[0], a[1], a[2]]);
                 }
                 Target::Faces { faces } => {
@@ -485,7 +515,8 @@ pub fn initial_history<S: Scalar>(
                     let (k, _) = closest_on_quads(&xr, &quads, None).map_err(err)?;
                     let f = pair.candidates[i][k];
                     let nodes = faces[f].map(|n| lifted.coords[n]);
-                    let pr = super::geometry::project_on_quad(&x, &nodes, [0.0, 0.0]).map_err(err)?;
+                    let pr =
+                        super::geometry::project_on_quad(&x, &nodes, [0.0, 0.0]).map_err(err)?;
                     h[h0] = S::lift(f as f64);
                     h[h0 + 1] = pr.xi[0];
                     h[h0 + 2] = pr.xi[1];

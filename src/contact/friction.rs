@@ -50,12 +50,14 @@ pub trait FrictionLaw: Send + Sync + std::fmt::Debug {
     fn params(&self) -> &[f64];
     fn params_mut(&mut self) -> &mut [f64];
     /// The return map. `p` are the parameters lifted to `S`, `p_n >= 0` the normal force,
+    /// `margin` the round-off of `|t_trial|` (a trial within it of the slip surface sticks),
     /// `frozen` imposes a branch (SDM's perturbed evaluations).
     fn return_map<S: Scalar>(
         &self,
         p: &[S],
         t_trial: &Vector3<S>,
         p_n: S,
+        margin: f64,
         frozen: Option<FrictionBranch>,
     ) -> FrictionUpdate<S>;
 }
@@ -64,6 +66,7 @@ pub trait FrictionLaw: Send + Sync + std::fmt::Debug {
 pub fn radial_return<S: Scalar>(
     t_trial: &Vector3<S>,
     limit: S,
+    margin: f64,
     frozen: Option<FrictionBranch>,
 ) -> FrictionUpdate<S> {
     let norm = safe_norm(t_trial);
@@ -74,7 +77,8 @@ pub fn radial_return<S: Scalar>(
     } else {
         0.0
     };
-    let branch = frozen.unwrap_or(if ratio > 0.0 {
+    let excess = norm.value() - limit.value();
+    let branch = frozen.unwrap_or(if excess > margin {
         FrictionBranch::Slip
     } else {
         FrictionBranch::Stick
@@ -126,9 +130,10 @@ impl FrictionLaw for Coulomb {
         p: &[S],
         t_trial: &Vector3<S>,
         p_n: S,
+        margin: f64,
         frozen: Option<FrictionBranch>,
     ) -> FrictionUpdate<S> {
-        radial_return(t_trial, p[0] * p_n, frozen)
+        radial_return(t_trial, p[0] * p_n, margin, frozen)
     }
 }
 
@@ -141,10 +146,10 @@ mod tests {
     fn stick_returns_the_trial_and_slip_lies_on_the_cone() {
         let law = Coulomb::new(0.3);
         let t = Vector3::new(0.1, 0.2, 0.0);
-        let u = law.return_map(&[0.3], &t, 10.0, None);
+        let u = law.return_map(&[0.3], &t, 10.0, 0.0, None);
         assert_eq!(u.branch, FrictionBranch::Stick);
         assert_eq!(u.traction, t);
-        let u = law.return_map(&[0.3], &(t * 100.0), 10.0, None);
+        let u = law.return_map(&[0.3], &(t * 100.0), 10.0, 0.0, None);
         assert_eq!(u.branch, FrictionBranch::Slip);
         assert!((u.traction.norm() - 3.0).abs() < 1e-14);
     }
@@ -154,12 +159,18 @@ mod tests {
         // slip: t = mu p t_trial/|t_trial|; d t / d mu = p e
         let law = Coulomb::new(0.3);
         let t = Vector3::new(Dual64::from(3.0), Dual64::from(4.0), Dual64::from(0.0));
-        let u = law.return_map(&[Dual64::new(0.3, 1.0)], &t, Dual64::from(2.0), None);
+        let u = law.return_map(&[Dual64::new(0.3, 1.0)], &t, Dual64::from(2.0), 0.0, None);
         assert!((u.traction[0].eps - 2.0 * 0.6).abs() < 1e-15);
         assert!((u.traction[1].eps - 2.0 * 0.8).abs() < 1e-15);
         // zero trial traction: finite derivatives
         let z = Vector3::from_element(DualSVec64::<3>::from_re(0.0).derivative(0));
-        let u = law.return_map(&[DualSVec64::from_re(0.3)], &z, DualSVec64::from_re(1.0), Some(FrictionBranch::Slip));
+        let u = law.return_map(
+            &[DualSVec64::from_re(0.3)],
+            &z,
+            DualSVec64::from_re(1.0),
+            0.0,
+            Some(FrictionBranch::Slip),
+        );
         assert!(u.traction[0].re == 0.0);
     }
 }

@@ -189,20 +189,52 @@ pub enum TargetGeom<'a, S: Scalar> {
     },
 }
 
-/// Current position of the stick anchor.
+/// The stick anchor, stored so that the elastic slip `x - x_anchor` is formed from small
+/// quantities (displacements and offsets) rather than as a difference of large coordinates:
+/// `x - x_anchor = (X - Xbar) + (u - ubar)`.
 pub enum AnchorGeom<S: Scalar> {
-    Quad { nodes: [Vector3<S>; 4], xi: [S; 2] },
-    Rigid { x: Vector3<S>, d: Vector3<S> },
+    /// Material point `xi` of a target face: reference coordinates and displacements of its
+    /// nodes.
+    Quad {
+        reference: [Vector3<S>; 4],
+        displacement: [Vector3<S>; 4],
+        xi: [S; 2],
+    },
+    /// Material point of a rigid target at `offset` from the hitting node's reference position
+    /// (in the body's frame), the body translated by `d`.
+    Rigid { offset: Vector3<S>, d: Vector3<S> },
 }
 
 impl<S: Scalar> AnchorGeom<S> {
-    fn position(&self) -> Vector3<S> {
+    /// `x - x_anchor` for a hitting node with reference position `x_ref` and displacement `u`,
+    /// and a magnitude for its round-off.
+    fn separation(&self, x_ref: &Vector3<S>, u: &Vector3<S>) -> (Vector3<S>, f64) {
+        let norm = |v: &Vector3<S>| v.map(|c| c.value()).norm();
         match self {
-            AnchorGeom::Quad { nodes, xi } => {
+            AnchorGeom::Quad {
+                reference,
+                displacement,
+                xi,
+            } => {
                 let n = bilinear(xi);
-                nodes[0] * n[0] + nodes[1] * n[1] + nodes[2] * n[2] + nodes[3] * n[3]
+                let xb = reference[0] * n[0]
+                    + reference[1] * n[1]
+                    + reference[2] * n[2]
+                    + reference[3] * n[3];
+                let ub = displacement[0] * n[0]
+                    + displacement[1] * n[1]
+                    + displacement[2] * n[2]
+                    + displacement[3] * n[3];
+                let dx = x_ref - xb;
+                let du = u - ub;
+                // the reference part carries the round-off of the anchor's projection
+                let scale = norm(&dx) + norm(u) + norm(&ub) + norm(x_ref);
+                (dx + du, scale)
             }
-            AnchorGeom::Rigid { x, d } => x + d,
+            AnchorGeom::Rigid { offset, d } => {
+                let sep = u - d - offset;
+                (sep, norm(u) + norm(d) + norm(offset))
+            }
         }
     }
 }
@@ -241,6 +273,9 @@ pub struct KernelOut<S: Scalar> {
     pub state: ContactState,
     /// Where the stick anchor goes (spatial position), for the history update.
     pub new_anchor: Vector3<S>,
+    /// `x - x_anchor` after the update, formed without cancellation: the old separation on
+    /// stick, `-t / eps_T` on slip, the gap vector while open.
+    pub new_separation: Vector3<S>,
     pub projection: Projection<S>,
     /// Distance to the open/closed transition (gap over length, or force over force scale).
     pub normal_distance: f64,
@@ -257,13 +292,15 @@ pub enum ContactFailure {
 
 /// The contact kernel of one hitting node (see the module docs).
 pub fn node_kernel<S: Scalar>(
-    x: &Vector3<S>,
+    x_ref: &Vector3<S>,
+    u: &Vector3<S>,
     lambda: S,
     target: &TargetGeom<'_, S>,
     anchor: Option<&AnchorGeom<S>>,
     par: &KernelParams<'_, S>,
     frozen: Option<ContactState>,
 ) -> Result<KernelOut<S>, ContactFailure> {
+    let x = &(x_ref + u);
     let proj = match target {
         TargetGeom::Quad { nodes, xi_start } => project_on_quad(x, nodes, *xi_start),
         TargetGeom::Rigid { surface, d } => surface.project(x, d),
@@ -280,7 +317,7 @@ pub fn node_kernel<S: Scalar>(
     let active = match frozen {
         Some(s) => s != ContactState::Open,
         None => match par.normal {
-            NormalLaw::Lagrange => lambda.value() - k * g.value() > 0.0,
+            NormalLaw::Lagrange => lambda.value() - k * g.value() >= 0.0,
             NormalLaw::Penalty { .. } => g.value() < 0.0,
         },
     };
@@ -302,28 +339,33 @@ pub fn node_kernel<S: Scalar>(
         ContactState::Open
     };
     let mut new_anchor = proj.point;
+    let mut new_separation = n * g;
     let mut slip_ratio = f64::INFINITY;
     if let (true, Some(law), Some(anchor)) = (active, par.friction, anchor) {
-        let xa = anchor.position();
-        let dx = x - xa;
+        let (dx, scale) = anchor.separation(x_ref, u);
         let g_t = dx - n * n.dot(&dx);
         let t_trial = g_t * (-par.eps_t);
+        // Round-off of the trial force: a trial within it of the slip surface is taken as stick
+        // (the elastic predictor), so the branch does not flip on noise.
+        let margin = 8.0 * f64::EPSILON * scale * par.eps_t.value();
         let fb = match frozen {
             Some(ContactState::Stick) => Some(FrictionBranch::Stick),
             Some(ContactState::Slip) => Some(FrictionBranch::Slip),
             _ => None,
         };
-        let upd = crate::with_friction!(law, f => f.return_map(par.friction_params, &t_trial, p_n, fb));
+        let upd = crate::with_friction!(law, f => f.return_map(par.friction_params, &t_trial, p_n, margin, fb));
         slip_ratio = upd.slip_ratio;
         force += upd.traction;
         match upd.branch {
             FrictionBranch::Stick => {
                 state = ContactState::Stick;
-                new_anchor = xa;
+                new_anchor = x - dx;
+                new_separation = dx;
             }
             FrictionBranch::Slip => {
                 state = ContactState::Slip;
-                new_anchor = x + upd.traction / par.eps_t;
+                new_separation = -upd.traction / par.eps_t;
+                new_anchor = x - new_separation;
             }
         }
     }
@@ -334,6 +376,7 @@ pub fn node_kernel<S: Scalar>(
         p_n,
         state,
         new_anchor,
+        new_separation,
         projection: proj,
         normal_distance,
         slip_ratio,

@@ -1,0 +1,125 @@
+//! One hex8 evaluation (large kinematics, 2x2x2 Gauss points), per scalar type, formulation and
+//! material:
+//!
+//! * `f64`, `dual64` (E seeded), `dsvec4`, `dsvec8` (all material parameters seeded): residual
+//!   only — the primal, DDM single and DDM batched pseudo-load evaluations;
+//! * `f64+tangent`: residual and the hand-coded consistent tangent (one Newton iteration);
+//! * `ad-tangent/dual64`: the tangent by forward AD, one `Dual64` pass per element unknown
+//!   (24 or 33 passes); `ad-tangent/dsvec8`: 3 or 5 passes of `DualSVec64<8>`;
+//!   `ad-tangent/dsvec24` (full) and `ad-tangent/dsvec33` (incompatible modes): one pass.
+//!
+//! Materials: St Venant-Kirchhoff, and J2 (linear hardening) stretched to four times its yield
+//! strain from a virgin history, so every Gauss point returns plastically.
+//!
+//! `cargo bench --bench kernels`
+
+mod common;
+
+use common::{ad_tangent, j2, relative_difference, svk, Element};
+use criterion::{criterion_group, criterion_main, Criterion};
+use fricsens::element::hex8::Hex8Formulation;
+use fricsens::material::{Branch, MaterialLaw};
+use fricsens::scalar::Scalar;
+use num_dual::{Dual64, DualSVec64};
+use std::hint::black_box;
+use std::time::Duration;
+
+fn residual<S: Scalar, M: MaterialLaw>(
+    c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: &str,
+    base: &Element<f64>,
+    material: &M,
+    seed_params: usize,
+) {
+    let mut el: Element<S> = base.lift(seed_params);
+    c.bench_function(name, |b| {
+        b.iter(|| {
+            el.evaluate(black_box(material), false).expect("element");
+            black_box(&el.force);
+        })
+    });
+}
+
+fn ad<S: Scalar, M: MaterialLaw>(
+    c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: &str,
+    base: &Element<f64>,
+    material: &M,
+    reference: &[f64],
+) {
+    let mut work: Element<S> = base.lift(0);
+    let mut k = vec![0.0; reference.len()];
+    ad_tangent(base, &mut work, material, &mut k).expect("element");
+    let rel = relative_difference(reference, &k);
+    assert!(
+        rel < 1e-8,
+        "{name}: AD tangent differs from the hand-coded one by {rel:.2e}"
+    );
+    c.bench_function(name, |b| {
+        b.iter(|| {
+            ad_tangent(base, &mut work, black_box(material), &mut k).expect("element");
+            black_box(&k);
+        })
+    });
+}
+
+fn case<M: MaterialLaw>(c: &mut Criterion, mat_name: &str, material: &M, plastic: bool) {
+    for (form_name, formulation) in [
+        ("full", Hex8Formulation::Full),
+        ("im", Hex8Formulation::IncompatibleModes),
+    ] {
+        let np = material.params().len();
+        let mut base = Element::new(
+            formulation,
+            material.params(),
+            material.history_len(),
+            plastic,
+        );
+        base.evaluate(material, true).expect("element");
+        let want = if plastic {
+            Branch::Plastic
+        } else {
+            Branch::Elastic
+        };
+        assert!(base.branches.iter().all(|b| *b == want), "branches");
+        let reference = base.tangent.clone();
+
+        let mut g = c.benchmark_group(format!("hex8/{mat_name}/{form_name}"));
+        residual::<f64, M>(&mut g, "f64", &base, material, 0);
+        residual::<Dual64, M>(&mut g, "dual64", &base, material, 1);
+        residual::<DualSVec64<4>, M>(&mut g, "dsvec4", &base, material, np);
+        residual::<DualSVec64<8>, M>(&mut g, "dsvec8", &base, material, np);
+        {
+            let mut el = base.lift::<f64>(0);
+            g.bench_function("f64+tangent", |b| {
+                b.iter(|| {
+                    el.evaluate(black_box(material), true).expect("element");
+                    black_box(&el.tangent);
+                })
+            });
+        }
+        ad::<Dual64, M>(&mut g, "ad-tangent/dual64", &base, material, &reference);
+        ad::<DualSVec64<8>, M>(&mut g, "ad-tangent/dsvec8", &base, material, &reference);
+        if formulation == Hex8Formulation::IncompatibleModes {
+            ad::<DualSVec64<33>, M>(&mut g, "ad-tangent/dsvec33", &base, material, &reference)
+        } else {
+            ad::<DualSVec64<24>, M>(&mut g, "ad-tangent/dsvec24", &base, material, &reference)
+        }
+        g.finish();
+    }
+}
+
+fn kernels(c: &mut Criterion) {
+    case(c, "svk", &svk(), false);
+    case(c, "j2", &j2(), true);
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(1));
+    targets = kernels
+}
+criterion_main!(benches);
