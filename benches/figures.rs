@@ -7,10 +7,12 @@
 //!    factorization and solve, from a real increment (the solver's own timers) and from
 //!    repeated calls at the converged state.
 //! 3. Rayon-parallel assembly on 1 vs 2 threads (local thread pools, the same as
-//!    `RAYON_NUM_THREADS=1` / `2` for this code).
+//!    `RAYON_NUM_THREADS=1` / `2` for this code), with the cores the process really had.
+//! 4. Where an increment of the `benches/increment.rs` scenes goes: primal parts and the
+//!    in-line sensitivity work per method.
 //!
-//! `cargo bench --bench figures` (about a minute). Under `cargo test --benches` it only prints
-//! how to run it.
+//! `cargo bench --bench figures` (about a minute); `cargo bench --bench figures -- 3` runs
+//! section 3 only. Under `cargo test --benches` it only prints how to run it.
 
 mod common;
 

@@ -132,6 +132,25 @@ fn node_pos<S: Scalar>(lifted: &Lifted<S>, z: &[S], n: usize) -> Vector3<S> {
     lifted.coords[n] + node_disp(z, n)
 }
 
+/// Which candidate face is closest to `x` (a branch decision, on real parts), and the
+/// convected coordinates of the closest point on it.
+fn closest_face<S: Scalar>(
+    lifted: &Lifted<S>,
+    z: &[S],
+    faces: &[[usize; 4]],
+    candidates: &[usize],
+    x: &Vector3<S>,
+) -> Result<(usize, [f64; 2]), ContactFailure> {
+    let quads: Vec<[Vector3<f64>; 4]> = candidates
+        .iter()
+        .map(|&f| faces[f].map(|n| node_pos(lifted, z, n).map(|v| v.value())))
+        .collect();
+    let xr = x.map(|v| v.value());
+    let (k, pr) =
+        closest_on_quads(&xr, &quads, None).map_err(|e| ContactFailure::Geometry(e.to_string()))?;
+    Ok((candidates[k], [pr.xi[0], pr.xi[1]]))
+}
+
 /// Rigid translation of a pair's target at time `t`.
 pub fn rigid_translation<S: Scalar>(pair: &ContactPair, values: &[S], t: f64) -> Vector3<S> {
     let mut d = Vector3::zeros();
@@ -196,16 +215,7 @@ pub fn evaluate<S: Scalar>(
             let (face, xi_start) = match &pair.target {
                 Target::Faces { faces } => match fz {
                     Some(c) => (c.face, [0.0, 0.0]),
-                    None => {
-                        let quads: Vec<[Vector3<f64>; 4]> = pair.candidates[i]
-                            .iter()
-                            .map(|&f| faces[f].map(|n| node_pos(lifted, z, n).map(|v| v.value())))
-                            .collect();
-                        let xr = x.map(|v| v.value());
-                        let (k, pr) = closest_on_quads(&xr, &quads, None)
-                            .map_err(|e| err(ContactFailure::Geometry(e.to_string())))?;
-                        (pair.candidates[i][k], [pr.xi[0], pr.xi[1]])
-                    }
+                    None => closest_face(lifted, z, faces, &pair.candidates[i], &x).map_err(err)?,
                 },
                 Target::Rigid { .. } => (0, [0.0, 0.0]),
             };
@@ -286,16 +296,9 @@ pub fn evaluate<S: Scalar>(
                         anchor_face = match fz {
                             Some(c) => c.anchor_face,
                             None => {
-                                let quads: Vec<[Vector3<f64>; 4]> = pair.candidates[i]
-                                    .iter()
-                                    .map(|&f| {
-                                        faces[f].map(|n| node_pos(lifted, z, n).map(|v| v.value()))
-                                    })
-                                    .collect();
-                                let pr = ko.new_anchor.map(|v| v.value());
-                                let (k, _) = closest_on_quads(&pr, &quads, None)
-                                    .map_err(|e| err(ContactFailure::Geometry(e.to_string())))?;
-                                pair.candidates[i][k]
+                                closest_face(lifted, z, faces, &pair.candidates[i], &ko.new_anchor)
+                                    .map_err(err)?
+                                    .0
                             }
                         };
                         let nodes = faces[anchor_face].map(|n| node_pos(lifted, z, n));

@@ -297,6 +297,30 @@ fn centre_jacobian<S: Scalar>(x_ref: &[Vector3<S>; 8]) -> Result<(Matrix3<S>, S)
     }
 }
 
+/// The material update at Gauss point `gp` (branch frozen if asked), with its bookkeeping:
+/// history slot, branch, yield ratio, finiteness.
+fn material_point<S: Scalar, M: MaterialLaw>(
+    input: &Hex8Input<'_, S, M>,
+    out: &mut Hex8Output<'_, S>,
+    gp: usize,
+    strain: &Matrix3<S>,
+) -> Result<crate::material::PointResponse<S>, ElementFailure> {
+    let nh = input.material.history_len();
+    let resp = input.material.update(
+        input.params,
+        strain,
+        &input.hist_old[gp * nh..(gp + 1) * nh],
+        &mut out.hist_new[gp * nh..(gp + 1) * nh],
+        input.frozen.map(|fr| fr[gp]),
+    );
+    if !resp.stress.iter().all(|s| re(*s).is_finite()) {
+        return Err(ElementFailure::NonFinite { gauss_point: gp });
+    }
+    out.branches[gp] = resp.branch;
+    out.yield_ratio[gp] = resp.yield_ratio;
+    Ok(resp)
+}
+
 /// Number of generalised nodes of a formulation.
 #[inline]
 pub fn generalised_nodes(formulation: Hex8Formulation) -> usize {
@@ -316,7 +340,6 @@ pub fn evaluate<S: Scalar, M: MaterialLaw>(
     let ndof = 3 * n_gen;
     debug_assert_eq!(input.dofs.len(), n_gen);
     debug_assert!(out.force.len() >= ndof);
-    let nh = input.material.history_len();
     for f in out.force[..ndof].iter_mut() {
         *f = S::zero();
     }
@@ -362,19 +385,7 @@ pub fn evaluate<S: Scalar, M: MaterialLaw>(
         } else {
             (h + h.transpose()) * S::lift(0.5)
         };
-        let frozen = input.frozen.map(|fr| fr[gp]);
-        let resp = input.material.update(
-            input.params,
-            &strain,
-            &input.hist_old[gp * nh..(gp + 1) * nh],
-            &mut out.hist_new[gp * nh..(gp + 1) * nh],
-            frozen,
-        );
-        if !resp.stress.iter().all(|s| re(*s).is_finite()) {
-            return Err(ElementFailure::NonFinite { gauss_point: gp });
-        }
-        out.branches[gp] = resp.branch;
-        out.yield_ratio[gp] = resp.yield_ratio;
+        let resp = material_point(input, out, gp, &strain)?;
         let sv = stress_to_voigt(&resp.stress);
         let w = geo.weight;
         // B rows: dE_voigt / d(d_Ai)
@@ -458,7 +469,6 @@ fn evaluate_fbar<S: Scalar, M: MaterialLaw>(
     const NDOF: usize = 24;
     debug_assert_eq!(input.dofs.len(), 8);
     debug_assert!(out.force.len() >= NDOF);
-    let nh = input.material.history_len();
     let large = input.kinematics == Kinematics::Large;
     for f in out.force[..NDOF].iter_mut() {
         *f = S::zero();
@@ -554,19 +564,7 @@ fn evaluate_fbar<S: Scalar, M: MaterialLaw>(
             let strain = eps + Matrix3::from_diagonal_element((tr_h0 - h.trace()) / 3.0);
             (Matrix3::identity(), Matrix3::identity(), S::one(), strain)
         };
-        let frozen = input.frozen.map(|fr| fr[gp]);
-        let resp = input.material.update(
-            input.params,
-            &strain,
-            &input.hist_old[gp * nh..(gp + 1) * nh],
-            &mut out.hist_new[gp * nh..(gp + 1) * nh],
-            frozen,
-        );
-        if !resp.stress.iter().all(|s| re(*s).is_finite()) {
-            return Err(ElementFailure::NonFinite { gauss_point: gp });
-        }
-        out.branches[gp] = resp.branch;
-        out.yield_ratio[gp] = resp.yield_ratio;
+        let resp = material_point(input, out, gp, &strain)?;
         let sv = stress_to_voigt(&resp.stress);
         // Cbar in Voigt strain form (engineering shears): the dEbar of a unit d ln r
         let cbar_v = strain_to_voigt(&cbar);
