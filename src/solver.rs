@@ -361,7 +361,22 @@ impl<'m> Solver<'m> {
                     reference_force: 0.0,
                     cutbacks,
                 };
-                match self.attempt(&mut z_try, &hist, t, &mut eval, &mut record, &mut res.cost) {
+                let predicted = self
+                    .predict(&z, &mut z_try, &hist, t, &mut eval, &mut res.cost)
+                    .map_err(|e| AnalysisError::Model(e.to_string()));
+                let attempt = match predicted {
+                    Ok(Some(factored)) => self
+                        .attempt(&mut z_try, &hist, t, &mut eval, &mut record, &mut res.cost)
+                        .map(|f| {
+                            if factored {
+                                record.iterations += 1;
+                            }
+                            f || factored
+                        }),
+                    Ok(None) => Err(AttemptFailure::Diverged("predictor failed")),
+                    Err(e) => return Err(e),
+                };
+                match attempt {
                     Ok(factored) => {
                         index += 1;
                         let conv = Converged {
@@ -440,6 +455,89 @@ impl<'m> Solver<'m> {
         res.history = hist;
         res.cost.wall_seconds = start.elapsed().as_secs_f64();
         Ok(res)
+    }
+
+    /// Consistent predictor for an increment of prescribed displacements: linearise about the
+    /// last converged state, `K dz_f = -(R_f(z_n, t) + K_fc dz_c)`, instead of starting Newton
+    /// from a state in which only the prescribed nodes have moved (which distorts the elements
+    /// next to them and provokes spurious yielding, inversion and cutbacks). Returns whether it
+    /// factored (it counts as a Newton iteration), or `None` when the linearised step itself
+    /// fails (the caller cuts back).
+    fn predict(
+        &mut self,
+        z_old: &[f64],
+        z_new: &mut [f64],
+        hist: &[f64],
+        t: f64,
+        eval: &mut Evaluation<f64>,
+        cost: &mut PrimalCost,
+    ) -> Result<Option<bool>, LinalgError> {
+        let n = z_old.len();
+        let mut dzc = vec![0.0; n];
+        let mut moved = false;
+        for d in 0..n {
+            if self.constrained[d] && z_new[d] != z_old[d] {
+                dzc[d] = z_new[d] - z_old[d];
+                moved = true;
+            }
+        }
+        if !moved {
+            return Ok(Some(false));
+        }
+        let t0 = Instant::now();
+        if self
+            .assembler
+            .evaluate(
+                self.model,
+                &self.lifted,
+                z_old,
+                hist,
+                t,
+                None,
+                Some(&mut self.matrix),
+                eval,
+            )
+            .is_err()
+        {
+            return Ok(None);
+        }
+        cost.assemblies += 1;
+        cost.assembly_seconds += t0.elapsed().as_secs_f64();
+        let mut kdzc = vec![0.0; n];
+        self.matrix.mul_vec(&dzc, &mut kdzc)?;
+        let mut dz: Vec<f64> = (0..n)
+            .map(|d| {
+                if self.constrained[d] {
+                    0.0
+                } else {
+                    -(eval.residual[d] + kdzc[d])
+                }
+            })
+            .collect();
+        for (d, c) in self.constrained.iter().enumerate() {
+            if *c {
+                self.matrix.set_identity_row_col(d)?;
+            }
+        }
+        let t1 = Instant::now();
+        if self.linear.factor(&self.matrix).is_err() {
+            return Ok(None);
+        }
+        cost.factorizations += 1;
+        cost.factor_seconds += t1.elapsed().as_secs_f64();
+        let t2 = Instant::now();
+        self.linear.solve_in_place(&mut dz)?;
+        cost.solves += 1;
+        cost.solve_seconds += t2.elapsed().as_secs_f64();
+        if dz.iter().any(|v| !v.is_finite()) {
+            return Ok(None);
+        }
+        for d in 0..n {
+            if !self.constrained[d] {
+                z_new[d] = z_old[d] + dz[d];
+            }
+        }
+        Ok(Some(true))
     }
 
     /// Newton iterations of one attempt. Returns whether a factorization was made.
