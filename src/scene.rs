@@ -1516,11 +1516,9 @@ pub struct StripSpec {
 impl Default for StripSpec {
     fn default() -> Self {
         StripSpec {
-            // the 1D oracle holds where the slip zone exceeds 20 thicknesses (F > 1 here);
-            // thinner strips or longer slip zones need many Newton iterations per increment
-            // (the slip front advances node by node) - see the closing note of issue 4
+            // thin: the 1D oracle holds where the slip zone exceeds 20 thicknesses
             length: 10.0,
-            thickness: 0.1,
+            thickness: 0.02,
             width: 0.1,
             young: 1e5,
             mu: 0.5,
@@ -1586,7 +1584,10 @@ pub fn strip_pullout(s: &StripSpec) -> Scene {
             },
             normal: NormalLaw::Lagrange,
             friction: Some(FrictionSpec::Coulomb { mu: s.mu }),
-            tangential_stiffness: Some(1e4 * s.young * s.thickness * s.width * s.elements as f64 / s.length),
+            // 10 x the axial stiffness EA/h of one element: the elastic slip (mu n h / eps_T)
+            // stays below 1e-4 of u0, and Newton is not crippled by a tangent dominated by
+            // the penalty (1e4 x EA/h made the slip front advance one node per iteration)
+            tangential_stiffness: Some(10.0 * s.young * s.thickness * s.width * s.elements as f64 / s.length),
             constraint_scale: None,
             search_radius: None,
         }],

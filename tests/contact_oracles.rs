@@ -211,7 +211,6 @@ fn hertz_half_width_and_peak_pressure() {
 }
 
 #[test]
-#[ignore = "finding (issue 4): 2.3 % at thickness/slip length = 0.048 against the 2 % asked; the error is a near-constant offset from the strip's finite thickness, and thinner strips stall the frictional Newton (see the closing note)"]
 fn strip_pullout_end_displacement_and_mu_sensitivity_against_the_1d_oracle() {
     let s = StripSpec::default();
     let model = strip_pullout(&s).build().unwrap();
@@ -223,7 +222,9 @@ fn strip_pullout_end_displacement_and_mu_sensitivity_against_the_1d_oracle() {
     let (res, sens) = run_sensitivity(&model, &[mu], &settings).unwrap();
     let k = s.young * s.thickness * s.width * s.mu * s.n;
     let mut checked = 0;
+    let mut checked_d = 0;
     let mut worst: f64 = 0.0;
+    let mut worst_d: f64 = 0.0;
     for inc in &sens.increments {
         let t = inc.time;
         // slip length of the last change of direction (loading: F / (mu n); unloading: the
@@ -242,20 +243,32 @@ fn strip_pullout_end_displacement_and_mu_sensitivity_against_the_1d_oracle() {
         let dgot = inc.derivatives[0][0];
         // the 1D oracle holds for thickness / slip length < 0.05 (oracles.md section 7)
         let valid = s.thickness / slip_length < 0.05;
+        // the derivative of the discrete problem holds the stick/slip pattern fixed, so it
+        // misses the motion of the slip front, an O(h / l) error: it is compared where the slip
+        // zone spans at least 20 elements
+        let h = s.length / s.elements as f64;
+        let resolved = slip_length >= 20.0 * h;
         println!(
-            "t = {t:.2}: u0 {got:.6e} ({u0:.6e}), du0/dmu {dgot:.6e} ({:.6e}){}",
+            "t = {t:.2}: u0 {got:.6e} ({u0:.6e}), du0/dmu {dgot:.6e} ({:.6e}){}{}",
             -u0 / s.mu,
             if valid {
                 ""
             } else {
                 "  [outside the oracle's range]"
+            },
+            if resolved {
+                "  [slip zone >= 20 elements]"
+            } else {
+                ""
             }
         );
         if valid {
             checked += 1;
-            worst = worst
-                .max((got - u0).abs() / u0)
-                .max((dgot + u0 / s.mu).abs() / (u0 / s.mu));
+            worst = worst.max((got - u0).abs() / u0);
+            if resolved {
+                worst_d = worst_d.max((dgot + u0 / s.mu).abs() / (u0 / s.mu));
+                checked_d += 1;
+            }
         }
     }
     let iters: Vec<usize> = res.records.iter().map(|r| r.iterations).collect();
@@ -264,8 +277,11 @@ fn strip_pullout_end_displacement_and_mu_sensitivity_against_the_1d_oracle() {
         checked >= 3,
         "too few points inside the oracle's range ({checked})"
     );
-    println!("largest relative error inside the oracle's range: {worst:.4}");
-    assert!(worst < 0.02, "largest error {worst}");
+    println!("largest relative error of u0 inside the oracle's range: {worst:.4}");
+    println!("largest relative error of du0/dmu where resolved: {worst_d:.4} ({checked_d} points)");
+    assert!(worst < 0.02, "u0: largest error {worst}");
+    assert!(checked_d >= 3, "too few resolved points ({checked_d})");
+    assert!(worst_d < 0.02, "du0/dmu: largest error {worst_d}");
 }
 
 #[test]
