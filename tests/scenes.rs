@@ -1,0 +1,111 @@
+//! Scenes: every built-in scene round-trips through TOML, bad files name the field, and the
+//! paper's indentation example behaves as the physics says.
+
+use fricsens::scene::{builtin, builtin_list, indentation, Scene};
+use fricsens::solver::{NoObserver, RunOptions, Solver};
+
+#[test]
+fn every_builtin_scene_round_trips_through_toml() {
+    for (name, _) in builtin_list() {
+        let scene = builtin(name).unwrap();
+        let text = scene.to_toml();
+        let back = Scene::from_toml(&text, name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(back, scene, "{name}: TOML round trip changed the scene");
+        // the same analysis: identical models (node count, unknowns, increments)
+        let (a, b) = (scene.build().unwrap(), back.build().unwrap());
+        assert_eq!(a.dof_map().n_total, b.dof_map().n_total, "{name}");
+        assert_eq!(a.times, b.times, "{name}");
+    }
+}
+
+#[test]
+fn malformed_scene_files_name_the_file_and_the_field() {
+    let good = builtin("cantilever-small").unwrap().to_toml();
+    // an impossible value
+    let bad = good.replace("E = 100000.0", "E = -1.0");
+    let err = Scene::from_toml(&bad, "beam.toml")
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("bodies[0].material.E") && err.contains("> 0"),
+        "{err}"
+    );
+    // an unknown key
+    let bad = good.replacen("[[bodies]]", "[[bodies]]\nyoung = 3.0", 1);
+    let err = Scene::from_toml(&bad, "beam.toml").unwrap_err().to_string();
+    assert!(
+        err.starts_with("beam.toml") && err.contains("young"),
+        "{err}"
+    );
+    // a set that does not exist
+    let bad = good.replace("set = \"beam.xmin\"", "set = \"beam.nowhere\"");
+    let err = Scene::from_toml(&bad, "beam.toml")
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("prescribed[0].set") && err.contains("beam.nowhere"),
+        "{err}"
+    );
+}
+
+#[test]
+fn indentation_slides_at_the_coulomb_limit_with_an_asymmetric_pressure() {
+    let model = indentation(2, 4).build().unwrap();
+    let mut solver = Solver::new(&model).unwrap();
+    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let fx = model
+        .responses
+        .iter()
+        .position(|r| r.name == "block-force-x")
+        .unwrap();
+    let fy = model
+        .responses
+        .iter()
+        .position(|r| r.name == "block-force-y")
+        .unwrap();
+    let last = res.states.len() - 1;
+    let (x, y) = (
+        res.response_value(&model, fx, last),
+        res.response_value(&model, fy, last),
+    );
+    println!("sliding: Fx {x:.4}, Fy {y:.4}, ratio {:.6}", x / y);
+    // every contact node slips under a sliding rigid punch: |Fx| = mu Fy, opposing the motion
+    assert!(y > 0.0 && x < 0.0);
+    assert!((x.abs() / y - 0.5).abs() < 1e-6, "ratio {}", x.abs() / y);
+    // after pressing alone the pressure is symmetric about the block's centre (x = -10 mm);
+    // sliding with friction makes it asymmetric
+    let pressures = |k: usize| -> Vec<f64> {
+        (0..model.responses.len())
+            .filter(|r| model.responses[*r].name.starts_with("p["))
+            .map(|r| res.response_value(&model, r, k))
+            .collect()
+    };
+    let p_press = pressures(2);
+    let p_slide = pressures(last);
+    let moment = |p: &[f64]| -> f64 {
+        let pair = &model.contacts[0];
+        let xs = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+        let mut nodes: Vec<usize> = (0..pair.hitting.len()).collect();
+        nodes.sort_by(|a, b| xs[pair.hitting[*a]][0].total_cmp(&xs[pair.hitting[*b]][0]));
+        let total: f64 = p.iter().sum();
+        let centroid: f64 = nodes
+            .iter()
+            .zip(p)
+            .map(|(n, q)| xs[pair.hitting[*n]][0] * q)
+            .sum::<f64>()
+            / total;
+        centroid
+    };
+    let (c_press, c_slide) = (moment(&p_press), moment(&p_slide));
+    println!("pressure centroid: pressed {c_press:.4} mm, sliding {c_slide:.4} mm (block centre moved -10 -> -6.67)");
+    assert!((c_press + 10.0).abs() < 0.05, "pressed centroid {c_press}");
+    // the block has moved 3.33 mm: the centroid follows it but is shifted by the friction couple
+    assert!(
+        (c_slide - (-10.0 + 3.33)).abs() > 0.01,
+        "sliding pressure still symmetric"
+    );
+}
