@@ -176,6 +176,44 @@ pub fn write_pvd(path: &Path, files: &[(f64, String)]) -> Result<(), OutputError
     std::fs::write(path, s).map_err(io(path))
 }
 
+/// Contact state map of increment `k` as point fields: `contact_state` (-1 not a hitting node,
+/// 0 open, 1 closed frictionless, 2 stick, 3 slip), `normal_force`, `friction_force` (its
+/// direction is the slip direction) and `contact_force`.
+pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
+    let mut extra = ExtraFields::default();
+    let Some(c) = res.contact.get(k) else {
+        return extra;
+    };
+    if model.contacts.is_empty() {
+        return extra;
+    }
+    let n = model.mesh.n_nodes();
+    let mut state = vec![-1.0; n];
+    let mut normal = vec![0.0; n];
+    let mut friction = vec![0.0; 3 * n];
+    let mut force = vec![0.0; 3 * n];
+    for (p, pair) in model.contacts.iter().enumerate() {
+        let first = res.contact_flat.get(p).copied().unwrap_or(0);
+        for (i, &node) in pair.hitting.iter().enumerate() {
+            let f = first + i;
+            if f >= c.choice.len() {
+                continue;
+            }
+            state[node] = c.choice[f].state.code();
+            normal[node] += c.normal_force[f];
+            for j in 0..3 {
+                friction[3 * node + j] += c.traction[f][j];
+                force[3 * node + j] += c.force[f][j];
+            }
+        }
+    }
+    extra.point.push(("contact_state".into(), 1, state));
+    extra.point.push(("normal_force".into(), 1, normal));
+    extra.point.push(("friction_force".into(), 3, friction));
+    extra.point.push(("contact_force".into(), 3, force));
+    extra
+}
+
 /// Write the whole run: `history.csv`, `newton.json`, and `vtk/` with one `.vtu` per increment.
 pub fn write_run(dir: &Path, model: &Model, res: &Results) -> Result<(), OutputError> {
     std::fs::create_dir_all(dir.join("vtk")).map_err(io(dir))?;
@@ -192,7 +230,7 @@ pub fn write_run(dir: &Path, model: &Model, res: &Results) -> Result<(), OutputE
             model,
             z,
             &res.stresses[k],
-            &ExtraFields::default(),
+            &contact_fields(model, res, k),
         )?;
         files.push((*t, name));
     }

@@ -99,6 +99,8 @@ pub struct ContactEval<S: Scalar> {
     pub pair_force: Vec<Vector3<S>>,
     /// Contact force per hitting node (real parts), for output.
     pub force: Vec<Vector3<f64>>,
+    /// Tangential (friction) force per hitting node (real parts): the slip direction.
+    pub traction: Vec<Vector3<f64>>,
     /// `(normal_distance, slip_ratio)` per hitting node.
     pub distance: Vec<(f64, f64)>,
 }
@@ -110,6 +112,7 @@ impl<S: Scalar> ContactEval<S> {
             normal_force: vec![S::zero(); n_hitting],
             pair_force: vec![Vector3::zeros(); n_pairs],
             force: vec![Vector3::zeros(); n_hitting],
+            traction: vec![Vector3::zeros(); n_hitting],
             distance: vec![(f64::INFINITY, f64::INFINITY); n_hitting],
         }
     }
@@ -270,6 +273,7 @@ pub fn evaluate<S: Scalar>(
             out.pair_force[p] += ko.force;
             out.normal_force[flat] = ko.p_n;
             out.force[flat] = ko.force.map(|v| v.value());
+            out.traction[flat] = (ko.force - ko.projection.normal * ko.p_n).map(|v| v.value());
             out.distance[flat] = (ko.normal_distance, ko.slip_ratio);
             // ---- history: the stick anchor ----
             let mut anchor_face = face;

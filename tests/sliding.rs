@@ -1,0 +1,234 @@
+//! A deformable block slid over several faces of another deformable block: mu = 0 reproduces
+//! the frictionless pair, a very large mu sticks everywhere, and the friction force stays at
+//! mu N while the hitting nodes cross segment boundaries. The VTK output carries the state map.
+
+use fricsens::contact::ContactState;
+use fricsens::contact::NormalLaw;
+use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::mesh::Axis;
+use fricsens::mesh::BlockSpec;
+use fricsens::model::Model;
+use fricsens::model::SolverSettings;
+use fricsens::scene::{
+    BodySpec, Component, ContactSpec, FrictionSpec, LoadSpec, MaterialSpec, PrescribedSpec,
+    ResponseSpec, Scene, StepSpec, TargetSpec,
+};
+use fricsens::solver::{NoObserver, Results, RunOptions, Solver};
+
+const N: f64 = 1.0; // total normal load on the slider
+const SLIDE: f64 = 3.0; // the slider's travel: across three faces of the base (1.0 long)
+
+fn fixed(name: &str, set: &str, c: &[Component]) -> PrescribedSpec {
+    PrescribedSpec {
+        name: name.into(),
+        set: set.into(),
+        components: c.to_vec(),
+        value: 0.0,
+        amplitude: vec![(0.0, 0.0), (1.0, 1.0)],
+    }
+}
+
+fn body(name: &str, origin: [f64; 3], n: [usize; 2], l: [f64; 2]) -> BodySpec {
+    BodySpec {
+        block: BlockSpec {
+            name: name.into(),
+            origin,
+            x: Axis::uniform(l[0], n[0]),
+            y: Axis::uniform(l[1], n[1]),
+            z: Axis::uniform(0.5, 1),
+        },
+        material: MaterialSpec::Svk {
+            young: 1000.0,
+            nu: 0.3,
+        },
+        kinematics: Kinematics::Small,
+        formulation: Hex8Formulation::IncompatibleModes,
+    }
+}
+
+fn scene(friction: Option<f64>) -> Scene {
+    Scene {
+        name: "slider".into(),
+        description: "a block slid over a deformable base".into(),
+        bodies: vec![
+            body("base", [0.0, -1.0, 0.0], [8, 2], [8.0, 1.0]),
+            body("slider", [1.0, 0.0, 0.0], [3, 1], [1.5, 0.5]),
+        ],
+        free_nodes: vec![],
+        springs: vec![],
+        prescribed: vec![
+            fixed("base", "base.ymin", &[Component::X, Component::Y]),
+            fixed("plane-b", "base.all", &[Component::Z]),
+            fixed("plane-s", "slider.all", &[Component::Z]),
+            PrescribedSpec {
+                name: "pull".into(),
+                set: "slider.xmin".into(),
+                components: vec![Component::X],
+                value: SLIDE,
+                amplitude: vec![(0.0, 0.0), (1.0, 0.0), (2.0, 1.0)],
+            },
+        ],
+        loads: vec![LoadSpec {
+            name: "N".into(),
+            set: "slider.ymax".into(),
+            component: Component::Y,
+            value: -N,
+            amplitude: vec![(0.0, 0.0), (1.0, 1.0), (2.0, 1.0)],
+        }],
+        contacts: vec![ContactSpec {
+            name: "interface".into(),
+            hitting: "slider.ymin".into(),
+            target: TargetSpec::Faces("base.ymax".into()),
+            normal: NormalLaw::Lagrange,
+            friction: friction.map(|mu| FrictionSpec::Coulomb { mu }),
+            tangential_stiffness: None,
+            constraint_scale: None,
+            // the slider travels 3 units: every face it may reach is a candidate
+            search_radius: Some(6.0),
+        }],
+        steps: vec![
+            StepSpec {
+                end: 1.0,
+                increments: 2,
+            },
+            StepSpec {
+                end: 2.0,
+                increments: 30,
+            },
+        ],
+        responses: vec![ResponseSpec::Reaction {
+            name: "pull".into(),
+            set: "slider.xmin".into(),
+            component: Component::X,
+        }],
+        solver: SolverSettings::default(),
+    }
+}
+
+fn run(friction: Option<f64>) -> (Model, Results) {
+    let mut s = scene(friction);
+    // converge to round-off so two runs can be compared beyond the default 1e-9 tolerance
+    s.solver.force_tol = 1e-13;
+    let model = s.build().unwrap();
+    let res = Solver::new(&model)
+        .unwrap()
+        .run(&RunOptions::default(), &mut NoObserver)
+        .unwrap();
+    (model, res)
+}
+
+#[test]
+fn mu_zero_reproduces_the_frictionless_pair() {
+    let (m0, r0) = run(Some(0.0));
+    let (mf, rf) = run(None);
+    assert_eq!(r0.states.len(), rf.states.len());
+    let n = mf.dof_map().first_lambda; // compare the displacements
+    for k in 0..r0.states.len() {
+        let scale = rf.states[k][..n]
+            .iter()
+            .fold(1e-12f64, |m, v| m.max(v.abs()));
+        let diff = (0..n).fold(0.0f64, |m, i| {
+            m.max((r0.states[k][i] - rf.states[k][i]).abs())
+        });
+        println!(
+            "increment {k}: largest difference {:.3e} of the largest displacement",
+            diff / scale
+        );
+        assert!(diff <= 1e-10 * scale, "increment {k}: {}", diff / scale);
+        // the pull equals the frictionless one (it is not zero: the base's top bends under
+        // the slider and the tilted normals carry an x-component)
+        let (p0, pf) = (r0.response_value(&m0, 0, k), rf.response_value(&mf, 0, k));
+        assert!(
+            (p0 - pf).abs() <= 1e-10 * N,
+            "increment {k}: pull {p0} vs frictionless {pf}"
+        );
+    }
+}
+
+#[test]
+fn very_large_mu_sticks_everywhere() {
+    let model = {
+        let mut s = scene(Some(1e4));
+        // a small pull: the base shears elastically under the stuck slider
+        s.prescribed[3].value = 1e-3;
+        s.build().unwrap()
+    };
+    let res = Solver::new(&model)
+        .unwrap()
+        .run(&RunOptions::default(), &mut NoObserver)
+        .unwrap();
+    for (k, c) in res.contact.iter().enumerate().skip(1) {
+        for ch in &c.choice {
+            assert!(
+                matches!(ch.state, ContactState::Stick),
+                "increment {k}: {:?}",
+                ch.state
+            );
+        }
+    }
+}
+
+#[test]
+fn friction_force_stays_at_mu_n_while_sliding_across_segments() {
+    let mu = 0.3;
+    let (model, res) = run(Some(mu));
+    let mut worst: f64 = 0.0;
+    let mut sliding = 0;
+    for k in 1..res.states.len() {
+        let all_slip = res.contact[k]
+            .choice
+            .iter()
+            .all(|c| matches!(c.state, ContactState::Slip));
+        if !all_slip {
+            continue;
+        }
+        sliding += 1;
+        // the pull balances the friction force: -(reaction) = mu N in full slip
+        let pull = res.response_value(&model, 0, k);
+        worst = worst.max((pull.abs() / (mu * N) - 1.0).abs());
+    }
+    let iters: Vec<usize> = res.records.iter().map(|r| r.iterations).collect();
+    println!("{sliding} increments in full slip; largest |F / (mu N) - 1| = {worst:.3e}; iterations {iters:?}");
+    assert!(sliding >= 20, "only {sliding} increments in full slip");
+    // In full slip every hitting node carries mu p_n along the local tangent; the base's top
+    // is bent by the slider, so the tangents deviate from x by the surface slope (~1e-3 here),
+    // which bounds the deviation of the x-force from mu N, also when a node crosses a face
+    // boundary (the slope is continuous to within the same order).
+    assert!(worst < 1e-2, "friction force deviates from mu N by {worst}");
+    // the state map is written to the VTK files
+    let dir = std::env::temp_dir().join(format!("fricsens-sliding-{}", std::process::id()));
+    fricsens::output::write_run(&dir, &model, &res).unwrap();
+    let vtu = std::fs::read_to_string(dir.join("vtk").join("step_0010.vtu")).unwrap();
+    assert!(vtu.contains("Name=\"contact_state\"") && vtu.contains("Name=\"friction_force\""));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn newton_converges_quadratically_once_the_contact_states_are_settled() {
+    let (_, res) = run(Some(0.3));
+    let mut checked = 0;
+    for rec in &res.records {
+        let r0 = rec.residuals[0].max(f64::MIN_POSITIVE);
+        let r: Vec<f64> = rec.residuals.iter().map(|x| x / r0).collect();
+        println!(
+            "increment {}: {:?}",
+            rec.index,
+            r.iter().map(|x| format!("{x:.1e}")).collect::<Vec<_>>()
+        );
+        // every pair in the asymptotic range, once the stick/slip pattern no longer changes:
+        // r_{k+1} <= C r_k^2 above the round-off floor (~1e-14 r0 here)
+        for w in r.windows(2) {
+            if w[0] < 1e-2 && w[1] > 1e-13 {
+                assert!(
+                    w[1] <= 1e3 * w[0] * w[0],
+                    "increment {}: {:.2e} -> {:.2e}",
+                    rec.index,
+                    w[0],
+                    w[1]
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked >= 20, "too few asymptotic pairs ({checked})");
+}
