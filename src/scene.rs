@@ -966,8 +966,18 @@ impl Scene {
                     Some(Friction::Coulomb(Coulomb::new(*mu)))
                 }
             };
-            if let NormalLaw::Penalty { stiffness } = c.normal {
-                positive(stiffness, &format!("{at}.normal.stiffness"))?;
+            match c.normal {
+                NormalLaw::Penalty { stiffness } => {
+                    positive(stiffness, &format!("{at}.normal.stiffness"))?;
+                }
+                NormalLaw::Augmented {
+                    stiffness,
+                    tolerance,
+                } => {
+                    positive(stiffness, &format!("{at}.normal.stiffness"))?;
+                    positive(tolerance, &format!("{at}.normal.tolerance"))?;
+                }
+                NormalLaw::Lagrange => {}
             }
             let scale = match c.constraint_scale {
                 Some(k) => {
@@ -1031,6 +1041,7 @@ pub fn builtin_list() -> Vec<(&'static str, &'static str)> {
         ("strip-pullout", "strip on a rigid plane pulled at one end, partial slip, unloading (oracles 7)"),
         ("hertz", "rigid cylinder on a plane-strain block, load control (oracles 4)"),
         ("contact-patch", "two blocks with matching meshes under uniform pressure, frictional"),
+        ("sliding-block", "deformable block slid across three faces of a deformable base, mu = 0.3"),
         ("indentation", "paper 3.1: rigid block pressed into an elastic half-space, then slid 3.33 mm, mu = 0.5"),
         (
             "cantilever-small",
@@ -1051,6 +1062,7 @@ pub fn builtin(name: &str) -> Option<Scene> {
         "hertz" => Some(hertz(&HertzSpec::default())),
         "contact-patch" => Some(contact_patch(Some(0.3))),
         "indentation" => Some(indentation(2, 10)),
+        "sliding-block" => Some(sliding_block(Some(0.3))),
         _ => None,
     }
 }
@@ -1935,6 +1947,92 @@ pub fn indentation(press_increments: usize, slide_increments: usize) -> Scene {
                 along: Component::X,
             },
         ],
+        solver: SolverSettings::default(),
+    }
+}
+
+/// A deformable block (1.5 x 0.5, 3 elements) pressed by a total load of 1 onto a deformable
+/// base (8 x 1, faces 1.0 long) and pulled 3 units along it: its hitting nodes cross several
+/// target faces. Plane strain (z fixed), small kinematics, E = 1000, nu = 0.3.
+pub fn sliding_block(friction: Option<f64>) -> Scene {
+    let svk = || MaterialSpec::Svk {
+        young: 1000.0,
+        nu: 0.3,
+    };
+    let axes = |n: [usize; 2], l: [f64; 2]| {
+        [
+            Axis::uniform(l[0], n[0]),
+            Axis::uniform(l[1], n[1]),
+            Axis::uniform(0.5, 1),
+        ]
+    };
+    Scene {
+        name: "sliding-block".into(),
+        description: "A block pressed onto a deformable base and slid across three of its faces."
+            .into(),
+        bodies: vec![
+            block_body(
+                "base",
+                [0.0, -1.0, 0.0],
+                axes([8, 2], [8.0, 1.0]),
+                svk(),
+                Kinematics::Small,
+            ),
+            block_body(
+                "slider",
+                [1.0, 0.0, 0.0],
+                axes([3, 1], [1.5, 0.5]),
+                svk(),
+                Kinematics::Small,
+            ),
+        ],
+        free_nodes: vec![],
+        springs: vec![],
+        prescribed: vec![
+            fixed_set("base", "base.ymin", &[Component::X, Component::Y]),
+            fixed_set("plane-b", "base.all", &[Component::Z]),
+            fixed_set("plane-s", "slider.all", &[Component::Z]),
+            PrescribedSpec {
+                name: "pull".into(),
+                set: "slider.xmin".into(),
+                components: vec![Component::X],
+                value: 3.0,
+                amplitude: vec![(0.0, 0.0), (1.0, 0.0), (2.0, 1.0)],
+            },
+        ],
+        loads: vec![LoadSpec {
+            name: "N".into(),
+            set: "slider.ymax".into(),
+            component: Component::Y,
+            value: -1.0,
+            amplitude: vec![(0.0, 0.0), (1.0, 1.0), (2.0, 1.0)],
+        }],
+        contacts: vec![ContactSpec {
+            name: "interface".into(),
+            hitting: "slider.ymin".into(),
+            target: TargetSpec::Faces("base.ymax".into()),
+            normal: NormalLaw::Lagrange,
+            friction: friction.map(|mu| FrictionSpec::Coulomb { mu }),
+            tangential_stiffness: None,
+            constraint_scale: None,
+            // the slider travels 3 units: every face it may reach is a candidate
+            search_radius: Some(6.0),
+        }],
+        steps: vec![
+            StepSpec {
+                end: 1.0,
+                increments: 2,
+            },
+            StepSpec {
+                end: 2.0,
+                increments: 30,
+            },
+        ],
+        responses: vec![ResponseSpec::Reaction {
+            name: "pull".into(),
+            set: "slider.xmin".into(),
+            component: Component::X,
+        }],
         solver: SolverSettings::default(),
     }
 }

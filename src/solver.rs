@@ -44,6 +44,8 @@ pub struct IncrementRecord {
     pub reference_force: f64,
     /// Cutbacks taken before this increment converged.
     pub cutbacks: usize,
+    /// Augmented-Lagrangian passes after the first (0 without such pairs).
+    pub augmentations: usize,
 }
 
 /// A converged increment: what the sensitivity engine and the output writers see.
@@ -205,6 +207,9 @@ impl Default for RunOptions {
     }
 }
 
+/// Augmented-Lagrangian passes allowed per increment.
+const MAX_AUGMENTATIONS: usize = 50;
+
 /// Why an attempt failed (recoverable by cutback).
 enum AttemptFailure {
     Element(AssemblyFailure),
@@ -360,13 +365,24 @@ impl<'m> Solver<'m> {
                     energies: Vec::new(),
                     reference_force: 0.0,
                     cutbacks,
+                    augmentations: 0,
                 };
                 let predicted = self
                     .predict(&z, &mut z_try, &hist, t, &mut eval, &mut res.cost)
                     .map_err(|e| AnalysisError::Model(e.to_string()));
-                let attempt = match predicted {
+                // the history the increment is solved with: h_{n-1}, with the multiplier
+                // estimates of augmented-Lagrangian pairs updated between passes
+                let mut hist_inc = hist.clone();
+                let mut attempt = match predicted {
                     Ok(Some(factored)) => self
-                        .attempt(&mut z_try, &hist, t, &mut eval, &mut record, &mut res.cost)
+                        .attempt(
+                            &mut z_try,
+                            &hist_inc,
+                            t,
+                            &mut eval,
+                            &mut record,
+                            &mut res.cost,
+                        )
                         .map(|f| {
                             if factored {
                                 record.iterations += 1;
@@ -376,6 +392,39 @@ impl<'m> Solver<'m> {
                     Ok(None) => Err(AttemptFailure::Diverged("predictor failed")),
                     Err(e) => return Err(e),
                 };
+                // augmented Lagrangian (Uzawa): lambda_bar <- p_n and solve again from the
+                // converged state until the penetration is within tolerance
+                let mut augmentations = 0;
+                while let Ok(factored) = attempt {
+                    if augmentations >= MAX_AUGMENTATIONS
+                        || !crate::contact::assembly::augment(
+                            model,
+                            &self.assembler.contact,
+                            &eval.contact,
+                            &mut hist_inc,
+                        )
+                    {
+                        break;
+                    }
+                    augmentations += 1;
+                    let mut again = record.clone();
+                    again.residuals.clear();
+                    attempt = self
+                        .attempt(
+                            &mut z_try,
+                            &hist_inc,
+                            t,
+                            &mut eval,
+                            &mut again,
+                            &mut res.cost,
+                        )
+                        .map(|f| {
+                            record.iterations += again.iterations;
+                            record.residuals.extend(&again.residuals);
+                            f || factored
+                        });
+                }
+                record.augmentations = augmentations;
                 match attempt {
                     Ok(factored) => {
                         index += 1;
@@ -387,7 +436,7 @@ impl<'m> Solver<'m> {
                             time: t,
                             time_prev: t_prev,
                             z: &z_try,
-                            hist_prev: &hist,
+                            hist_prev: &hist_inc,
                             eval: &eval,
                             constrained: &self.constrained,
                             last_factor: if factored { Some(&self.linear) } else { None },

@@ -3,107 +3,11 @@
 //! mu N while the hitting nodes cross segment boundaries. The VTK output carries the state map.
 
 use fricsens::contact::ContactState;
-use fricsens::contact::NormalLaw;
-use fricsens::element::{Hex8Formulation, Kinematics};
-use fricsens::mesh::Axis;
-use fricsens::mesh::BlockSpec;
 use fricsens::model::Model;
-use fricsens::model::SolverSettings;
-use fricsens::scene::{
-    BodySpec, Component, ContactSpec, FrictionSpec, LoadSpec, MaterialSpec, PrescribedSpec,
-    ResponseSpec, Scene, StepSpec, TargetSpec,
-};
+use fricsens::scene::sliding_block as scene;
 use fricsens::solver::{NoObserver, Results, RunOptions, Solver};
 
 const N: f64 = 1.0; // total normal load on the slider
-const SLIDE: f64 = 3.0; // the slider's travel: across three faces of the base (1.0 long)
-
-fn fixed(name: &str, set: &str, c: &[Component]) -> PrescribedSpec {
-    PrescribedSpec {
-        name: name.into(),
-        set: set.into(),
-        components: c.to_vec(),
-        value: 0.0,
-        amplitude: vec![(0.0, 0.0), (1.0, 1.0)],
-    }
-}
-
-fn body(name: &str, origin: [f64; 3], n: [usize; 2], l: [f64; 2]) -> BodySpec {
-    BodySpec {
-        block: BlockSpec {
-            name: name.into(),
-            origin,
-            x: Axis::uniform(l[0], n[0]),
-            y: Axis::uniform(l[1], n[1]),
-            z: Axis::uniform(0.5, 1),
-        },
-        material: MaterialSpec::Svk {
-            young: 1000.0,
-            nu: 0.3,
-        },
-        kinematics: Kinematics::Small,
-        formulation: Hex8Formulation::IncompatibleModes,
-    }
-}
-
-fn scene(friction: Option<f64>) -> Scene {
-    Scene {
-        name: "slider".into(),
-        description: "a block slid over a deformable base".into(),
-        bodies: vec![
-            body("base", [0.0, -1.0, 0.0], [8, 2], [8.0, 1.0]),
-            body("slider", [1.0, 0.0, 0.0], [3, 1], [1.5, 0.5]),
-        ],
-        free_nodes: vec![],
-        springs: vec![],
-        prescribed: vec![
-            fixed("base", "base.ymin", &[Component::X, Component::Y]),
-            fixed("plane-b", "base.all", &[Component::Z]),
-            fixed("plane-s", "slider.all", &[Component::Z]),
-            PrescribedSpec {
-                name: "pull".into(),
-                set: "slider.xmin".into(),
-                components: vec![Component::X],
-                value: SLIDE,
-                amplitude: vec![(0.0, 0.0), (1.0, 0.0), (2.0, 1.0)],
-            },
-        ],
-        loads: vec![LoadSpec {
-            name: "N".into(),
-            set: "slider.ymax".into(),
-            component: Component::Y,
-            value: -N,
-            amplitude: vec![(0.0, 0.0), (1.0, 1.0), (2.0, 1.0)],
-        }],
-        contacts: vec![ContactSpec {
-            name: "interface".into(),
-            hitting: "slider.ymin".into(),
-            target: TargetSpec::Faces("base.ymax".into()),
-            normal: NormalLaw::Lagrange,
-            friction: friction.map(|mu| FrictionSpec::Coulomb { mu }),
-            tangential_stiffness: None,
-            constraint_scale: None,
-            // the slider travels 3 units: every face it may reach is a candidate
-            search_radius: Some(6.0),
-        }],
-        steps: vec![
-            StepSpec {
-                end: 1.0,
-                increments: 2,
-            },
-            StepSpec {
-                end: 2.0,
-                increments: 30,
-            },
-        ],
-        responses: vec![ResponseSpec::Reaction {
-            name: "pull".into(),
-            set: "slider.xmin".into(),
-            component: Component::X,
-        }],
-        solver: SolverSettings::default(),
-    }
-}
 
 fn run(friction: Option<f64>) -> (Model, Results) {
     let mut s = scene(friction);

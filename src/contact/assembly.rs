@@ -103,6 +103,8 @@ pub struct ContactEval<S: Scalar> {
     pub traction: Vec<Vector3<f64>>,
     /// `(normal_distance, slip_ratio)` per hitting node.
     pub distance: Vec<(f64, f64)>,
+    /// Gap per hitting node (real part; negative = penetration).
+    pub gap: Vec<f64>,
 }
 
 impl<S: Scalar> ContactEval<S> {
@@ -114,6 +116,7 @@ impl<S: Scalar> ContactEval<S> {
             force: vec![Vector3::zeros(); n_hitting],
             traction: vec![Vector3::zeros(); n_hitting],
             distance: vec![(f64::INFINITY, f64::INFINITY); n_hitting],
+            gap: vec![f64::INFINITY; n_hitting],
         }
     }
 }
@@ -192,15 +195,17 @@ pub fn evaluate<S: Scalar>(
         let nh = pair.history_len();
         let fparams = &lifted.friction[p];
         let eps_t = lifted.tangential[p];
-        let par = KernelParams {
+        let mut par = KernelParams {
             normal: pair.normal,
             friction: pair.friction.as_ref(),
             friction_params: fparams,
             eps_t,
             k: pair.constraint_scale,
+            area: 1.0,
         };
         for (i, &s) in pair.hitting.iter().enumerate() {
             let flat = layout.flat[p] + i;
+            par.area = pair.area[i];
             let block = &layout.blocks[p][i];
             let lam_dof = layout.lambda[p] + i;
             let h0 = layout.history[p] + nh * i;
@@ -229,7 +234,13 @@ pub fn evaluate<S: Scalar>(
                 },
                 Target::Rigid { surface, .. } => TargetGeom::Rigid { surface, d },
             };
-            let anchor = if nh > 0 {
+            let na = pair.anchor_len();
+            let lambda_bar = if pair.augmented() {
+                hist_old[h0 + na]
+            } else {
+                S::zero()
+            };
+            let anchor = if na > 0 {
                 Some(match &pair.target {
                     Target::Faces { faces } => {
                         let af = hist_old[h0].value() as usize;
@@ -252,6 +263,7 @@ pub fn evaluate<S: Scalar>(
                 &x_ref,
                 &u,
                 lambda,
+                lambda_bar,
                 &target,
                 anchor.as_ref(),
                 &par,
@@ -275,9 +287,14 @@ pub fn evaluate<S: Scalar>(
             out.force[flat] = ko.force.map(|v| v.value());
             out.traction[flat] = (ko.force - ko.projection.normal * ko.p_n).map(|v| v.value());
             out.distance[flat] = (ko.normal_distance, ko.slip_ratio);
+            out.gap[flat] = ko.projection.gap.value();
+            if pair.augmented() {
+                // the estimate is updated by the solver's augmentation, not within Newton
+                hist_new[h0 + na] = lambda_bar;
+            }
             // ---- history: the stick anchor ----
             let mut anchor_face = face;
-            if nh > 0 {
+            if na > 0 {
                 match (&pair.target, ko.state) {
                     (_, ContactState::Stick) => {
                         hist_new[h0..h0 + 3].copy_from_slice(&hist_old[h0..h0 + 3]);
@@ -420,7 +437,13 @@ fn local_tangent<S: Scalar>(
         }
         Target::Rigid { surface, .. } => (TargetGeom::Rigid { surface, d }, None),
     };
-    let anchor = if nh > 0 {
+    let na = pair.anchor_len();
+    let lambda_bar = if pair.augmented() {
+        Ad::from_re(hist_old[h0 + na].value())
+    } else {
+        Ad::from_re(0.0)
+    };
+    let anchor = if na > 0 {
         Some(match &pair.target {
             Target::Faces { faces } => {
                 let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
@@ -453,11 +476,13 @@ fn local_tangent<S: Scalar>(
         friction_params: &fparams,
         eps_t,
         k: pair.constraint_scale,
+        area: pair.area[i],
     };
     let ko = node_kernel(
         &xref(s),
         &u,
         lambda,
+        lambda_bar,
         &target,
         anchor.as_ref(),
         &par,
@@ -495,12 +520,13 @@ pub fn initial_history<S: Scalar>(
     let layout = &asm.contact;
     let mut h = vec![S::zero(); asm.dofs.n_history];
     for (p, pair) in model.contacts.iter().enumerate() {
-        if pair.history_len() == 0 {
+        if pair.anchor_len() == 0 {
             continue;
         }
         let d: Vector3<S> = rigid_translation(pair, &lifted.rigid_motion[p], 0.0);
+        let nh = pair.history_len();
         for (i, &s) in pair.hitting.iter().enumerate() {
-            let h0 = layout.history[p] + 3 * i;
+            let h0 = layout.history[p] + nh * i;
             let x = lifted.coords[s];
             let err = |e: super::geometry::GeometryError| ContactError {
                 pair: pair.name.clone(),
@@ -532,4 +558,40 @@ pub fn initial_history<S: Scalar>(
         }
     }
     Ok(h)
+}
+
+/// Augmented-Lagrangian update after a converged pass: for every augmented pair whose largest
+/// penetration exceeds its tolerance, the multiplier estimates of `hist` become the converged
+/// normal forces. Returns whether anything changed (then the increment is solved again).
+pub fn augment(
+    model: &Model,
+    layout: &ContactLayout,
+    eval: &ContactEval<f64>,
+    hist: &mut [f64],
+) -> bool {
+    let mut changed = false;
+    for (p, pair) in model.contacts.iter().enumerate() {
+        let super::NormalLaw::Augmented { tolerance, .. } = pair.normal else {
+            continue;
+        };
+        let first = layout.flat[p];
+        let n = pair.hitting.len();
+        let worst = (0..n).fold(0.0f64, |m, i| {
+            if eval.normal_force[first + i] > 0.0 {
+                m.max(-eval.gap[first + i])
+            } else {
+                m
+            }
+        });
+        if worst <= tolerance {
+            continue;
+        }
+        let nh = pair.history_len();
+        let na = pair.anchor_len();
+        for i in 0..n {
+            hist[layout.history[p] + nh * i + na] = eval.normal_force[first + i];
+        }
+        changed = true;
+    }
+    changed
 }

@@ -12,9 +12,19 @@
 //!   the paper) with the primal-dual active set rule: the node is active when
 //!   `lambda - k g > 0` (real parts); active rows enforce `-k g = 0`, inactive ones `lambda = 0`,
 //!   so the sparsity pattern never changes (`k` only scales the rows to force units);
-//! * or a penalty force `p_n = eps_N <-g>` (the multiplier stays zero). The penalty is cheaper
-//!   and smooth but lets the bodies interpenetrate by `p_n / eps_N`; Lagrange multipliers are
-//!   exact but make the system indefinite (LU).
+//! * or a penalty force `p_n = eps_N A <-g>` (`A` the node's tributary area, so a uniform
+//!   penetration carries a uniform pressure; the multiplier stays zero);
+//! * or an augmented Lagrangian (Uzawa): `p_n = <lambda_bar - eps_N A g>`, the estimate
+//!   `lambda_bar` carried per node and set to `p_n` after each converged pass, the increment
+//!   solved again until the penetration is below a tolerance.
+//!
+//! The trade (measured on the patch test, `tests/contact_laws.rs`): Lagrange multipliers are
+//! exact (no penetration) in one pass, but add an unknown per hitting node and make the system
+//! indefinite (LU with pivoting); the penalty needs no multiplier and is definite, but the
+//! bodies interpenetrate by `p / eps_N` and a stiff `eps_N` ill-conditions the tangent; the
+//! augmented Lagrangian keeps the penalty's system and reaches the tolerance's penetration at
+//! the price of repeated passes (2 on the patch test). Its design sensitivities treat the
+//! estimate as history and are exact only as the penetration tolerance goes to zero.
 //!
 //! ## Friction
 //! A stick anchor per hitting node, a material point of the target (on a rigid body: a point in
@@ -81,8 +91,14 @@ impl Friction {
 pub enum NormalLaw {
     /// Lagrange multiplier (exact impenetrability).
     Lagrange,
-    /// Penalty `p_n = stiffness * <-g>` (force per unit penetration).
+    /// Penalty `p_n = stiffness * A * <-g>`: `stiffness` is a pressure per unit penetration,
+    /// `A` the hitting node's tributary area (so a uniform penetration carries a uniform
+    /// pressure and the patch test is passed).
     Penalty { stiffness: f64 },
+    /// Augmented Lagrangian (Uzawa): `p_n = <lambda_bar - stiffness A g>` with the multiplier
+    /// estimate `lambda_bar` carried per node; after each converged increment `lambda_bar <- p_n`
+    /// and the increment is solved again until the penetration is below `tolerance` (a length).
+    Augmented { stiffness: f64, tolerance: f64 },
 }
 
 /// One component of a rigid target's prescribed translation: `value * amplitude(t)`.
@@ -125,13 +141,24 @@ pub struct ContactPair {
 }
 
 impl ContactPair {
-    /// History scalars per hitting node (the stick anchor), zero when frictionless.
-    pub fn history_len(&self) -> usize {
+    /// History scalars of the stick anchor per hitting node (zero when frictionless).
+    pub fn anchor_len(&self) -> usize {
         if self.friction.is_some() {
             3
         } else {
             0
         }
+    }
+
+    /// Whether the normal law is the augmented Lagrangian (one multiplier estimate per node).
+    pub fn augmented(&self) -> bool {
+        matches!(self.normal, NormalLaw::Augmented { .. })
+    }
+
+    /// History scalars per hitting node: the stick anchor (with friction), then the multiplier
+    /// estimate (augmented Lagrangian). Zero for a frictionless Lagrange or penalty pair.
+    pub fn history_len(&self) -> usize {
+        self.anchor_len() + usize::from(self.augmented())
     }
 }
 
@@ -259,6 +286,8 @@ pub struct KernelParams<'a, S: Scalar> {
     pub friction_params: &'a [S],
     pub eps_t: S,
     pub k: f64,
+    /// Tributary area of the hitting node (scales the penalty laws).
+    pub area: f64,
 }
 
 /// What the kernel returns for one hitting node.
@@ -291,10 +320,12 @@ pub enum ContactFailure {
 }
 
 /// The contact kernel of one hitting node (see the module docs).
+#[allow(clippy::too_many_arguments)]
 pub fn node_kernel<S: Scalar>(
     x_ref: &Vector3<S>,
     u: &Vector3<S>,
     lambda: S,
+    lambda_bar: S,
     target: &TargetGeom<'_, S>,
     anchor: Option<&AnchorGeom<S>>,
     par: &KernelParams<'_, S>,
@@ -318,14 +349,23 @@ pub fn node_kernel<S: Scalar>(
         Some(s) => s != ContactState::Open,
         None => match par.normal {
             NormalLaw::Lagrange => lambda.value() - k * g.value() >= 0.0,
-            NormalLaw::Penalty { .. } => g.value() < 0.0,
+            // touching (g = 0) counts as closed, so a body held only by contact is supported
+            // from the first iteration
+            NormalLaw::Penalty { .. } => g.value() <= 0.0,
+            NormalLaw::Augmented { stiffness, .. } => {
+                lambda_bar.value() - stiffness * par.area * g.value() >= 0.0
+            }
         },
     };
     let (p_n, r_lambda) = match (par.normal, active) {
         (NormalLaw::Lagrange, true) => (lambda, -g * k),
         (NormalLaw::Lagrange, false) => (S::zero(), lambda),
-        (NormalLaw::Penalty { stiffness }, true) => (-g * stiffness, lambda),
+        (NormalLaw::Penalty { stiffness }, true) => (-g * (stiffness * par.area), lambda),
         (NormalLaw::Penalty { .. }, false) => (S::zero(), lambda),
+        (NormalLaw::Augmented { stiffness, .. }, true) => {
+            (lambda_bar - g * (stiffness * par.area), lambda)
+        }
+        (NormalLaw::Augmented { .. }, false) => (S::zero(), lambda),
     };
     let normal_distance = if active {
         p_n.value() / k.max(f64::MIN_POSITIVE)
