@@ -439,7 +439,13 @@ impl<'m> Solver<'m> {
                             hist_prev: &hist_inc,
                             eval: &eval,
                             constrained: &self.constrained,
-                            last_factor: if factored { Some(&self.linear) } else { None },
+                            // the last Newton factorization, of this increment or, when it
+                            // converged without iterating, of an earlier one
+                            last_factor: if factored || self.linear.is_factored() {
+                                Some(&self.linear)
+                            } else {
+                                None
+                            },
                             tangent: &self.matrix,
                             record: &record,
                         };
