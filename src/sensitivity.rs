@@ -575,23 +575,8 @@ impl<'a> Engine<'a> {
         for (j, &k) in ks.iter().enumerate() {
             self.prescribed_derivative(c, k, &mut dzc[j]);
         }
-        let mut parts = vec![0.0; np];
-        let hist: Vec<S> = (0..nh)
-            .map(|i| {
-                for (j, &k) in ks.iter().enumerate() {
-                    parts[j] = self.dhist[k * nh + i];
-                }
-                S::with_parts(c.hist_prev[i], &parts)
-            })
-            .collect();
-        let z: Vec<S> = (0..n)
-            .map(|i| {
-                for j in 0..np {
-                    parts[j] = dzc[j][i];
-                }
-                S::with_parts(c.z[i], &parts)
-            })
-            .collect();
+        let hist: Vec<S> = lift_with_parts(c.hist_prev, np, |j, i| self.dhist[ks[j] * nh + i]);
+        let z: Vec<S> = lift_with_parts(c.z, np, |j, i| dzc[j][i]);
         let mut ev = Evaluation::<S>::new(c.assembler, ne);
         c.assembler.evaluate(
             c.model,
@@ -624,14 +609,7 @@ impl<'a> Engine<'a> {
             }
         }
         // total derivatives: evaluate with z carrying dz/db
-        let z: Vec<S> = (0..n)
-            .map(|i| {
-                for j in 0..np {
-                    parts[j] = rhs[j * n + i];
-                }
-                S::with_parts(c.z[i], &parts)
-            })
-            .collect();
+        let z: Vec<S> = lift_with_parts(c.z, np, |j, i| rhs[j * n + i]);
         c.assembler.evaluate(
             c.model,
             &lifted,
@@ -912,6 +890,25 @@ impl Observer for Engine<'_> {
         self.results.cost.wall_seconds += t0.elapsed().as_secs_f64();
         Ok(())
     }
+}
+
+/// Lift `values` to `S` with derivative part `j` of entry `i` equal to `part(j, i)`.
+fn lift_with_parts<S: Scalar>(
+    values: &[f64],
+    np: usize,
+    part: impl Fn(usize, usize) -> f64,
+) -> Vec<S> {
+    let mut parts = vec![0.0; np];
+    values
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            for (j, p) in parts.iter_mut().enumerate() {
+                *p = part(j, i);
+            }
+            S::with_parts(*v, &parts)
+        })
+        .collect()
 }
 
 /// Run the primal analysis with in-line SDM or DDM, or the reruns of FDM.
