@@ -8,6 +8,27 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// `println!` that ends the program quietly when stdout is closed (e.g. piped into `head`)
+/// instead of panicking on the broken pipe.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if writeln!(std::io::stdout(), $($arg)*).is_err() {
+            std::process::exit(0);
+        }
+    }};
+}
+
+/// `print!` with the same behaviour as `out!`.
+macro_rules! outp {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if write!(std::io::stdout(), $($arg)*).is_err() {
+            std::process::exit(0);
+        }
+    }};
+}
+
 #[derive(Parser)]
 #[command(
     name = "fricsens",
@@ -145,7 +166,7 @@ fn sensitivity(
         .iter()
         .filter(|i| !i.kinks.is_empty())
         .count();
-    println!(
+    out!(
         "{}: {} increments, method {}, parameters {:?}; {} increments flagged non-differentiable",
         scene.name,
         sens.increments.len(),
@@ -154,7 +175,7 @@ fn sensitivity(
         flagged
     );
     let c = &sens.cost;
-    println!(
+    out!(
         "cost: primal {:.3} s; sensitivity {:.3} s ({:.2} % of the primal per parameter): {} residual evaluations, {} factorizations, {} solve columns, {} reruns",
         sens.primal_seconds,
         c.wall_seconds,
@@ -166,15 +187,15 @@ fn sensitivity(
     );
     if let Some(last) = sens.increments.last() {
         for (r, name) in sens.responses.iter().enumerate().take(8) {
-            print!("  {name:<24} {:>14.6e}", last.values[r]);
+            outp!("  {name:<24} {:>14.6e}", last.values[r]);
             for d in &last.derivatives[r] {
-                print!("  {d:>14.6e}");
+                outp!("  {d:>14.6e}");
             }
-            println!();
+            out!();
         }
     }
     let _ = res;
-    println!("written to {}", dir.display());
+    out!("written to {}", dir.display());
     Ok(())
 }
 
@@ -224,7 +245,7 @@ fn run(scene_name: &str, out: Option<PathBuf>) -> Result<(), String> {
     };
     output::write_run(&dir, &model, &res).map_err(|e| e.to_string())?;
     let iters: usize = res.records.iter().map(|r| r.iterations).sum();
-    println!(
+    out!(
         "{}: {} increments, {} Newton iterations ({:.2} per increment), {} unknowns, {:.3} s",
         scene.name,
         res.records.len(),
@@ -235,13 +256,13 @@ fn run(scene_name: &str, out: Option<PathBuf>) -> Result<(), String> {
     );
     let last = res.states.len() - 1;
     for (k, r) in model.responses.iter().enumerate() {
-        println!(
+        out!(
             "  {:<24} {:>16.8e}",
             r.name,
             res.response_value(&model, k, last)
         );
     }
-    println!("written to {}", dir.display());
+    out!("written to {}", dir.display());
     Ok(())
 }
 
@@ -250,13 +271,13 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Scenes { show: None } => {
             for (name, what) in builtin_list() {
-                println!("{name:<20} {what}");
+                out!("{name:<20} {what}");
             }
             Ok(())
         }
         Command::Scenes { show: Some(name) } => match builtin(&name) {
             Some(s) => {
-                print!("{}", s.to_toml());
+                outp!("{}", s.to_toml());
                 Ok(())
             }
             None => Err(format!(
