@@ -5,7 +5,7 @@
 //! the model pays only for what is declared (no history for elastic bodies, no internal
 //! unknowns for plain hex8).
 
-use crate::contact::friction::Coulomb;
+use crate::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCoulomb};
 use crate::contact::geometry::RigidSurface;
 use crate::contact::{ContactPair, Friction, NormalLaw, RigidMotion, Target};
 use crate::element::{Hex8Formulation, Kinematics, Spring};
@@ -257,6 +257,10 @@ pub enum TargetSpec {
 pub enum FrictionSpec {
     /// Coulomb with penalty stick.
     Coulomb { mu: f64 },
+    /// Smooth (regularised) Coulomb: `t = t_trial / sqrt(1 + (|t_trial| / mu p_n)^2)`.
+    RegularizedCoulomb { mu: f64 },
+    /// Pressure-dependent coefficient `mu0 (p_n / p0)^(-n)`.
+    PressureDependent { mu0: f64, p0: f64, n: f64 },
 }
 
 /// A contact pair.
@@ -416,6 +420,15 @@ fn positive(v: f64, field: &str) -> Result<(), SceneError> {
         Ok(())
     } else {
         Err(invalid(field, format!("must be > 0, got {v}")))
+    }
+}
+
+fn nonnegative(v: f64, field: &str) -> Result<(), SceneError> {
+    finite(v, field)?;
+    if v >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("must be >= 0, got {v}")))
     }
 }
 
@@ -956,14 +969,20 @@ impl Scene {
             let friction = match &c.friction {
                 None => None,
                 Some(FrictionSpec::Coulomb { mu }) => {
-                    finite(*mu, &format!("{at}.friction.mu"))?;
-                    if *mu < 0.0 {
-                        return Err(invalid(
-                            &format!("{at}.friction.mu"),
-                            format!("must be >= 0, got {mu}"),
-                        ));
-                    }
+                    nonnegative(*mu, &format!("{at}.friction.mu"))?;
                     Some(Friction::Coulomb(Coulomb::new(*mu)))
+                }
+                Some(FrictionSpec::RegularizedCoulomb { mu }) => {
+                    nonnegative(*mu, &format!("{at}.friction.mu"))?;
+                    Some(Friction::RegularizedCoulomb(RegularizedCoulomb::new(*mu)))
+                }
+                Some(FrictionSpec::PressureDependent { mu0, p0, n }) => {
+                    nonnegative(*mu0, &format!("{at}.friction.mu0"))?;
+                    positive(*p0, &format!("{at}.friction.p0"))?;
+                    finite(*n, &format!("{at}.friction.n"))?;
+                    Some(Friction::PressureDependent(PressureDependentCoulomb::new(
+                        *mu0, *p0, *n,
+                    )))
                 }
             };
             match c.normal {

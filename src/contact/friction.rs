@@ -137,6 +137,125 @@ impl FrictionLaw for Coulomb {
     }
 }
 
+/// Regularised Coulomb friction: a smooth stick-slip transition,
+/// `t = t_trial / sqrt(1 + (|t_trial| / (mu p_n))^2)`, which follows the penalty stick for
+/// `|t_trial| << mu p_n` and tends to `mu p_n` for `|t_trial| >> mu p_n`. No branch: the law is
+/// differentiable everywhere, so sensitivities have no kinks (at the price of a force that
+/// only approaches the Coulomb limit). Parameters: `mu`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RegularizedCoulomb {
+    params: [f64; 1],
+}
+
+impl RegularizedCoulomb {
+    pub fn new(mu: f64) -> Self {
+        RegularizedCoulomb { params: [mu] }
+    }
+}
+
+impl FrictionLaw for RegularizedCoulomb {
+    fn name(&self) -> &'static str {
+        "regularized-coulomb"
+    }
+    fn param_names(&self) -> &'static [&'static str] {
+        &["mu"]
+    }
+    fn params(&self) -> &[f64] {
+        &self.params
+    }
+    fn params_mut(&mut self) -> &mut [f64] {
+        &mut self.params
+    }
+    fn return_map<S: Scalar>(
+        &self,
+        p: &[S],
+        t_trial: &Vector3<S>,
+        p_n: S,
+        _margin: f64,
+        _frozen: Option<FrictionBranch>,
+    ) -> FrictionUpdate<S> {
+        let limit = p[0] * p_n;
+        let norm = safe_norm(t_trial);
+        if norm.value() == 0.0 {
+            // the law's limit as the trial vanishes, for any positive limit: the penalty stick
+            // (its tangent holds a node whose normal force is not yet known)
+            return FrictionUpdate {
+                traction: *t_trial,
+                branch: FrictionBranch::Stick,
+                slip_ratio: f64::INFINITY,
+            };
+        }
+        if limit.value() <= 0.0 {
+            return FrictionUpdate {
+                traction: Vector3::zeros(),
+                branch: FrictionBranch::Slip,
+                slip_ratio: f64::INFINITY,
+            };
+        }
+        let r = norm / limit;
+        let scale = (r * r + 1.0).sqrt().recip();
+        FrictionUpdate {
+            traction: t_trial * scale,
+            // the smooth law has no transition; report the trial's side of the cone so the
+            // state map still shows where sliding dominates
+            branch: if r.value() > 1.0 {
+                FrictionBranch::Slip
+            } else {
+                FrictionBranch::Stick
+            },
+            slip_ratio: f64::INFINITY,
+        }
+    }
+}
+
+/// Coulomb friction with a pressure-dependent coefficient `mu(p_n) = mu0 (p_n / p0)^(-n)`
+/// (`p_n` the node's normal force, `p0` a reference force): the limit `mu(p_n) p_n` with the
+/// radial return of [`Coulomb`]. Parameters: `mu0`, `p0`, `n`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PressureDependentCoulomb {
+    params: [f64; 3],
+}
+
+impl PressureDependentCoulomb {
+    pub fn new(mu0: f64, p0: f64, n: f64) -> Self {
+        PressureDependentCoulomb {
+            params: [mu0, p0, n],
+        }
+    }
+}
+
+impl FrictionLaw for PressureDependentCoulomb {
+    fn name(&self) -> &'static str {
+        "pressure-dependent"
+    }
+    fn param_names(&self) -> &'static [&'static str] {
+        &["mu0", "p0", "n"]
+    }
+    fn params(&self) -> &[f64] {
+        &self.params
+    }
+    fn params_mut(&mut self) -> &mut [f64] {
+        &mut self.params
+    }
+    fn return_map<S: Scalar>(
+        &self,
+        p: &[S],
+        t_trial: &Vector3<S>,
+        p_n: S,
+        margin: f64,
+        frozen: Option<FrictionBranch>,
+    ) -> FrictionUpdate<S> {
+        // mu(p) p = mu0 p0^n p^(1-n), written with exp/ln so every parameter carries its
+        // derivative (powf takes a plain exponent); p_n = 0 gives no friction
+        let limit = if p_n.value() > 0.0 {
+            p[0] * ((p_n / p[1]).ln() * (-p[2])).exp() * p_n
+        } else {
+            S::zero()
+        };
+        radial_return(t_trial, limit, margin, frozen)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -49,7 +49,9 @@ pub mod geometry;
 
 use crate::model::Amplitude;
 use crate::scalar::Scalar;
-use friction::{Coulomb, FrictionBranch, FrictionLaw};
+use friction::{
+    Coulomb, FrictionBranch, FrictionLaw, PressureDependentCoulomb, RegularizedCoulomb,
+};
 use geometry::{project_on_quad, Projection, RigidSurface};
 use nalgebra::Vector3;
 
@@ -58,6 +60,8 @@ use nalgebra::Vector3;
 #[serde(tag = "law", rename_all = "kebab-case")]
 pub enum Friction {
     Coulomb(Coulomb),
+    RegularizedCoulomb(RegularizedCoulomb),
+    PressureDependent(PressureDependentCoulomb),
 }
 
 /// Call `$body` with `$f` bound to the concrete law inside a [`Friction`].
@@ -66,6 +70,8 @@ macro_rules! with_friction {
     ($fr:expr, $f:ident => $body:expr) => {
         match $fr {
             $crate::contact::Friction::Coulomb($f) => $body,
+            $crate::contact::Friction::RegularizedCoulomb($f) => $body,
+            $crate::contact::Friction::PressureDependent($f) => $body,
         }
     };
 }
