@@ -113,7 +113,6 @@ impl<S: Scalar> Evaluation<S> {
 /// Per-element scratch filled in parallel.
 struct Local<S: Scalar> {
     force: [S; MAX_DOF],
-    tangent: Vec<f64>,
     branches: [Branch; 8],
     yield_ratio: [f64; 8],
     cauchy: Matrix3<f64>,
@@ -225,23 +224,31 @@ impl Assembler {
         let want_k = tangent.is_some();
         let ne = model.mesh.elements.len();
         let mut locals: Vec<Local<S>> = Vec::new();
+        // element tangents of one chunk, allocated once per evaluation (not per element)
+        let stride = MAX_DOF * MAX_DOF;
+        let mut kbuf: Vec<S> = if want_k {
+            vec![S::zero(); CHUNK.min(ne) * stride]
+        } else {
+            Vec::new()
+        };
+        let mut kf = vec![0.0; if want_k { stride } else { 0 }];
         let mut start = 0;
         while start < ne {
             let end = (start + CHUNK).min(ne);
             // evaluate the chunk in parallel
-            let range: Vec<usize> = (start..end).collect();
-            range
-                .par_iter()
-                .map(|&e| {
-                    self.element_local(
-                        model,
-                        lifted,
-                        z,
-                        hist_old,
-                        frozen.map(|f| f.gauss),
-                        e,
-                        want_k,
-                    )
+            let slots: Vec<Option<&mut [S]>> = if want_k {
+                kbuf[..(end - start) * stride]
+                    .chunks_mut(stride)
+                    .map(Some)
+                    .collect()
+            } else {
+                (start..end).map(|_| None).collect()
+            };
+            (start..end)
+                .into_par_iter()
+                .zip(slots.into_par_iter())
+                .map(|(e, k)| {
+                    self.element_local(model, lifted, z, hist_old, frozen.map(|f| f.gauss), e, k)
                 })
                 .collect_into_vec(&mut locals);
             // scatter sequentially in element order (bit-identical whatever the thread count)
@@ -268,7 +275,11 @@ impl Assembler {
                 out.hist_new[h0..h0 + nh8].copy_from_slice(&loc.hist[..nh8]);
                 out.min_det_f = out.min_det_f.min(loc.min_det_f);
                 if let Some(k) = tangent.as_deref_mut() {
-                    k.add_block(self.elem_block[e], &loc.tangent[..nd * nd])
+                    let ks = &kbuf[off * stride..off * stride + nd * nd];
+                    for (f, v) in kf.iter_mut().zip(ks) {
+                        *f = v.value();
+                    }
+                    k.add_block(self.elem_block[e], &kf[..nd * nd])
                         .expect("element block of this pattern");
                 }
             }
@@ -349,11 +360,10 @@ impl Assembler {
         hist_old: &[S],
         frozen: Option<&[Branch]>,
         e: usize,
-        want_k: bool,
+        k_out: Option<&mut [S]>,
     ) -> Local<S> {
         let mut loc = Local {
             force: [S::zero(); MAX_DOF],
-            tangent: Vec::new(),
             branches: [Branch::Elastic; 8],
             yield_ratio: [-1.0; 8],
             cauchy: Matrix3::zeros(),
@@ -377,14 +387,6 @@ impl Assembler {
         let nh = body.material.history_len();
         let h0 = self.dofs.history_offset[e];
         let hist = &hist_old[h0..h0 + 8 * nh];
-        if want_k {
-            loc.tangent = vec![0.0; nd * nd];
-        }
-        let mut k_s: Vec<S> = if want_k {
-            vec![S::zero(); nd * nd]
-        } else {
-            Vec::new()
-        };
         let fr: Option<&[Branch; 8]> =
             frozen.map(|f| (&f[8 * e..8 * e + 8]).try_into().expect("8 branches"));
         let result = with_material!(&body.material, m => {
@@ -400,7 +402,7 @@ impl Assembler {
             };
             let mut out = Hex8Output {
                 force: &mut loc.force[..nd],
-                tangent: if want_k { Some(&mut k_s[..]) } else { None },
+                tangent: k_out,
                 hist_new: &mut loc.hist[..8 * nh],
                 branches: [Branch::Elastic; 8],
                 yield_ratio: [-1.0; 8],
@@ -417,11 +419,6 @@ impl Assembler {
         if let Err(f) = result {
             loc.failure = Some(f);
             return loc;
-        }
-        if want_k {
-            for (t, k) in loc.tangent.iter_mut().zip(&k_s) {
-                *t = k.value();
-            }
         }
         loc
     }

@@ -569,21 +569,9 @@ impl<'m> Solver<'m> {
                 }
             })
             .collect();
-        for (d, c) in self.constrained.iter().enumerate() {
-            if *c {
-                self.matrix.set_identity_row_col(d)?;
-            }
-        }
-        let t1 = Instant::now();
-        if self.linear.factor(&self.matrix).is_err() {
+        if self.factor_and_solve(&mut dz, cost).is_err() {
             return Ok(None);
         }
-        cost.factorizations += 1;
-        cost.factor_seconds += t1.elapsed().as_secs_f64();
-        let t2 = Instant::now();
-        self.linear.solve_in_place(&mut dz)?;
-        cost.solves += 1;
-        cost.solve_seconds += t2.elapsed().as_secs_f64();
         if dz.iter().any(|v| !v.is_finite()) {
             return Ok(None);
         }
@@ -593,6 +581,35 @@ impl<'m> Solver<'m> {
             }
         }
         Ok(Some(true))
+    }
+
+    /// Apply the identity rows of the prescribed unknowns to the assembled tangent, factor it
+    /// (numeric only, on the run's symbolic analysis) and solve `K dz = rhs` in place.
+    fn factor_and_solve(
+        &mut self,
+        rhs: &mut [f64],
+        cost: &mut PrimalCost,
+    ) -> Result<(), AttemptFailure> {
+        for (d, c) in self.constrained.iter().enumerate() {
+            if *c {
+                self.matrix
+                    .set_identity_row_col(d)
+                    .expect("constrained unknown in range");
+            }
+        }
+        let t1 = Instant::now();
+        if self.linear.factor(&self.matrix).is_err() {
+            return Err(AttemptFailure::Diverged("singular tangent"));
+        }
+        cost.factorizations += 1;
+        cost.factor_seconds += t1.elapsed().as_secs_f64();
+        let t2 = Instant::now();
+        if self.linear.solve_in_place(rhs).is_err() {
+            return Err(AttemptFailure::Diverged("solve failed"));
+        }
+        cost.solves += 1;
+        cost.solve_seconds += t2.elapsed().as_secs_f64();
+        Ok(())
     }
 
     /// Newton iterations of one attempt. Returns whether a factorization was made.
@@ -683,32 +700,14 @@ impl<'m> Solver<'m> {
             if k >= 4 && r_free > 1e4 * first_residual.max(f_ref) {
                 return Err(AttemptFailure::Diverged("residual growing"));
             }
-            for (d, c) in self.constrained.iter().enumerate() {
-                if *c {
-                    self.matrix
-                        .set_identity_row_col(d)
-                        .expect("constrained unknown in range");
-                }
-            }
-            let t1 = Instant::now();
-            if self.linear.factor(&self.matrix).is_err() {
-                return Err(AttemptFailure::Diverged("singular tangent"));
-            }
-            factored = true;
-            cost.factorizations += 1;
-            cost.factor_seconds += t1.elapsed().as_secs_f64();
             let mut dz: Vec<f64> = eval
                 .residual
                 .iter()
                 .enumerate()
                 .map(|(d, r)| if self.constrained[d] { 0.0 } else { -r })
                 .collect();
-            let t2 = Instant::now();
-            if self.linear.solve_in_place(&mut dz).is_err() {
-                return Err(AttemptFailure::Diverged("solve failed"));
-            }
-            cost.solves += 1;
-            cost.solve_seconds += t2.elapsed().as_secs_f64();
+            self.factor_and_solve(&mut dz, cost)?;
+            factored = true;
             let energy: f64 = dz
                 .iter()
                 .zip(&eval.residual)
