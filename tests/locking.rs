@@ -7,7 +7,7 @@
 #![allow(clippy::needless_range_loop)]
 
 mod common;
-use common::{block, boundary_nodes, distorted_mesh, one_body_model, unit_cube};
+use common::{block, boundary_nodes, distorted_mesh, element, one_body_model, unit_cube};
 
 use fricsens::assembly::{Assembler, Evaluation};
 use fricsens::element::hex8::{self, Hex8Input, Hex8Output};
@@ -135,60 +135,6 @@ fn patch_test_rough_mesh_other_formulations() {
 
 // ---------------------------------------------------------------------------------------------
 // One element, evaluated directly
-
-struct ElementResult<S> {
-    force: Vec<S>,
-    tangent: Vec<S>,
-    hist_new: Vec<S>,
-    cauchy: Matrix3<S>,
-}
-
-fn element<S: fricsens::scalar::Scalar, M: MaterialLaw>(
-    x_ref: &[Vector3<S>; 8],
-    dofs: &[Vector3<S>],
-    kinematics: Kinematics,
-    formulation: Hex8Formulation,
-    material: &M,
-    hist_old: &[S],
-    want_tangent: bool,
-) -> ElementResult<S> {
-    let nd = 3 * dofs.len();
-    let params: Vec<S> = material.params().iter().map(|p| S::lift(*p)).collect();
-    let mut force = vec![S::zero(); nd];
-    let mut tangent = vec![S::zero(); if want_tangent { nd * nd } else { 0 }];
-    let mut hist_new = vec![S::zero(); 8 * material.history_len()];
-    let input = Hex8Input {
-        x_ref,
-        dofs,
-        kinematics,
-        formulation,
-        material,
-        params: &params,
-        hist_old,
-        frozen: None,
-    };
-    let mut out = Hex8Output {
-        force: &mut force,
-        tangent: if want_tangent {
-            Some(&mut tangent[..])
-        } else {
-            None
-        },
-        hist_new: &mut hist_new,
-        branches: [Branch::Elastic; 8],
-        yield_ratio: [0.0; 8],
-        cauchy: Matrix3::zeros(),
-        min_det_f: 0.0,
-    };
-    hex8::evaluate(&input, &mut out).unwrap();
-    let cauchy = out.cauchy;
-    ElementResult {
-        force,
-        tangent,
-        hist_new,
-        cauchy,
-    }
-}
 
 /// Internal force and Cauchy stress of one F-bar element under a rigid motion `x = Q X + c`.
 fn rigid_motion_force(x_ref: [Vector3<f64>; 8], q: Matrix3<f64>, c: Vector3<f64>) -> (f64, f64) {

@@ -2,10 +2,12 @@
 #![allow(dead_code)]
 
 use fricsens::element::hex8;
+use fricsens::element::hex8::{Hex8Input, Hex8Output};
 use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::material::{Branch, MaterialLaw};
 use fricsens::mesh::{Axis, BlockSpec, Mesh, NodePlace};
 use fricsens::model::{Body, Material, Model};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 pub fn block(name: &str, n: [usize; 3], l: [f64; 3]) -> BlockSpec {
     BlockSpec {
@@ -78,4 +80,59 @@ pub fn unit_cube() -> [Vector3<f64>; 8] {
             0.5 * (xi[2] + 1.0),
         )
     })
+}
+
+pub struct ElementResult<S> {
+    pub force: Vec<S>,
+    pub tangent: Vec<S>,
+    pub hist_new: Vec<S>,
+    pub cauchy: Matrix3<S>,
+}
+
+/// One hex8 evaluated with its material's own parameters (no branch imposed).
+pub fn element<S: fricsens::scalar::Scalar, M: MaterialLaw>(
+    x_ref: &[Vector3<S>; 8],
+    dofs: &[Vector3<S>],
+    kinematics: Kinematics,
+    formulation: Hex8Formulation,
+    material: &M,
+    hist_old: &[S],
+    want_tangent: bool,
+) -> ElementResult<S> {
+    let nd = 3 * dofs.len();
+    let params: Vec<S> = material.params().iter().map(|p| S::lift(*p)).collect();
+    let mut force = vec![S::zero(); nd];
+    let mut tangent = vec![S::zero(); if want_tangent { nd * nd } else { 0 }];
+    let mut hist_new = vec![S::zero(); 8 * material.history_len()];
+    let input = Hex8Input {
+        x_ref,
+        dofs,
+        kinematics,
+        formulation,
+        material,
+        params: &params,
+        hist_old,
+        frozen: None,
+    };
+    let mut out = Hex8Output {
+        force: &mut force,
+        tangent: if want_tangent {
+            Some(&mut tangent[..])
+        } else {
+            None
+        },
+        hist_new: &mut hist_new,
+        branches: [Branch::Elastic; 8],
+        yield_ratio: [0.0; 8],
+        cauchy: Matrix3::zeros(),
+        min_det_f: 0.0,
+    };
+    hex8::evaluate(&input, &mut out).unwrap();
+    let cauchy = out.cauchy;
+    ElementResult {
+        force,
+        tangent,
+        hist_new,
+        cauchy,
+    }
 }
