@@ -40,8 +40,8 @@ pub struct Assembler {
 /// Branch decisions imposed on an evaluation (SDM's frozen state, one-sided derivatives).
 #[derive(Clone, Copy, Debug)]
 pub struct Frozen<'a> {
-    /// Per Gauss point (8 per element).
-    pub gauss: &'a [Branch],
+    /// Per Gauss point (8 per element); `None` leaves them free.
+    pub gauss: Option<&'a [Branch]>,
     /// Per hitting node (flat over pairs).
     pub contact: &'a [ContactChoice],
 }
@@ -248,7 +248,15 @@ impl Assembler {
                 .into_par_iter()
                 .zip(slots.into_par_iter())
                 .map(|(e, k)| {
-                    self.element_local(model, lifted, z, hist_old, frozen.map(|f| f.gauss), e, k)
+                    self.element_local(
+                        model,
+                        lifted,
+                        z,
+                        hist_old,
+                        frozen.and_then(|f| f.gauss),
+                        e,
+                        k,
+                    )
                 })
                 .collect_into_vec(&mut locals);
             // scatter sequentially in element order (bit-identical whatever the thread count)

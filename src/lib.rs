@@ -38,6 +38,7 @@ pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod output;
+pub mod plot;
 pub mod response;
 pub mod scalar;
 pub mod scene;

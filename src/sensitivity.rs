@@ -704,7 +704,7 @@ impl<'a> Engine<'a> {
         let nh = c.hist_prev.len();
         let ne = c.model.mesh.elements.len();
         let converged = Frozen {
-            gauss: &c.eval.branches,
+            gauss: Some(&c.eval.branches),
             contact: &c.eval.contact.choice,
         };
         let frozen = if self.settings.freeze_branches {
@@ -798,7 +798,7 @@ impl Observer for Engine<'_> {
                 Method::Ddm => self.ddm(
                     c,
                     &Frozen {
-                        gauss: &c.eval.branches,
+                        gauss: Some(&c.eval.branches),
                         contact: &c.eval.contact.choice,
                     },
                 )?,
@@ -841,7 +841,7 @@ impl Observer for Engine<'_> {
                     }
                 }
                 let frozen = Frozen {
-                    gauss: &gauss,
+                    gauss: Some(&gauss),
                     contact: &contact,
                 };
                 // the tangent of the forced branches, at the converged state

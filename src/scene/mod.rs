@@ -16,6 +16,9 @@ use crate::response::{Response, ResponseKind};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+mod leaf;
+pub use leaf::{leaf_spring, stacked_leaves, LeafSpringSpec, StackedLeavesSpec};
+
 /// A Cartesian component.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -373,6 +376,35 @@ pub struct Scene {
     pub responses: Vec<ResponseSpec>,
     #[serde(default)]
     pub solver: SolverSettings,
+    /// The design parameters the scene is studied with, and its default perturbation size.
+    #[serde(default, skip_serializing_if = "StudySpec::is_empty")]
+    pub study: StudySpec,
+}
+
+/// The design parameters a scene is studied with (`fricsens validate`, and `fricsens
+/// sensitivity` without `--param`) and the default perturbation size of the finite-perturbation
+/// methods.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudySpec {
+    /// Parameter names as `fricsens sensitivity --param` takes them (`mu`, `E`,
+    /// `upper.length.x`, ...).
+    #[serde(default)]
+    pub params: Vec<String>,
+    /// Default relative perturbation size beta of SDM and FDM (default 1e-6).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f64>,
+}
+
+impl StudySpec {
+    fn is_empty(&self) -> bool {
+        self.params.is_empty() && self.beta.is_none()
+    }
+
+    /// The default perturbation size.
+    pub fn beta(&self) -> f64 {
+        self.beta.unwrap_or(1e-6)
+    }
 }
 
 /// What is wrong with a scene, and where.
@@ -483,6 +515,50 @@ impl Scene {
         toml::to_string_pretty(self).expect("a scene always serialises")
     }
 
+    /// Node sets named `A & B` (e.g. `upper.xmax & upper.ymin`, an edge) are the intersection
+    /// of the named node sets: add every one the scene refers to.
+    fn add_intersections(&self, mesh: &mut Mesh) -> Result<(), SceneError> {
+        let mut names: Vec<(String, String)> = Vec::new();
+        for (i, p) in self.prescribed.iter().enumerate() {
+            names.push((p.set.clone(), format!("prescribed[{i}].set")));
+        }
+        for (i, l) in self.loads.iter().enumerate() {
+            names.push((l.set.clone(), format!("loads[{i}].set")));
+        }
+        for (i, c) in self.contacts.iter().enumerate() {
+            names.push((c.hitting.clone(), format!("contacts[{i}].hitting")));
+        }
+        for (i, r) in self.responses.iter().enumerate() {
+            if let ResponseSpec::Reaction { set, .. } | ResponseSpec::Displacement { set, .. } = r {
+                names.push((set.clone(), format!("responses[{i}].set")));
+            }
+        }
+        for (name, field) in names {
+            if !name.contains('&') || mesh.node_sets.contains_key(&name) {
+                continue;
+            }
+            let mut nodes: Option<Vec<usize>> = None;
+            for part in name.split('&').map(str::trim) {
+                let v = mesh.node_sets.get(part).ok_or_else(|| {
+                    invalid(&field, format!("no node set named '{part}' (in '{name}')"))
+                })?;
+                nodes = Some(match nodes {
+                    None => v.clone(),
+                    Some(n) => n.into_iter().filter(|k| v.contains(k)).collect(),
+                });
+            }
+            let nodes = nodes.unwrap_or_default();
+            if nodes.is_empty() {
+                return Err(invalid(
+                    &field,
+                    format!("the intersection '{name}' is empty"),
+                ));
+            }
+            mesh.node_sets.insert(name, nodes);
+        }
+        Ok(())
+    }
+
     /// Validate and build the analysis model.
     pub fn build(&self) -> Result<Model, SceneError> {
         let mut mesh = Mesh::default();
@@ -517,6 +593,7 @@ impl Scene {
             let n = mesh.add_free_node(f.x);
             mesh.node_sets.insert(f.name.clone(), vec![n]);
         }
+        self.add_intersections(&mut mesh)?;
         let set = |name: &str, field: &str| -> Result<Vec<usize>, SceneError> {
             match mesh.node_sets.get(name) {
                 Some(v) if !v.is_empty() => Ok(v.clone()),
@@ -767,6 +844,19 @@ impl Scene {
                     index: dofs.history_offset[e] + point * nh + var,
                 };
             }
+        }
+        if let Some(beta) = self.study.beta {
+            finite(beta, "study.beta")?;
+            if !(beta > 0.0 && beta < 1.0) {
+                return Err(invalid(
+                    "study.beta",
+                    format!("must lie in (0, 1), got {beta}"),
+                ));
+            }
+        }
+        for (i, name) in self.study.params.iter().enumerate() {
+            crate::sensitivity::Parameter::by_name(&model, name)
+                .map_err(|e| invalid(&format!("study.params[{i}]"), e.to_string()))?;
         }
         Ok(model)
     }
@@ -1062,6 +1152,9 @@ pub fn builtin_list() -> Vec<(&'static str, &'static str)> {
         ("contact-patch", "two blocks with matching meshes under uniform pressure, frictional"),
         ("sliding-block", "deformable block slid across three faces of a deformable base, mu = 0.3"),
         ("indentation", "paper 3.1: rigid block pressed into an elastic half-space, then slid 3.33 mm, mu = 0.5"),
+        ("leaf-spring", "paper 3.2: elastoplastic two-leaf spring, block at the tip, load/unload/reload, mu = 0.5"),
+        ("leaf-spring-mu0", "paper 3.2 without friction (mu = 0)"),
+        ("stacked-leaves", "two elastic leaves clamped together, tip load, friction at the tip (oracles 8)"),
         (
             "cantilever-small",
             "elastic cantilever, L/h = 20, small tip load: P L^3/(3 E I) (oracles 3)",
@@ -1082,6 +1175,12 @@ pub fn builtin(name: &str) -> Option<Scene> {
         "contact-patch" => Some(contact_patch(Some(0.3))),
         "indentation" => Some(indentation(2, 10)),
         "sliding-block" => Some(sliding_block(Some(0.3))),
+        "leaf-spring" => Some(leaf_spring(&LeafSpringSpec::default())),
+        "leaf-spring-mu0" => Some(leaf_spring(&LeafSpringSpec {
+            mu: 0.0,
+            ..LeafSpringSpec::default()
+        })),
+        "stacked-leaves" => Some(stacked_leaves(&StackedLeavesSpec::default())),
         _ => None,
     }
 }
@@ -1218,6 +1317,7 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
             },
         ],
         solver: SolverSettings::default(),
+        study: StudySpec::default(),
     }
 }
 
@@ -1302,6 +1402,7 @@ pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene 
             },
         ],
         solver: SolverSettings::default(),
+        study: StudySpec::default(),
     }
 }
 
@@ -1437,6 +1538,7 @@ pub fn klarbring_2dof(increments_per_unit: usize) -> Scene {
             force_tol: 1e-11,
             ..SolverSettings::default()
         },
+        study: StudySpec::default(),
     }
 }
 
@@ -1527,6 +1629,7 @@ pub fn jenkins(increments_per_unit: usize) -> Scene {
             force_tol: 1e-11,
             ..SolverSettings::default()
         },
+        study: StudySpec::default(),
     }
 }
 
@@ -1634,6 +1737,7 @@ pub fn strip_pullout(s: &StripSpec) -> Scene {
             component: Component::X,
         }],
         solver: SolverSettings::default(),
+        study: StudySpec::default(),
     }
 }
 
@@ -1761,6 +1865,7 @@ pub fn hertz(h: &HertzSpec) -> Scene {
             },
         ],
         solver: SolverSettings::default(),
+        study: StudySpec::default(),
     }
 }
 
@@ -1834,6 +1939,7 @@ pub fn contact_patch(friction: Option<f64>) -> Scene {
             along: Component::X,
         }],
         solver: SolverSettings::default(),
+        study: StudySpec::default(),
     }
 }
 
@@ -1967,6 +2073,7 @@ pub fn indentation(press_increments: usize, slide_increments: usize) -> Scene {
             },
         ],
         solver: SolverSettings::default(),
+        study: StudySpec::default(),
     }
 }
 
@@ -2053,5 +2160,6 @@ pub fn sliding_block(friction: Option<f64>) -> Scene {
             component: Component::X,
         }],
         solver: SolverSettings::default(),
+        study: StudySpec::default(),
     }
 }
