@@ -44,3 +44,4 @@ pub mod scalar;
 pub mod scene;
 pub mod sensitivity;
 pub mod solver;
+pub mod validate;

@@ -69,6 +69,24 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Every method across a perturbation sweep on the paper's scenes and the oracle scenes,
+    /// compared with DDM and closed forms; writes the verification report.
+    Validate {
+        /// Built-in scene names or TOML files (default: the paper's two examples and the
+        /// oracle scenes).
+        scenes: Vec<String>,
+        /// Report directory.
+        #[arg(long, default_value = "validation")]
+        out: PathBuf,
+        /// The leaf spring on its full default mesh instead of the reduced one.
+        #[arg(long)]
+        full: bool,
+        /// Largest and smallest beta of the sweep, by decades.
+        #[arg(long, default_value_t = 1e-1)]
+        beta_max: f64,
+        #[arg(long, default_value_t = 1e-14)]
+        beta_min: f64,
+    },
     /// Primal analysis: history CSV, Newton records, VTK files.
     Run {
         /// A built-in scene name or a TOML scene file.
@@ -266,6 +284,65 @@ fn run(scene_name: &str, out: Option<PathBuf>) -> Result<(), String> {
     Ok(())
 }
 
+fn validate(
+    names: &[String],
+    out: PathBuf,
+    full: bool,
+    beta_max: f64,
+    beta_min: f64,
+) -> Result<(), String> {
+    use fricsens::validate::{default_scenes, ValidateOptions};
+    if !(beta_max > 0.0 && beta_max < 1.0 && beta_min > 0.0 && beta_min <= beta_max) {
+        return Err(format!(
+            "--beta-max and --beta-min must satisfy 0 < beta-min <= beta-max < 1, got {beta_max:e} and {beta_min:e}"
+        ));
+    }
+    let scenes = if names.is_empty() {
+        default_scenes(!full)
+    } else {
+        let defaults = default_scenes(!full);
+        names
+            .iter()
+            .map(|n| match defaults.iter().find(|s| &s.name == n) {
+                Some(s) => Ok(s.clone()),
+                None => Scene::load(n).map_err(|e| e.to_string()),
+            })
+            .collect::<Result<Vec<_>, _>>()?
+    };
+    let mut betas = Vec::new();
+    let mut b = beta_max;
+    while b >= beta_min * (1.0 - 1e-9) {
+        betas.push(b);
+        b /= 10.0;
+    }
+    let opts = ValidateOptions {
+        out: out.clone(),
+        betas,
+        progress: std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        ..ValidateOptions::default()
+    };
+    let v = fricsens::validate::validate(&scenes, &opts).map_err(|e| e.to_string())?;
+    for s in &v.scenes {
+        out!(
+            "{:<18} {:>6} unknowns {:>4} increments  primal {:>7.2} s  DDM/primal {:.3}",
+            s.scene,
+            s.unknowns,
+            s.increments,
+            s.primal_seconds,
+            s.ddm_cost_ratio
+        );
+    }
+    let failed = v.oracles.iter().filter(|o| !o.pass).count();
+    out!(
+        "{} oracle checks, {} failed; report written to {} in {:.0} s",
+        v.oracles.len(),
+        failed,
+        out.join("README.md").display(),
+        v.wall_seconds
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -285,6 +362,13 @@ fn main() -> ExitCode {
             )),
         },
         Command::Run { scene, out } => run(&scene, out),
+        Command::Validate {
+            scenes,
+            out,
+            full,
+            beta_max,
+            beta_min,
+        } => validate(&scenes, out, full, beta_max, beta_min),
         Command::Sensitivity {
             scene,
             params,

@@ -82,6 +82,12 @@ impl Method {
     pub fn uses_beta(self) -> bool {
         !matches!(self, Method::Ddm)
     }
+
+    /// Whether the method runs in line with the primal analysis (SDM, DDM), rather than as
+    /// reruns of it (FDM).
+    pub fn is_inline(self) -> bool {
+        matches!(self, Method::Sdm | Method::SdmCentral | Method::Ddm)
+    }
 }
 
 /// Which factorization the sensitivity solve uses.
@@ -1020,4 +1026,158 @@ fn fdm(
         primal_seconds,
     };
     Ok((nominal, s))
+}
+
+/// Several in-line engines observing one primal run.
+struct Engines<'a>(Vec<Engine<'a>>);
+
+impl Observer for Engines<'_> {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        for e in &mut self.0 {
+            e.converged(c)?;
+        }
+        Ok(())
+    }
+}
+
+/// In-line methods (SDM, SDM central, DDM) at several settings — a perturbation sweep — on
+/// one primal run: each engine does its own work after every converged increment and keeps
+/// its own cost; `primal_seconds` of every result is the primal run alone.
+pub fn run_inline_sweep(
+    model: &Model,
+    params: &[Parameter],
+    settings: &[Settings],
+) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
+    if let Some(s) = settings.iter().find(|s| !s.method.is_inline()) {
+        return Err(AnalysisError::Sensitivity(format!(
+            "{} is not an in-line method",
+            s.method.name()
+        )));
+    }
+    let mut engines = Engines(
+        settings
+            .iter()
+            .map(|s| Engine::new(model, params, s.clone()))
+            .collect(),
+    );
+    let mut solver = Solver::new(model)?;
+    let res = solver.run(&RunOptions::default(), &mut engines)?;
+    let inline: f64 = engines.0.iter().map(|e| e.results.cost.wall_seconds).sum();
+    let out = engines
+        .0
+        .into_iter()
+        .map(|e| {
+            let mut s = e.results;
+            s.primal_seconds = res.cost.wall_seconds - inline;
+            s
+        })
+        .collect();
+    Ok((res, out))
+}
+
+/// Finite differences at several perturbation sizes from one nominal run: the reruns at
+/// `b + db` serve forward and central differences, those at `b - db` central ones; they run
+/// in parallel. Returns `[forward, central]` per beta when `central` is set, else forward only.
+pub fn run_fdm_sweep(
+    model: &Model,
+    params: &[Parameter],
+    betas: &[f64],
+    central: bool,
+) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
+    use rayon::prelude::*;
+    let t0 = Instant::now();
+    let mut solver = Solver::new(model)?;
+    let nominal = solver.run(&RunOptions::default(), &mut NoObserver)?;
+    let primal_seconds = t0.elapsed().as_secs_f64();
+    let times: Vec<f64> = nominal.times[1..].to_vec();
+    let base = responses_at(model, &nominal, &times)?;
+    // the reruns follow the nominal run's increments, cut-back ones included, so that every
+    // difference is taken between states of the same load level
+    let mut model = model.clone();
+    model.times = times.clone();
+    let model = &model;
+    let signs: &[f64] = if central { &[1.0, -1.0] } else { &[1.0] };
+    let jobs: Vec<(usize, usize, f64)> = (0..betas.len())
+        .flat_map(|b| (0..params.len()).flat_map(move |k| signs.iter().map(move |s| (b, k, *s))))
+        .collect();
+    type Rerun = Result<(Vec<Vec<f64>>, f64), AnalysisError>;
+    let runs: Vec<Rerun> = jobs
+        .par_iter()
+        .map(|&(b, k, sign)| {
+            let t = Instant::now();
+            let p = &params[k];
+            let r = rerun(model, p, sign * p.step(betas[b]))?;
+            Ok((responses_at(model, &r, &times)?, t.elapsed().as_secs_f64()))
+        })
+        .collect();
+    let mut plus = vec![vec![None; params.len()]; betas.len()];
+    let mut minus = vec![vec![None; params.len()]; betas.len()];
+    for ((b, k, sign), r) in jobs.iter().zip(runs) {
+        let r = r?;
+        if *sign > 0.0 {
+            plus[*b][*k] = Some(r);
+        } else {
+            minus[*b][*k] = Some(r);
+        }
+    }
+    let nr = model.responses.len();
+    let mut out = Vec::new();
+    for (b, &beta) in betas.iter().enumerate() {
+        let variants: &[bool] = if central { &[false, true] } else { &[false] };
+        for &is_central in variants {
+            let mut derivs = vec![vec![vec![0.0; params.len()]; nr]; times.len()];
+            let mut seconds = 0.0;
+            let mut reruns = 0;
+            for (k, p) in params.iter().enumerate() {
+                let db = p.step(beta);
+                let (pl, tp) = plus[b][k].as_ref().expect("every plus rerun ran");
+                seconds += tp;
+                reruns += 1;
+                let mi = if is_central {
+                    let (m, tm) = minus[b][k].as_ref().expect("every minus rerun ran");
+                    seconds += tm;
+                    reruns += 1;
+                    Some(m)
+                } else {
+                    None
+                };
+                for i in 0..times.len() {
+                    for r in 0..nr {
+                        derivs[i][r][k] = match mi {
+                            Some(m) => (pl[i][r] - m[i][r]) / (2.0 * db),
+                            None => (pl[i][r] - base[i][r]) / db,
+                        };
+                    }
+                }
+            }
+            out.push(SensitivityResults {
+                method: Some(if is_central {
+                    Method::FdmCentral
+                } else {
+                    Method::Fdm
+                }),
+                beta,
+                parameters: params.iter().map(|p| p.name.clone()).collect(),
+                responses: model.responses.iter().map(|r| r.name.clone()).collect(),
+                increments: times
+                    .iter()
+                    .enumerate()
+                    .map(|(i, t)| IncrementSensitivity {
+                        increment: i + 1,
+                        time: *t,
+                        values: base[i].clone(),
+                        derivatives: derivs[i].clone(),
+                        ..Default::default()
+                    })
+                    .collect(),
+                cost: SensitivityCost {
+                    wall_seconds: seconds,
+                    primal_reruns: reruns,
+                    ..Default::default()
+                },
+                primal_seconds,
+            });
+        }
+    }
+    Ok((nominal, out))
 }

@@ -1162,8 +1162,27 @@ pub fn builtin_list() -> Vec<(&'static str, &'static str)> {
     ]
 }
 
-/// A built-in scene by name.
+/// A built-in scene by name, with the design parameters it is studied with.
 pub fn builtin(name: &str) -> Option<Scene> {
+    let mut scene = builtin_scene(name)?;
+    scene.name = name.to_string();
+    if scene.study.params.is_empty() {
+        let params: &[&str] = match name {
+            "cantilever" | "cantilever-small" => &["E"],
+            "uniaxial-j2" => &["sigma_y", "H", "E"],
+            "klarbring-2dof" | "jenkins" | "indentation" | "sliding-block" | "contact-patch" => {
+                &["mu"]
+            }
+            "strip-pullout" => &["mu", "E"],
+            "hertz" => &["E"],
+            _ => &[],
+        };
+        scene.study.params = params.iter().map(|p| p.to_string()).collect();
+    }
+    Some(scene)
+}
+
+fn builtin_scene(name: &str) -> Option<Scene> {
     match name {
         "cantilever" => Some(cantilever(&CantileverSpec::large_deflection())),
         "cantilever-small" => Some(cantilever(&CantileverSpec::small_deflection())),
