@@ -967,7 +967,16 @@ mod tests {
                     // Normality: E^p_new - E^p_old = Dgamma dev S / |dev S|.
                     let dep = sym([h[0], h[1], h[2], h[3], h[4], h[5]]) - ep;
                     let expected = dev_s * (dgamma / dev_s.norm());
-                    prop_assert!((dep - expected).amax() <= 1e-12 * dgamma.max(1e-6));
+                    // E^p_new - E^p_old cancels: its round-off is a few ulps of |E^p_old|
+                    // (the recorded case: 8 ulps, 1.8e-18 at |E^p| = 1e-3, Dgamma = 1.7e-6),
+                    // independent of how small Dgamma is
+                    let roundoff = 32.0 * f64::EPSILON * ep.amax();
+                    prop_assert!(
+                        (dep - expected).amax() <= 1e-12 * dgamma + roundoff,
+                        "normality error {:e}, Dgamma {:e}",
+                        (dep - expected).amax(),
+                        dgamma
+                    );
                 }
                 Branch::Elastic => {
                     prop_assert!(r.yield_ratio <= 0.0);
