@@ -923,17 +923,15 @@ pub fn run_sensitivity(
     params: &[Parameter],
     settings: &Settings,
 ) -> Result<(Results, SensitivityResults), AnalysisError> {
-    match settings.method {
-        Method::Sdm | Method::SdmCentral | Method::Ddm => {
-            let mut engine = Engine::new(model, params, settings.clone());
-            let mut solver = Solver::new(model)?;
-            let res = solver.run(&RunOptions::default(), &mut engine)?;
-            let mut s = engine.results;
-            s.primal_seconds = res.cost.wall_seconds - s.cost.wall_seconds;
-            Ok((res, s))
-        }
-        Method::Fdm | Method::FdmCentral => fdm(model, params, settings),
-    }
+    let (res, mut out) = if settings.method.is_inline() {
+        run_inline_sweep(model, params, std::slice::from_ref(settings))?
+    } else {
+        let central = settings.method == Method::FdmCentral;
+        run_fdm_sweep(model, params, &[settings.beta], central)?
+    };
+    // the sweep of one beta gives [forward] or [forward, central]: the requested one is last
+    let s = out.pop().expect("one result per setting");
+    Ok((res, s))
 }
 
 /// Primal run of a model with parameter `k` set to `b_0 + db`.
@@ -964,68 +962,6 @@ fn responses_at(
         );
     }
     Ok(out)
-}
-
-fn fdm(
-    model: &Model,
-    params: &[Parameter],
-    settings: &Settings,
-) -> Result<(Results, SensitivityResults), AnalysisError> {
-    let t0 = Instant::now();
-    let mut solver = Solver::new(model)?;
-    let nominal = solver.run(&RunOptions::default(), &mut NoObserver)?;
-    let primal_seconds = t0.elapsed().as_secs_f64();
-    let times: Vec<f64> = nominal.times[1..].to_vec();
-    let base = responses_at(model, &nominal, &times)?;
-    let central = settings.method == Method::FdmCentral;
-    let t1 = Instant::now();
-    let nr = model.responses.len();
-    let mut derivs = vec![vec![vec![0.0; params.len()]; nr]; times.len()];
-    let mut reruns = 0;
-    for (k, p) in params.iter().enumerate() {
-        let db = p.step(settings.beta);
-        let plus = responses_at(model, &rerun(model, p, db)?, &times)?;
-        reruns += 1;
-        let minus = if central {
-            reruns += 1;
-            Some(responses_at(model, &rerun(model, p, -db)?, &times)?)
-        } else {
-            None
-        };
-        for i in 0..times.len() {
-            for r in 0..nr {
-                derivs[i][r][k] = match &minus {
-                    Some(m) => (plus[i][r] - m[i][r]) / (2.0 * db),
-                    None => (plus[i][r] - base[i][r]) / db,
-                };
-            }
-        }
-    }
-    let increments = times
-        .iter()
-        .enumerate()
-        .map(|(i, t)| IncrementSensitivity {
-            increment: i + 1,
-            time: *t,
-            values: base[i].clone(),
-            derivatives: derivs[i].clone(),
-            ..Default::default()
-        })
-        .collect();
-    let s = SensitivityResults {
-        method: Some(settings.method),
-        beta: settings.beta,
-        parameters: params.iter().map(|p| p.name.clone()).collect(),
-        responses: model.responses.iter().map(|r| r.name.clone()).collect(),
-        increments,
-        cost: SensitivityCost {
-            wall_seconds: t1.elapsed().as_secs_f64(),
-            primal_reruns: reruns,
-            ..Default::default()
-        },
-        primal_seconds,
-    };
-    Ok((nominal, s))
 }
 
 /// Several in-line engines observing one primal run.

@@ -231,6 +231,8 @@ pub struct Solver<'m> {
     constrained: Vec<bool>,
     /// Contact states of the last converged increment (the first iteration's active set).
     converged_choice: Vec<ContactChoice>,
+    /// Print every iteration and failed attempt to stderr (`FRICSENS_TRACE` set).
+    trace: bool,
 }
 
 impl<'m> Solver<'m> {
@@ -295,6 +297,7 @@ impl<'m> Solver<'m> {
             matrix,
             constrained,
             converged_choice: Vec::new(),
+            trace: std::env::var_os("FRICSENS_TRACE").is_some(),
         })
     }
 
@@ -531,7 +534,7 @@ impl<'m> Solver<'m> {
                         {
                             return Err(AnalysisError::Mesh(f));
                         }
-                        if std::env::var_os("FRICSENS_TRACE").is_some() {
+                        if self.trace {
                             eprintln!(
                                 "increment {} t = {t:.6e}: attempt failed ({why:?}); residuals {:?}",
                                 index + 1,
@@ -733,7 +736,7 @@ impl<'m> Solver<'m> {
             };
             record.residuals.push(r_free);
             record.reference_force = f_ref;
-            if std::env::var_os("FRICSENS_TRACE").is_some() {
+            if self.trace {
                 let active: Vec<String> = eval
                     .contact
                     .choice
@@ -763,17 +766,15 @@ impl<'m> Solver<'m> {
                 record.iterations = k;
                 return Ok(factored);
             }
-            // Not on the first correction: it changes the active set and the stick/slip
-            // states from the previous increment's, and the residual of the new states is
-            // routinely larger than the load step's unbalance (stacked leaves: 0.8 -> 30, then
-            // converged in two more); backtracking it cost 5 evaluations per increment.
-            // Backtrack only on a blow-up (residual up more than LINE_SEARCH_GROWTH times):
-            // a primal-dual active-set step that settles contact states raises the residual
-            // moderately and is then followed by quadratic steps, and backtracking it stalls
-            // Newton (leaf spring: a quarter step per iteration and no convergence in 30).
-            // Measured: growth 1 / 4 / 100 -> sliding block 5.75 / 4.91 / 4.81 iterations per
-            // increment, strip pull-out 21 / 39 / 83 increments (its slip front needs the
-            // damping), leaf spring diverged / 12 / 12.
+            // Backtrack only from the second correction on, and only on a blow-up (residual
+            // up more than LINE_SEARCH_GROWTH times). The first correction and every
+            // primal-dual active-set step that settles contact or stick/slip states raise the
+            // residual moderately before quadratic steps follow; backtracking them stalls
+            // Newton (stacked leaves 0.8 -> 30 then converged in two; leaf spring a quarter
+            // step per iteration, no convergence in 30). Measured, growth 1 / 4 / 100:
+            // sliding block 5.75 / 4.91 / 4.81 iterations per increment, strip pull-out
+            // 21 / 39 / 83 increments (its slip front needs the damping), leaf spring
+            // diverged / 12 / 12.
             if line_search && k > 1 && r_free > LINE_SEARCH_GROWTH * prev_r && alpha > 1.0 / 32.0 {
                 // step back to z_prev + (alpha / 2) dz and evaluate again
                 alpha *= 0.5;

@@ -306,8 +306,8 @@ fn oracles(v: &SceneValidation) -> Vec<OracleRow> {
             if let (Some(r), Some(p), Some(end)) = (r_of("delta"), p_of("mu"), at(1.0)) {
                 let mu = s.mu;
                 let d = s.thickness;
-                let expected = -s.deflection() * (1.0 - 3.0 * mu * d / (4.0 * s.length))
-                    + 0.5 * s.clearance * 3.0 * mu * d / (4.0 * s.length);
+                let expected =
+                    -(s.deflection() * (1.0 - 3.0 * mu * d / (4.0 * s.length)) + 0.5 * s.clearance);
                 // beam theory: shear deformation and the tip's local flexibility (~(h/L))
                 out.push(row(
                     "delta at P (loading, slipping)",

@@ -77,16 +77,6 @@ impl LeafSpringSpec {
         }
     }
 
-    /// A coarse variant for the test suite.
-    pub fn coarse() -> Self {
-        LeafSpringSpec {
-            elements_along: 20,
-            elements_through: 2,
-            load_increments: 8,
-            ..Self::default()
-        }
-    }
-
     /// Pseudo-times: 0 -> 1 loading, 1 -> 2 unloading, 2 -> 3 reloading. The amplitude of the
     /// block's downward motion at those times.
     fn path(&self) -> Vec<(f64, f64)> {
@@ -298,10 +288,10 @@ impl StackedLeavesSpec {
         self.young * self.width * self.thickness.powi(3) / 12.0
     }
 
-    /// Frictionless tip deflection of the loaded leaf, `P L^3 / (6 E I)` (plus half the
-    /// clearance, which the upper leaf closes alone).
+    /// Frictionless bending deflection of the loaded leaf's tip, `P L^3 / (6 E I)` (beam
+    /// theory; the upper leaf also closes the clearance alone, which adds half of it).
     pub fn deflection(&self) -> f64 {
-        self.load * self.length.powi(3) / (6.0 * self.bending_stiffness()) + 0.5 * self.clearance
+        self.load * self.length.powi(3) / (6.0 * self.bending_stiffness())
     }
 
     /// `|d delta / d mu| = P d L^2 / (8 E I)` on the slipping branches (d = h).
