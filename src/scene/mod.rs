@@ -1145,6 +1145,10 @@ pub fn builtin_list() -> Vec<(&'static str, &'static str)> {
             "uniaxial-j2",
             "one hex8, J2 with linear hardening, uniaxial stress, strain cycle 0 -> +0.01 -> -0.01 (oracles 1)",
         ),
+        (
+            "uniaxial-svk",
+            "one hex8, St Venant-Kirchhoff, uniaxial stress, stretch to 1.5 (oracles 2)",
+        ),
         ("klarbring-2dof", "node with coupled stiffness on a rigid plane, Coulomb friction, load cycle (oracles 6)"),
         ("jenkins", "spring and Coulomb slider under a cyclic base displacement (oracles 5)"),
         ("strip-pullout", "strip on a rigid plane pulled at one end, partial slip, unloading (oracles 7)"),
@@ -1153,6 +1157,10 @@ pub fn builtin_list() -> Vec<(&'static str, &'static str)> {
         ("sliding-block", "deformable block slid across three faces of a deformable base, mu = 0.3"),
         ("indentation", "paper 3.1: rigid block pressed into an elastic half-space, then slid 3.33 mm, mu = 0.5"),
         ("leaf-spring", "paper 3.2: elastoplastic two-leaf spring, block at the tip, load/unload/reload, mu = 0.5"),
+        (
+            "leaf-spring-coarse",
+            "the leaf spring on 5 mm elements, 20 mm down, back to 10, down again (quick look, tests)",
+        ),
         ("leaf-spring-mu0", "paper 3.2 without friction (mu = 0)"),
         ("stacked-leaves", "two elastic leaves clamped together, tip load, friction at the tip (oracles 8)"),
         (
@@ -1170,6 +1178,7 @@ pub fn builtin(name: &str) -> Option<Scene> {
         let params: &[&str] = match name {
             "cantilever" | "cantilever-small" => &["E"],
             "uniaxial-j2" => &["sigma_y", "H", "E"],
+            "uniaxial-svk" => &["E", "nu"],
             "klarbring-2dof" | "jenkins" | "indentation" | "sliding-block" | "contact-patch" => {
                 &["mu"]
             }
@@ -1187,6 +1196,7 @@ fn builtin_scene(name: &str) -> Option<Scene> {
         "cantilever" => Some(cantilever(&CantileverSpec::large_deflection())),
         "cantilever-small" => Some(cantilever(&CantileverSpec::small_deflection())),
         "uniaxial-j2" => Some(uniaxial_j2(Kinematics::Small, 10)),
+        "uniaxial-svk" => Some(uniaxial_svk(1.5, 5)),
         "klarbring-2dof" => Some(klarbring_2dof(10)),
         "jenkins" => Some(jenkins(10)),
         "strip-pullout" => Some(strip_pullout(&StripSpec::default())),
@@ -1195,6 +1205,7 @@ fn builtin_scene(name: &str) -> Option<Scene> {
         "indentation" => Some(indentation(2, 10)),
         "sliding-block" => Some(sliding_block(Some(0.3))),
         "leaf-spring" => Some(leaf_spring(&LeafSpringSpec::default())),
+        "leaf-spring-coarse" => Some(leaf_spring(&LeafSpringSpec::reduced())),
         "leaf-spring-mu0" => Some(leaf_spring(&LeafSpringSpec {
             mu: 0.0,
             ..LeafSpringSpec::default()
@@ -1346,6 +1357,76 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
 /// increments per unit of pseudo-time. Responses: the axial stress (the reaction on the unit
 /// face), the strain, and the equivalent plastic strain of Gauss point 0.
 pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene {
+    let mut scene = uniaxial_cube(
+        MaterialSpec::J2 {
+            young: 200e3,
+            nu: 0.3,
+            sigma_y: 250.0,
+            hardening: 10e3,
+            sigma_inf: None,
+            delta: None,
+        },
+        kinematics,
+        0.01,
+        vec![(0.0, 0.0), (1.0, 1.0), (3.0, -1.0)],
+        vec![
+            StepSpec {
+                end: 1.0,
+                increments: increments_per_unit,
+            },
+            StepSpec {
+                end: 3.0,
+                increments: 2 * increments_per_unit,
+            },
+        ],
+    );
+    scene.name = "uniaxial-j2".into();
+    scene.description =
+        "Uniaxial stress cycle of one J2 hex8 (shared/oracles.md section 1).".into();
+    scene.responses.push(ResponseSpec::History {
+        name: "alpha".into(),
+        body: "cube".into(),
+        element: 0,
+        point: 0,
+        variable: "alpha".into(),
+    });
+    scene
+}
+
+/// shared/oracles.md section 2: one St Venant-Kirchhoff hex8 (unit cube, E = 1000, nu = 0.3,
+/// large deformation) stretched to `lambda_max` in x with its lateral faces free; `stress` is
+/// the nominal stress P11 (the reaction on the unit face).
+pub fn uniaxial_svk(lambda_max: f64, increments: usize) -> Scene {
+    let mut scene = uniaxial_cube(
+        MaterialSpec::Svk {
+            young: 1000.0,
+            nu: 0.3,
+        },
+        Kinematics::Large,
+        lambda_max - 1.0,
+        ramp(),
+        vec![StepSpec {
+            end: 1.0,
+            increments,
+        }],
+    );
+    scene.name = "uniaxial-svk".into();
+    scene.description = format!(
+        "One St Venant-Kirchhoff hex8 stretched to lambda = {lambda_max} in uniaxial stress (shared/oracles.md section 2)."
+    );
+    scene
+}
+
+/// A unit cube with symmetry conditions on its three minimum faces and the x-displacement of
+/// its `xmax` face prescribed (`value * amplitude(t)`); responses `stress` (reaction on
+/// `xmax`, x) and `strain` (its displacement).
+fn uniaxial_cube(
+    material: MaterialSpec,
+    kinematics: Kinematics,
+    value: f64,
+    amplitude: Vec<(f64, f64)>,
+    steps: Vec<StepSpec>,
+) -> Scene {
     let fixed = |name: &str, set: &str, c: Component| PrescribedSpec {
         name: name.into(),
         set: set.into(),
@@ -1354,8 +1435,8 @@ pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene 
         amplitude: ramp(),
     };
     Scene {
-        name: "uniaxial-j2".into(),
-        description: "Uniaxial stress cycle of one J2 hex8 (shared/oracles.md section 1).".into(),
+        name: "uniaxial".into(),
+        description: String::new(),
         bodies: vec![BodySpec {
             block: BlockSpec {
                 name: "cube".into(),
@@ -1364,14 +1445,7 @@ pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene 
                 y: Axis::uniform(1.0, 1),
                 z: Axis::uniform(1.0, 1),
             },
-            material: MaterialSpec::J2 {
-                young: 200e3,
-                nu: 0.3,
-                sigma_y: 250.0,
-                hardening: 10e3,
-                sigma_inf: None,
-                delta: None,
-            },
+            material,
             kinematics,
             formulation: Hex8Formulation::Full,
         }],
@@ -1385,22 +1459,13 @@ pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene 
                 name: "strain".into(),
                 set: "cube.xmax".into(),
                 components: vec![Component::X],
-                value: 0.01,
-                amplitude: vec![(0.0, 0.0), (1.0, 1.0), (3.0, -1.0)],
+                value,
+                amplitude,
             },
         ],
         loads: vec![],
         contacts: vec![],
-        steps: vec![
-            StepSpec {
-                end: 1.0,
-                increments: increments_per_unit,
-            },
-            StepSpec {
-                end: 3.0,
-                increments: 2 * increments_per_unit,
-            },
-        ],
+        steps,
         responses: vec![
             ResponseSpec::Reaction {
                 name: "stress".into(),
@@ -1411,13 +1476,6 @@ pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene 
                 name: "strain".into(),
                 set: "cube.xmax".into(),
                 component: Component::X,
-            },
-            ResponseSpec::History {
-                name: "alpha".into(),
-                body: "cube".into(),
-                element: 0,
-                point: 0,
-                variable: "alpha".into(),
             },
         ],
         solver: SolverSettings::default(),
