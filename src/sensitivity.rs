@@ -347,6 +347,12 @@ pub struct IncrementSensitivity {
     pub kinks: Vec<Kink>,
     /// One-sided derivatives where kinks were flagged (DDM).
     pub one_sided: Option<OneSided>,
+    /// Finite differences, per parameter: a rerun behind this value needed sub-increments
+    /// (cutbacks) the nominal run did not take, at or before this increment. The incremental
+    /// solution of a path-dependent problem depends on the step sequence, so the difference
+    /// then carries that change (of the order of the discretisation error) divided by the
+    /// perturbation. Empty for the in-line methods.
+    pub rerun_substeps: Vec<bool>,
     /// `dz/db` for every parameter (only when requested).
     #[serde(skip)]
     pub state_derivative: Option<Vec<Vec<f64>>>,
@@ -374,6 +380,9 @@ pub struct SensitivityResults {
     pub cost: SensitivityCost,
     /// Cost of the nominal primal run (with the inline sensitivity work excluded).
     pub primal_seconds: f64,
+    /// Why this method stopped before the end of the run (a sweep keeps the other methods
+    /// going): `increments` holds what it computed before.
+    pub failure: Option<String>,
 }
 
 /// The in-line engine (SDM and DDM) run as an observer of the primal solver.
@@ -425,6 +434,24 @@ impl<'a> Engine<'a> {
             }
         }
         v
+    }
+
+    /// `dh_0/db`: the history at t = 0 is not zero for frictional contact (each hitting
+    /// node's anchor is the projection of its reference position), and a shape parameter
+    /// moves it. Evaluated by dual numbers on the same routine the solver starts from.
+    fn initial_history_derivative(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        let nh = c.hist_prev.len();
+        for k in 0..self.params.len() {
+            let lifted: Lifted<Dual64> = c
+                .model
+                .lifted(&self.overrides(|j, v| Dual64::new(v, if j == k { 1.0 } else { 0.0 })));
+            let h0 = crate::contact::assembly::initial_history(c.model, c.assembler, &lifted)
+                .map_err(|e| AnalysisError::Model(e.to_string()))?;
+            for (i, h) in h0.iter().enumerate().take(nh) {
+                self.dhist[k * nh + i] = h.eps;
+            }
+        }
+        Ok(())
     }
 
     /// Derivative of the prescribed unknowns with respect to parameter `k`.
@@ -517,8 +544,11 @@ impl<'a> Engine<'a> {
             }
             k
         };
+        // the last Newton factorization is the converged tangent only if it was assembled on
+        // the converged branches (see `Converged::factor_matches`)
         let use_exact = self.settings.tangent == TangentChoice::Exact
             || c.last_factor.is_none()
+            || !c.factor_matches
             || self.forced_tangent.is_some();
         if use_exact {
             let k = match self.forced_tangent.take() {
@@ -798,6 +828,9 @@ impl<'a> Engine<'a> {
 impl Observer for Engine<'_> {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
         let t0 = Instant::now();
+        if self.results.increments.is_empty() && !c.model.contacts.is_empty() {
+            self.initial_history_derivative(c)?;
+        }
         let kinks = self.kinks(c);
         let Step { dresp, dhist, dz } =
             match self.settings.method {
@@ -887,6 +920,7 @@ impl Observer for Engine<'_> {
             derivatives: dresp,
             kinks,
             one_sided,
+            rerun_substeps: Vec::new(),
             state_derivative: if self.keep_state_derivative {
                 Some(dz)
             } else {
@@ -924,13 +958,20 @@ pub fn run_sensitivity(
     settings: &Settings,
 ) -> Result<(Results, SensitivityResults), AnalysisError> {
     let (res, mut out) = if settings.method.is_inline() {
-        run_inline_sweep(model, params, std::slice::from_ref(settings))?
+        let (res, out, mut errors) = inline_sweep(model, params, std::slice::from_ref(settings))?;
+        if let Some(e) = errors.pop().flatten() {
+            return Err(e);
+        }
+        (res, out)
     } else {
         let central = settings.method == Method::FdmCentral;
         run_fdm_sweep(model, params, &[settings.beta], central)?
     };
     // the sweep of one beta gives [forward] or [forward, central]: the requested one is last
     let s = out.pop().expect("one result per setting");
+    if let Some(why) = &s.failure {
+        return Err(AnalysisError::Sensitivity(why.clone()));
+    }
     Ok((res, s))
 }
 
@@ -964,13 +1005,24 @@ fn responses_at(
     Ok(out)
 }
 
-/// Several in-line engines observing one primal run.
-struct Engines<'a>(Vec<Engine<'a>>);
+/// Several in-line engines observing one primal run. An engine that fails (e.g. an SDM
+/// perturbation so large that the perturbed geometry is degenerate) is stopped and its error
+/// kept; the primal run and the other engines go on.
+struct Engines<'a> {
+    engines: Vec<Engine<'a>>,
+    errors: Vec<Option<AnalysisError>>,
+}
 
 impl Observer for Engines<'_> {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
-        for e in &mut self.0 {
-            e.converged(c)?;
+        for (e, err) in self.engines.iter_mut().zip(&mut self.errors) {
+            if err.is_none() {
+                if let Err(x) = e.converged(c) {
+                    e.results.failure =
+                        Some(format!("increment {} (t = {}): {x}", c.index, c.time));
+                    *err = Some(x);
+                }
+            }
         }
         Ok(())
     }
@@ -990,17 +1042,33 @@ pub fn run_inline_sweep(
             s.method.name()
         )));
     }
-    let mut engines = Engines(
-        settings
+    let (res, out, _) = inline_sweep(model, params, settings)?;
+    Ok((res, out))
+}
+
+/// [`run_inline_sweep`] with each engine's error, if it failed.
+#[allow(clippy::type_complexity)]
+fn inline_sweep(
+    model: &Model,
+    params: &[Parameter],
+    settings: &[Settings],
+) -> Result<(Results, Vec<SensitivityResults>, Vec<Option<AnalysisError>>), AnalysisError> {
+    let mut engines = Engines {
+        engines: settings
             .iter()
             .map(|s| Engine::new(model, params, s.clone()))
             .collect(),
-    );
+        errors: settings.iter().map(|_| None).collect(),
+    };
     let mut solver = Solver::new(model)?;
     let res = solver.run(&RunOptions::default(), &mut engines)?;
-    let inline: f64 = engines.0.iter().map(|e| e.results.cost.wall_seconds).sum();
+    let inline: f64 = engines
+        .engines
+        .iter()
+        .map(|e| e.results.cost.wall_seconds)
+        .sum();
     let out = engines
-        .0
+        .engines
         .into_iter()
         .map(|e| {
             let mut s = e.results;
@@ -1008,12 +1076,13 @@ pub fn run_inline_sweep(
             s
         })
         .collect();
-    Ok((res, out))
+    Ok((res, out, engines.errors))
 }
 
 /// Finite differences at several perturbation sizes from one nominal run: the reruns at
 /// `b + db` serve forward and central differences, those at `b - db` central ones; they run
 /// in parallel. Returns `[forward, central]` per beta when `central` is set, else forward only.
+/// A rerun that fails fails only the differences that need it: their `failure` says why.
 pub fn run_fdm_sweep(
     model: &Model,
     params: &[Parameter],
@@ -1036,52 +1105,76 @@ pub fn run_fdm_sweep(
     let jobs: Vec<(usize, usize, f64)> = (0..betas.len())
         .flat_map(|b| (0..params.len()).flat_map(move |k| signs.iter().map(move |s| (b, k, *s))))
         .collect();
-    type Rerun = Result<(Vec<Vec<f64>>, f64), AnalysisError>;
-    let runs: Vec<Rerun> = jobs
+    let runs: Vec<Result<Rerun, AnalysisError>> = jobs
         .par_iter()
         .map(|&(b, k, sign)| {
             let t = Instant::now();
             let p = &params[k];
             let r = rerun(model, p, sign * p.step(betas[b]))?;
-            Ok((responses_at(model, &r, &times)?, t.elapsed().as_secs_f64()))
+            // the first time the rerun needed a sub-increment the nominal run did not take
+            let substep_from = r.times[1..]
+                .iter()
+                .find(|t| {
+                    !times
+                        .iter()
+                        .any(|n| (*n - **t).abs() <= 1e-12 * n.abs().max(1.0))
+                })
+                .copied();
+            Ok(Rerun {
+                values: responses_at(model, &r, &times)?,
+                seconds: t.elapsed().as_secs_f64(),
+                substep_from,
+            })
         })
         .collect();
-    let mut plus = vec![vec![None; params.len()]; betas.len()];
-    let mut minus = vec![vec![None; params.len()]; betas.len()];
-    for ((b, k, sign), r) in jobs.iter().zip(runs) {
-        let r = r?;
-        if *sign > 0.0 {
-            plus[*b][*k] = Some(r);
-        } else {
-            minus[*b][*k] = Some(r);
-        }
+    // reruns[b][k][0: plus, 1: minus]; a rerun that fails (a perturbed design that does not
+    // converge, or whose geometry is degenerate) fails only the differences that need it
+    let mut reruns: Vec<Vec<[RerunSlot; 2]>> = vec![vec![[None, None]; params.len()]; betas.len()];
+    for (&(b, k, sign), r) in jobs.iter().zip(runs) {
+        let side = usize::from(sign < 0.0);
+        reruns[b][k][side] = Some(r.map_err(|e| {
+            format!(
+                "rerun with {} {} beta: {e}",
+                params[k].name,
+                ["+", "-"][side]
+            )
+        }));
     }
     let nr = model.responses.len();
+    let np = params.len();
     let mut out = Vec::new();
     for (b, &beta) in betas.iter().enumerate() {
         let variants: &[bool] = if central { &[false, true] } else { &[false] };
         for &is_central in variants {
-            let mut derivs = vec![vec![vec![0.0; params.len()]; nr]; times.len()];
+            let mut derivs = vec![vec![vec![f64::NAN; np]; nr]; times.len()];
+            let mut substep_from = vec![f64::INFINITY; np];
+            let mut failures = Vec::new();
             let mut seconds = 0.0;
-            let mut reruns = 0;
+            let mut count = 0;
             for (k, p) in params.iter().enumerate() {
                 let db = p.step(beta);
-                let (pl, tp) = plus[b][k].as_ref().expect("every plus rerun ran");
-                seconds += tp;
-                reruns += 1;
-                let mi = if is_central {
-                    let (m, tm) = minus[b][k].as_ref().expect("every minus rerun ran");
-                    seconds += tm;
-                    reruns += 1;
-                    Some(m)
-                } else {
-                    None
-                };
+                let sides: &[usize] = if is_central { &[0, 1] } else { &[0] };
+                let mut used = Vec::new();
+                for &side in sides {
+                    match reruns[b][k][side].as_ref().expect("every rerun ran") {
+                        Ok(r) => used.push(r),
+                        Err(why) => failures.push(why.clone()),
+                    }
+                }
+                if used.len() < sides.len() {
+                    continue; // this parameter's derivatives stay NaN
+                }
+                for r in &used {
+                    seconds += r.seconds;
+                    count += 1;
+                    substep_from[k] = substep_from[k].min(r.substep_from.unwrap_or(f64::INFINITY));
+                }
                 for i in 0..times.len() {
                     for r in 0..nr {
-                        derivs[i][r][k] = match mi {
-                            Some(m) => (pl[i][r] - m[i][r]) / (2.0 * db),
-                            None => (pl[i][r] - base[i][r]) / db,
+                        derivs[i][r][k] = if is_central {
+                            (used[0].values[i][r] - used[1].values[i][r]) / (2.0 * db)
+                        } else {
+                            (used[0].values[i][r] - base[i][r]) / db
                         };
                     }
                 }
@@ -1103,17 +1196,30 @@ pub fn run_fdm_sweep(
                         time: *t,
                         values: base[i].clone(),
                         derivatives: derivs[i].clone(),
+                        rerun_substeps: substep_from.iter().map(|f| *t >= *f).collect(),
                         ..Default::default()
                     })
                     .collect(),
                 cost: SensitivityCost {
                     wall_seconds: seconds,
-                    primal_reruns: reruns,
+                    primal_reruns: count,
                     ..Default::default()
                 },
                 primal_seconds,
+                failure: (!failures.is_empty()).then(|| failures.join("; ")),
             });
         }
     }
     Ok((nominal, out))
+}
+
+/// A rerun of the FDM sweep once run: its responses, or why it failed.
+type RerunSlot = Option<Result<Rerun, String>>;
+
+/// One finite-difference rerun: responses at the nominal times.
+#[derive(Clone)]
+struct Rerun {
+    values: Vec<Vec<f64>>,
+    seconds: f64,
+    substep_from: Option<f64>,
 }
