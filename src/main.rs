@@ -78,7 +78,8 @@ enum Command {
         /// Report directory.
         #[arg(long, default_value = "validation")]
         out: PathBuf,
-        /// The leaf spring on its full default mesh instead of the reduced one.
+        /// The leaf spring on its paper-resolution mesh, and every scene's finite-difference
+        /// sweep at every beta (by default the leaf spring's and Hertz's are thinned).
         #[arg(long)]
         full: bool,
         /// Largest and smallest beta of the sweep, by decades.
@@ -298,9 +299,9 @@ fn validate(
         ));
     }
     let scenes = if names.is_empty() {
-        default_scenes(!full)
+        default_scenes(full)
     } else {
-        let defaults = default_scenes(!full);
+        let defaults = default_scenes(full);
         names
             .iter()
             .map(|n| match defaults.iter().find(|s| &s.name == n) {
@@ -319,6 +320,11 @@ fn validate(
         out: out.clone(),
         betas,
         progress: std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        reduced_fdm: if full {
+            Vec::new()
+        } else {
+            ValidateOptions::default().reduced_fdm
+        },
         ..ValidateOptions::default()
     };
     let v = fricsens::validate::validate(&scenes, &opts).map_err(|e| e.to_string())?;
