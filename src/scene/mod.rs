@@ -133,15 +133,62 @@ impl MaterialSpec {
 
 /// A deformable body: one generated block.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(from = "BodyToml", into = "BodyToml")]
 pub struct BodySpec {
-    #[serde(flatten)]
     pub block: BlockSpec,
     pub material: MaterialSpec,
-    #[serde(default = "large")]
     pub kinematics: Kinematics,
-    #[serde(default = "incompatible")]
     pub formulation: Hex8Formulation,
+}
+
+/// The TOML table of a [`BodySpec`], with the block's fields inline. Spelled out rather than
+/// `#[serde(flatten)]`, which buffers the table: errors inside it (`bodies[0].x.length`
+/// missing) would point at `[[bodies]]` instead of the entry.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BodyToml {
+    name: String,
+    origin: [f64; 3],
+    x: Axis,
+    y: Axis,
+    z: Axis,
+    material: MaterialSpec,
+    #[serde(default = "large")]
+    kinematics: Kinematics,
+    #[serde(default = "incompatible")]
+    formulation: Hex8Formulation,
+}
+
+impl From<BodyToml> for BodySpec {
+    fn from(b: BodyToml) -> Self {
+        BodySpec {
+            block: BlockSpec {
+                name: b.name,
+                origin: b.origin,
+                x: b.x,
+                y: b.y,
+                z: b.z,
+            },
+            material: b.material,
+            kinematics: b.kinematics,
+            formulation: b.formulation,
+        }
+    }
+}
+
+impl From<BodySpec> for BodyToml {
+    fn from(b: BodySpec) -> Self {
+        BodyToml {
+            name: b.block.name,
+            origin: b.block.origin,
+            x: b.block.x,
+            y: b.block.y,
+            z: b.block.z,
+            material: b.material,
+            kinematics: b.kinematics,
+            formulation: b.formulation,
+        }
+    }
 }
 
 fn large() -> Kinematics {
@@ -473,12 +520,109 @@ fn poisson(v: f64, field: &str) -> Result<(), SceneError> {
     }
 }
 
+/// The TOML path (`bodies[0].material.E`) of the entry a deserialization error points at, with
+/// the name of a missing or unknown field appended; `None` for syntax errors (the message gives
+/// the line), errors without a position, and positions no single entry owns.
+fn toml_path(text: &str, err: &toml::de::Error) -> Option<String> {
+    use toml::de::{DeTable, DeValue};
+    type Span = std::ops::Range<usize>;
+    /// The entry with the smallest span containing the error's start, the deepest among equal
+    /// spans; `ambiguous` when two different entries tie.
+    struct Best {
+        at: usize,
+        found: Option<(usize, usize, String)>,
+        ambiguous: bool,
+    }
+    impl Best {
+        fn consider(&mut self, span: Span, depth: usize, path: &str) {
+            if !span.contains(&self.at) {
+                return;
+            }
+            let key = (span.len(), usize::MAX - depth);
+            match &self.found {
+                Some((len, d, p)) if key == (*len, usize::MAX - *d) => {
+                    self.ambiguous |= p != path;
+                }
+                Some((len, d, _)) if key > (*len, usize::MAX - *d) => {}
+                _ => {
+                    self.found = Some((span.len(), depth, path.to_string()));
+                    self.ambiguous = false;
+                }
+            }
+        }
+        fn value(&mut self, v: &DeValue, span: Span, depth: usize, path: &str) {
+            self.consider(span, depth, path);
+            match v {
+                DeValue::Table(t) => self.table(t, depth, path),
+                DeValue::Array(a) => {
+                    for (i, e) in a.iter().enumerate() {
+                        self.value(e.get_ref(), e.span(), depth + 1, &format!("{path}[{i}]"));
+                    }
+                }
+                _ => {}
+            }
+        }
+        fn table(&mut self, t: &DeTable, depth: usize, path: &str) {
+            for (k, v) in t.iter() {
+                let p = if path.is_empty() {
+                    k.get_ref().to_string()
+                } else {
+                    format!("{path}.{}", k.get_ref())
+                };
+                self.consider(k.span(), depth + 1, &p);
+                self.value(v.get_ref(), v.span(), depth + 1, &p);
+            }
+        }
+    }
+    let span = err.span()?;
+    let mut path = if span.is_empty() {
+        // the document itself (the toml crate's position for errors of the root table)
+        if span.start != 0 {
+            return None;
+        }
+        String::new()
+    } else {
+        let doc = DeTable::parse(text).ok()?;
+        let mut best = Best {
+            at: span.start,
+            found: None,
+            ambiguous: false,
+        };
+        best.table(doc.get_ref(), 0, "");
+        match best.found {
+            Some((_, _, p)) if !best.ambiguous => p,
+            _ => return None,
+        }
+    };
+    let msg = err.message();
+    let field = ["missing field `", "unknown field `"]
+        .iter()
+        .find_map(|p| msg.strip_prefix(p))
+        .and_then(|rest| rest.split('`').next());
+    if let Some(f) = field {
+        if path.rsplit('.').next() != Some(f) {
+            path = if path.is_empty() {
+                f.to_string()
+            } else {
+                format!("{path}.{f}")
+            };
+        }
+    }
+    (!path.is_empty()).then_some(path)
+}
+
 impl Scene {
     /// Parse a scene from TOML text; `file` names the source in errors.
     pub fn from_toml(text: &str, file: &str) -> Result<Scene, SceneError> {
-        toml::from_str(text).map_err(|e| SceneError::Parse {
-            file: file.to_string(),
-            message: e.to_string(),
+        toml::from_str(text).map_err(|e| {
+            let message = e.to_string().trim_end().to_string();
+            SceneError::Parse {
+                file: file.to_string(),
+                message: match toml_path(text, &e) {
+                    Some(path) => format!("field `{path}`: {message}"),
+                    None => message,
+                },
+            }
         })
     }
 
