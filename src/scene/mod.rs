@@ -705,14 +705,30 @@ impl Scene {
 
     /// Validate and build the analysis model.
     pub fn build(&self) -> Result<Model, SceneError> {
+        // sizes first: an absurd element count is an error, not an allocation attempt
+        let mut total_elements: usize = 0;
+        for (i, b) in self.bodies.iter().enumerate() {
+            let at = format!("bodies[{i}]");
+            let mut n: usize = 1;
+            let axes = [&b.block.x, &b.block.y, &b.block.z];
+            for (c, (label, axis)) in ["x", "y", "z"].iter().zip(axes).enumerate() {
+                let origin = b.block.origin[c];
+                finite(origin, &format!("{at}.origin[{c}]"))?;
+                n = n.saturating_mul(check_axis(axis, origin, &format!("{at}.{label}"))?);
+            }
+            total_elements = total_elements.saturating_add(n);
+            if total_elements > MAX_ELEMENTS {
+                return Err(invalid(
+                    &at,
+                    format!("the bodies have more than {MAX_ELEMENTS} elements in all"),
+                ));
+            }
+        }
         let mut mesh = Mesh::default();
         let mut bodies = Vec::new();
         for (i, b) in self.bodies.iter().enumerate() {
             let at = format!("bodies[{i}]");
             b.material.check(&format!("{at}.material"))?;
-            for (c, v) in b.block.origin.iter().enumerate() {
-                finite(*v, &format!("{at}.origin[{c}]"))?;
-            }
             let block = mesh
                 .add_block(b.block.clone())
                 .map_err(|e| invalid(&at, e.to_string()))?;
@@ -807,12 +823,17 @@ impl Scene {
             }
             for c in &p.components {
                 for &n in &nodes {
-                    if let Some(other) = seen.insert((n, c.index()), p.name.clone()) {
+                    if let Some(j) = seen.insert((n, c.index()), i) {
                         return Err(invalid(
                             &at,
-                            format!(
-                                "node {n} component {c:?} is already prescribed by '{other}' (conflicting boundary conditions)"
-                            ),
+                            if j == i {
+                                format!("component {c:?} is listed twice in '{}'", p.name)
+                            } else {
+                                format!(
+                                    "node {n} component {c:?} is prescribed by both prescribed[{j}] ('{}') and prescribed[{i}] ('{}') (conflicting boundary conditions)",
+                                    self.prescribed[j].name, p.name
+                                )
+                            },
                         ));
                     }
                 }
@@ -834,6 +855,12 @@ impl Scene {
                 Some(faces) if !faces.is_empty() => {
                     let area = tributary_areas(&mesh, faces, &nodes);
                     let total: f64 = area.iter().sum();
+                    if !(total.is_finite() && total > 0.0) {
+                        return Err(invalid(
+                            &format!("{at}.set"),
+                            format!("the faces of '{}' have area {total}", l.set),
+                        ));
+                    }
                     area.iter().map(|a| a / total).collect()
                 }
                 _ => vec![1.0 / nodes.len() as f64; nodes.len()],
@@ -867,10 +894,10 @@ impl Scene {
             if s.increments == 0 {
                 return Err(invalid(&format!("{at}.increments"), "must be at least 1"));
             }
-            if s.increments > 1_000_000 {
+            if s.increments > MAX_INCREMENTS - times.len() {
                 return Err(invalid(
                     &format!("{at}.increments"),
-                    "more than 10^6 increments",
+                    format!("more than {MAX_INCREMENTS} increments in all steps"),
                 ));
             }
             for k in 1..=s.increments {
@@ -969,6 +996,12 @@ impl Scene {
         if sv.max_iterations == 0 {
             return Err(invalid("solver.max_iterations", "must be at least 1"));
         }
+        if sv.max_cutbacks > MAX_CUTBACKS {
+            return Err(invalid(
+                "solver.max_cutbacks",
+                format!("at most {MAX_CUTBACKS} halvings of an increment"),
+            ));
+        }
         let mut model = Model {
             mesh,
             bodies,
@@ -1004,6 +1037,63 @@ impl Scene {
         }
         Ok(model)
     }
+}
+
+/// Largest number of elements of a scene (all bodies).
+const MAX_ELEMENTS: usize = 10_000_000;
+/// Largest number of elements along one axis of a block.
+const MAX_AXIS_ELEMENTS: usize = 100_000;
+/// Largest number of load increments of a scene (all steps).
+const MAX_INCREMENTS: usize = 1_000_000;
+/// Largest number of halvings of an increment.
+const MAX_CUTBACKS: usize = 64;
+
+/// Checks one axis of a block (`at` is its TOML path, `origin` the block's origin along it)
+/// and returns its number of elements.
+fn check_axis(axis: &Axis, origin: f64, at: &str) -> Result<usize, SceneError> {
+    positive(axis.length, &format!("{at}.length"))?;
+    if !(origin + axis.length).is_finite() {
+        return Err(invalid(
+            &format!("{at}.length"),
+            format!(
+                "the block reaches {origin} + {} beyond the f64 range",
+                axis.length
+            ),
+        ));
+    }
+    if axis.zones.is_empty() {
+        return Err(invalid(
+            &format!("{at}.zones"),
+            "an axis needs at least one zone",
+        ));
+    }
+    let mut n: usize = 0;
+    for (k, z) in axis.zones.iter().enumerate() {
+        let zf = format!("{at}.zones[{k}]");
+        positive(z.fraction, &format!("{zf}.fraction"))?;
+        positive(z.ratio, &format!("{zf}.ratio"))?;
+        if z.elements == 0 {
+            return Err(invalid(&format!("{zf}.elements"), "must be at least 1"));
+        }
+        n = n
+            .checked_add(z.elements)
+            .filter(|n| *n <= MAX_AXIS_ELEMENTS)
+            .ok_or_else(|| {
+                invalid(
+                    &format!("{zf}.elements"),
+                    format!("more than {MAX_AXIS_ELEMENTS} elements along one axis"),
+                )
+            })?;
+    }
+    // the grading must give elements of positive size in f64
+    let t = axis.fractions();
+    if t.iter().any(|v| !v.is_finite()) || t.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(invalid(
+            &format!("{at}.zones"),
+            "the fractions and ratios give elements of zero or non-finite size",
+        ));
+    }
+    Ok(n)
 }
 
 /// Tributary area of each of `nodes` (sorted) over `faces`: a quarter of each face's area.
@@ -1050,6 +1140,19 @@ fn vec3(v: [f64; 3], field: &str) -> Result<nalgebra::Vector3<f64>, SceneError> 
     Ok(nalgebra::Vector3::from(v))
 }
 
+/// A direction: finite, with a finite nonzero length.
+fn direction(v: [f64; 3], field: &str) -> Result<nalgebra::Vector3<f64>, SceneError> {
+    let d = vec3(v, field)?;
+    let n = d.norm();
+    if !(n.is_finite() && n > 0.0) {
+        return Err(invalid(
+            field,
+            format!("a direction needs a finite nonzero length, got {v:?}"),
+        ));
+    }
+    Ok(d)
+}
+
 impl Scene {
     fn build_contacts(
         &self,
@@ -1089,6 +1192,9 @@ impl Scene {
                     format!("no face set or node set named '{}'", c.hitting),
                 ));
             };
+            if let Some(r) = c.search_radius {
+                positive(r, &format!("{at}.search_radius"))?;
+            }
             let (target, candidates, diag) = match &c.target {
                 TargetSpec::Faces(name) => {
                     let faces = mesh.face_sets.get(name).ok_or_else(|| {
@@ -1134,8 +1240,8 @@ impl Scene {
                     let sf = format!("{at}.target.surface");
                     let surface = match surface {
                         RigidSpec::Plane { point, normal } => RigidSurface::Plane {
-                            point: vec3(*point, &sf)?,
-                            normal: vec3(*normal, &sf)?,
+                            point: vec3(*point, &format!("{sf}.point"))?,
+                            normal: direction(*normal, &format!("{sf}.normal"))?,
                         },
                         RigidSpec::Cylinder {
                             axis_point,
@@ -1144,8 +1250,8 @@ impl Scene {
                         } => {
                             positive(*radius, &format!("{sf}.radius"))?;
                             RigidSurface::Cylinder {
-                                axis_point: vec3(*axis_point, &sf)?,
-                                axis: vec3(*axis, &sf)?,
+                                axis_point: vec3(*axis_point, &format!("{sf}.axis_point"))?,
+                                axis: direction(*axis, &format!("{sf}.axis"))?,
                                 radius: *radius,
                             }
                         }
@@ -1165,7 +1271,7 @@ impl Scene {
                                 ));
                             }
                             RigidSurface::RoundedBox {
-                                center: vec3(*center, &sf)?,
+                                center: vec3(*center, &format!("{sf}.center"))?,
                                 half_extents: vec3(*half_extents, &sf)?,
                                 radius: *radius,
                             }
