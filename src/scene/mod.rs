@@ -1099,14 +1099,17 @@ fn check_axis(axis: &Axis, origin: f64, at: &str) -> Result<usize, SceneError> {
 /// Tributary area of each of `nodes` (sorted) over `faces`: a quarter of each face's area.
 fn tributary_areas(mesh: &Mesh, faces: &[[usize; 4]], nodes: &[usize]) -> Vec<f64> {
     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
-    let mut sorted: Vec<usize> = nodes.to_vec();
-    sorted.sort();
+    // position of each node in `nodes` (the first, as a linear search would find)
+    let mut index = std::collections::HashMap::with_capacity(nodes.len());
+    for (k, n) in nodes.iter().enumerate() {
+        index.entry(*n).or_insert(k);
+    }
     let mut area = vec![0.0; nodes.len()];
     for f in faces {
         let a = (x[f[1]] - x[f[0]]).cross(&(x[f[3]] - x[f[0]])).norm() * 0.5
             + (x[f[3]] - x[f[2]]).cross(&(x[f[1]] - x[f[2]])).norm() * 0.5;
         for n in f {
-            if let Some(k) = nodes.iter().position(|m| m == n) {
+            if let Some(&k) = index.get(n) {
                 area[k] += a / 4.0;
             }
         }
