@@ -189,6 +189,13 @@ impl Parameter {
                         .trim_matches(|ch| ch == '[' || ch == ']')
                         .parse()
                         .map_err(|_| err("use PAIR.motion[K]".into()))?;
+                    let n = match &c.target {
+                        crate::contact::Target::Rigid { motion, .. } => motion.len(),
+                        _ => 0,
+                    };
+                    if index >= n {
+                        return Err(err(format!("pair '{pair}' has {n} rigid motions")));
+                    }
                     targets.push(DesignParam::RigidMotion { pair: pi, index });
                 } else {
                     let f = c

@@ -133,15 +133,62 @@ impl MaterialSpec {
 
 /// A deformable body: one generated block.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(from = "BodyToml", into = "BodyToml")]
 pub struct BodySpec {
-    #[serde(flatten)]
     pub block: BlockSpec,
     pub material: MaterialSpec,
-    #[serde(default = "large")]
     pub kinematics: Kinematics,
-    #[serde(default = "incompatible")]
     pub formulation: Hex8Formulation,
+}
+
+/// The TOML table of a [`BodySpec`], with the block's fields inline. Spelled out rather than
+/// `#[serde(flatten)]`, which buffers the table: errors inside it (`bodies[0].x.length`
+/// missing) would point at `[[bodies]]` instead of the entry.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BodyToml {
+    name: String,
+    origin: [f64; 3],
+    x: Axis,
+    y: Axis,
+    z: Axis,
+    material: MaterialSpec,
+    #[serde(default = "large")]
+    kinematics: Kinematics,
+    #[serde(default = "incompatible")]
+    formulation: Hex8Formulation,
+}
+
+impl From<BodyToml> for BodySpec {
+    fn from(b: BodyToml) -> Self {
+        BodySpec {
+            block: BlockSpec {
+                name: b.name,
+                origin: b.origin,
+                x: b.x,
+                y: b.y,
+                z: b.z,
+            },
+            material: b.material,
+            kinematics: b.kinematics,
+            formulation: b.formulation,
+        }
+    }
+}
+
+impl From<BodySpec> for BodyToml {
+    fn from(b: BodySpec) -> Self {
+        BodyToml {
+            name: b.block.name,
+            origin: b.block.origin,
+            x: b.block.x,
+            y: b.block.y,
+            z: b.block.z,
+            material: b.material,
+            kinematics: b.kinematics,
+            formulation: b.formulation,
+        }
+    }
 }
 
 fn large() -> Kinematics {
@@ -473,12 +520,109 @@ fn poisson(v: f64, field: &str) -> Result<(), SceneError> {
     }
 }
 
+/// The TOML path (`bodies[0].material.E`) of the entry a deserialization error points at, with
+/// the name of a missing or unknown field appended; `None` for syntax errors (the message gives
+/// the line), errors without a position, and positions no single entry owns.
+fn toml_path(text: &str, err: &toml::de::Error) -> Option<String> {
+    use toml::de::{DeTable, DeValue};
+    type Span = std::ops::Range<usize>;
+    /// The entry with the smallest span containing the error's start, the deepest among equal
+    /// spans; `ambiguous` when two different entries tie.
+    struct Best {
+        at: usize,
+        found: Option<(usize, usize, String)>,
+        ambiguous: bool,
+    }
+    impl Best {
+        fn consider(&mut self, span: Span, depth: usize, path: &str) {
+            if !span.contains(&self.at) {
+                return;
+            }
+            let key = (span.len(), usize::MAX - depth);
+            match &self.found {
+                Some((len, d, p)) if key == (*len, usize::MAX - *d) => {
+                    self.ambiguous |= p != path;
+                }
+                Some((len, d, _)) if key > (*len, usize::MAX - *d) => {}
+                _ => {
+                    self.found = Some((span.len(), depth, path.to_string()));
+                    self.ambiguous = false;
+                }
+            }
+        }
+        fn value(&mut self, v: &DeValue, span: Span, depth: usize, path: &str) {
+            self.consider(span, depth, path);
+            match v {
+                DeValue::Table(t) => self.table(t, depth, path),
+                DeValue::Array(a) => {
+                    for (i, e) in a.iter().enumerate() {
+                        self.value(e.get_ref(), e.span(), depth + 1, &format!("{path}[{i}]"));
+                    }
+                }
+                _ => {}
+            }
+        }
+        fn table(&mut self, t: &DeTable, depth: usize, path: &str) {
+            for (k, v) in t.iter() {
+                let p = if path.is_empty() {
+                    k.get_ref().to_string()
+                } else {
+                    format!("{path}.{}", k.get_ref())
+                };
+                self.consider(k.span(), depth + 1, &p);
+                self.value(v.get_ref(), v.span(), depth + 1, &p);
+            }
+        }
+    }
+    let span = err.span()?;
+    let mut path = if span.is_empty() {
+        // the document itself (the toml crate's position for errors of the root table)
+        if span.start != 0 {
+            return None;
+        }
+        String::new()
+    } else {
+        let doc = DeTable::parse(text).ok()?;
+        let mut best = Best {
+            at: span.start,
+            found: None,
+            ambiguous: false,
+        };
+        best.table(doc.get_ref(), 0, "");
+        match best.found {
+            Some((_, _, p)) if !best.ambiguous => p,
+            _ => return None,
+        }
+    };
+    let msg = err.message();
+    let field = ["missing field `", "unknown field `"]
+        .iter()
+        .find_map(|p| msg.strip_prefix(p))
+        .and_then(|rest| rest.split('`').next());
+    if let Some(f) = field {
+        if path.rsplit('.').next() != Some(f) {
+            path = if path.is_empty() {
+                f.to_string()
+            } else {
+                format!("{path}.{f}")
+            };
+        }
+    }
+    (!path.is_empty()).then_some(path)
+}
+
 impl Scene {
     /// Parse a scene from TOML text; `file` names the source in errors.
     pub fn from_toml(text: &str, file: &str) -> Result<Scene, SceneError> {
-        toml::from_str(text).map_err(|e| SceneError::Parse {
-            file: file.to_string(),
-            message: e.to_string(),
+        toml::from_str(text).map_err(|e| {
+            let message = e.to_string().trim_end().to_string();
+            SceneError::Parse {
+                file: file.to_string(),
+                message: match toml_path(text, &e) {
+                    Some(path) => format!("field `{path}`: {message}"),
+                    None => message,
+                },
+            }
         })
     }
 
@@ -561,14 +705,30 @@ impl Scene {
 
     /// Validate and build the analysis model.
     pub fn build(&self) -> Result<Model, SceneError> {
+        // sizes first: an absurd element count is an error, not an allocation attempt
+        let mut total_elements: usize = 0;
+        for (i, b) in self.bodies.iter().enumerate() {
+            let at = format!("bodies[{i}]");
+            let mut n: usize = 1;
+            let axes = [&b.block.x, &b.block.y, &b.block.z];
+            for (c, (label, axis)) in ["x", "y", "z"].iter().zip(axes).enumerate() {
+                let origin = b.block.origin[c];
+                finite(origin, &format!("{at}.origin[{c}]"))?;
+                n = n.saturating_mul(check_axis(axis, origin, &format!("{at}.{label}"))?);
+            }
+            total_elements = total_elements.saturating_add(n);
+            if total_elements > MAX_ELEMENTS {
+                return Err(invalid(
+                    &at,
+                    format!("the bodies have more than {MAX_ELEMENTS} elements in all"),
+                ));
+            }
+        }
         let mut mesh = Mesh::default();
         let mut bodies = Vec::new();
         for (i, b) in self.bodies.iter().enumerate() {
             let at = format!("bodies[{i}]");
             b.material.check(&format!("{at}.material"))?;
-            for (c, v) in b.block.origin.iter().enumerate() {
-                finite(*v, &format!("{at}.origin[{c}]"))?;
-            }
             let block = mesh
                 .add_block(b.block.clone())
                 .map_err(|e| invalid(&at, e.to_string()))?;
@@ -663,12 +823,17 @@ impl Scene {
             }
             for c in &p.components {
                 for &n in &nodes {
-                    if let Some(other) = seen.insert((n, c.index()), p.name.clone()) {
+                    if let Some(j) = seen.insert((n, c.index()), i) {
                         return Err(invalid(
                             &at,
-                            format!(
-                                "node {n} component {c:?} is already prescribed by '{other}' (conflicting boundary conditions)"
-                            ),
+                            if j == i {
+                                format!("component {c:?} is listed twice in '{}'", p.name)
+                            } else {
+                                format!(
+                                    "node {n} component {c:?} is prescribed by both prescribed[{j}] ('{}') and prescribed[{i}] ('{}') (conflicting boundary conditions)",
+                                    self.prescribed[j].name, p.name
+                                )
+                            },
                         ));
                     }
                 }
@@ -690,6 +855,12 @@ impl Scene {
                 Some(faces) if !faces.is_empty() => {
                     let area = tributary_areas(&mesh, faces, &nodes);
                     let total: f64 = area.iter().sum();
+                    if !(total.is_finite() && total > 0.0) {
+                        return Err(invalid(
+                            &format!("{at}.set"),
+                            format!("the faces of '{}' have area {total}", l.set),
+                        ));
+                    }
                     area.iter().map(|a| a / total).collect()
                 }
                 _ => vec![1.0 / nodes.len() as f64; nodes.len()],
@@ -723,10 +894,10 @@ impl Scene {
             if s.increments == 0 {
                 return Err(invalid(&format!("{at}.increments"), "must be at least 1"));
             }
-            if s.increments > 1_000_000 {
+            if s.increments > MAX_INCREMENTS - times.len() {
                 return Err(invalid(
                     &format!("{at}.increments"),
-                    "more than 10^6 increments",
+                    format!("more than {MAX_INCREMENTS} increments in all steps"),
                 ));
             }
             for k in 1..=s.increments {
@@ -825,6 +996,12 @@ impl Scene {
         if sv.max_iterations == 0 {
             return Err(invalid("solver.max_iterations", "must be at least 1"));
         }
+        if sv.max_cutbacks > MAX_CUTBACKS {
+            return Err(invalid(
+                "solver.max_cutbacks",
+                format!("at most {MAX_CUTBACKS} halvings of an increment"),
+            ));
+        }
         let mut model = Model {
             mesh,
             bodies,
@@ -862,17 +1039,77 @@ impl Scene {
     }
 }
 
+/// Largest number of elements of a scene (all bodies).
+const MAX_ELEMENTS: usize = 10_000_000;
+/// Largest number of elements along one axis of a block.
+const MAX_AXIS_ELEMENTS: usize = 100_000;
+/// Largest number of load increments of a scene (all steps).
+const MAX_INCREMENTS: usize = 1_000_000;
+/// Largest number of halvings of an increment.
+const MAX_CUTBACKS: usize = 64;
+
+/// Checks one axis of a block (`at` is its TOML path, `origin` the block's origin along it)
+/// and returns its number of elements.
+fn check_axis(axis: &Axis, origin: f64, at: &str) -> Result<usize, SceneError> {
+    positive(axis.length, &format!("{at}.length"))?;
+    if !(origin + axis.length).is_finite() {
+        return Err(invalid(
+            &format!("{at}.length"),
+            format!(
+                "the block reaches {origin} + {} beyond the f64 range",
+                axis.length
+            ),
+        ));
+    }
+    if axis.zones.is_empty() {
+        return Err(invalid(
+            &format!("{at}.zones"),
+            "an axis needs at least one zone",
+        ));
+    }
+    let mut n: usize = 0;
+    for (k, z) in axis.zones.iter().enumerate() {
+        let zf = format!("{at}.zones[{k}]");
+        positive(z.fraction, &format!("{zf}.fraction"))?;
+        positive(z.ratio, &format!("{zf}.ratio"))?;
+        if z.elements == 0 {
+            return Err(invalid(&format!("{zf}.elements"), "must be at least 1"));
+        }
+        n = n
+            .checked_add(z.elements)
+            .filter(|n| *n <= MAX_AXIS_ELEMENTS)
+            .ok_or_else(|| {
+                invalid(
+                    &format!("{zf}.elements"),
+                    format!("more than {MAX_AXIS_ELEMENTS} elements along one axis"),
+                )
+            })?;
+    }
+    // the grading must give elements of positive size in f64
+    let t = axis.fractions();
+    if t.iter().any(|v| !v.is_finite()) || t.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(invalid(
+            &format!("{at}.zones"),
+            "the fractions and ratios give elements of zero or non-finite size",
+        ));
+    }
+    Ok(n)
+}
+
 /// Tributary area of each of `nodes` (sorted) over `faces`: a quarter of each face's area.
 fn tributary_areas(mesh: &Mesh, faces: &[[usize; 4]], nodes: &[usize]) -> Vec<f64> {
     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
-    let mut sorted: Vec<usize> = nodes.to_vec();
-    sorted.sort();
+    // position of each node in `nodes` (the first, as a linear search would find)
+    let mut index = std::collections::HashMap::with_capacity(nodes.len());
+    for (k, n) in nodes.iter().enumerate() {
+        index.entry(*n).or_insert(k);
+    }
     let mut area = vec![0.0; nodes.len()];
     for f in faces {
         let a = (x[f[1]] - x[f[0]]).cross(&(x[f[3]] - x[f[0]])).norm() * 0.5
             + (x[f[3]] - x[f[2]]).cross(&(x[f[1]] - x[f[2]])).norm() * 0.5;
         for n in f {
-            if let Some(k) = nodes.iter().position(|m| m == n) {
+            if let Some(&k) = index.get(n) {
                 area[k] += a / 4.0;
             }
         }
@@ -904,6 +1141,19 @@ fn vec3(v: [f64; 3], field: &str) -> Result<nalgebra::Vector3<f64>, SceneError> 
         finite(x, field)?;
     }
     Ok(nalgebra::Vector3::from(v))
+}
+
+/// A direction: finite, with a finite nonzero length.
+fn direction(v: [f64; 3], field: &str) -> Result<nalgebra::Vector3<f64>, SceneError> {
+    let d = vec3(v, field)?;
+    let n = d.norm();
+    if !(n.is_finite() && n > 0.0) {
+        return Err(invalid(
+            field,
+            format!("a direction needs a finite nonzero length, got {v:?}"),
+        ));
+    }
+    Ok(d)
 }
 
 impl Scene {
@@ -945,6 +1195,9 @@ impl Scene {
                     format!("no face set or node set named '{}'", c.hitting),
                 ));
             };
+            if let Some(r) = c.search_radius {
+                positive(r, &format!("{at}.search_radius"))?;
+            }
             let (target, candidates, diag) = match &c.target {
                 TargetSpec::Faces(name) => {
                     let faces = mesh.face_sets.get(name).ok_or_else(|| {
@@ -990,8 +1243,8 @@ impl Scene {
                     let sf = format!("{at}.target.surface");
                     let surface = match surface {
                         RigidSpec::Plane { point, normal } => RigidSurface::Plane {
-                            point: vec3(*point, &sf)?,
-                            normal: vec3(*normal, &sf)?,
+                            point: vec3(*point, &format!("{sf}.point"))?,
+                            normal: direction(*normal, &format!("{sf}.normal"))?,
                         },
                         RigidSpec::Cylinder {
                             axis_point,
@@ -1000,8 +1253,8 @@ impl Scene {
                         } => {
                             positive(*radius, &format!("{sf}.radius"))?;
                             RigidSurface::Cylinder {
-                                axis_point: vec3(*axis_point, &sf)?,
-                                axis: vec3(*axis, &sf)?,
+                                axis_point: vec3(*axis_point, &format!("{sf}.axis_point"))?,
+                                axis: direction(*axis, &format!("{sf}.axis"))?,
                                 radius: *radius,
                             }
                         }
@@ -1021,7 +1274,7 @@ impl Scene {
                                 ));
                             }
                             RigidSurface::RoundedBox {
-                                center: vec3(*center, &sf)?,
+                                center: vec3(*center, &format!("{sf}.center"))?,
                                 half_extents: vec3(*half_extents, &sf)?,
                                 radius: *radius,
                             }
