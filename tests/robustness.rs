@@ -122,6 +122,13 @@ fn unknown_keys_are_named_by_their_path() {
         let text = replaced("contact-patch", from, to);
         rejects(&text, &[&format!("field `{path}`:"), "unknown field"]);
     }
+    // a misspelt key of the normal law (an internally tagged enum: named by its table)
+    let text = replaced(
+        "contact-patch",
+        "[contacts.normal]\nlaw = \"lagrange\"",
+        "[contacts.normal]\nlaw = \"lagrange\"\nstiffnes = 5.0",
+    );
+    rejects(&text, &["contacts[0].normal", "stiffnes"]);
 }
 
 #[test]

@@ -93,7 +93,7 @@ impl Friction {
 
 /// How the normal force is computed.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(tag = "law", rename_all = "kebab-case")]
+#[serde(tag = "law", rename_all = "kebab-case", from = "NormalLawToml")]
 pub enum NormalLaw {
     /// Lagrange multiplier (exact impenetrability).
     Lagrange,
@@ -105,6 +105,33 @@ pub enum NormalLaw {
     /// estimate `lambda_bar` carried per node; after each converged increment `lambda_bar <- p_n`
     /// and the increment is solved again until the penetration is below `tolerance` (a length).
     Augmented { stiffness: f64, tolerance: f64 },
+}
+
+/// What a scene file may write for a [`NormalLaw`]: serde lets an internally tagged unit
+/// variant (`law = "lagrange"`) take any extra key, so every variant is a struct here and
+/// unknown keys (`stiffnes = 5.0`) are errors.
+#[derive(serde::Deserialize)]
+#[serde(tag = "law", rename_all = "kebab-case", deny_unknown_fields)]
+enum NormalLawToml {
+    Lagrange {},
+    Penalty { stiffness: f64 },
+    Augmented { stiffness: f64, tolerance: f64 },
+}
+
+impl From<NormalLawToml> for NormalLaw {
+    fn from(t: NormalLawToml) -> Self {
+        match t {
+            NormalLawToml::Lagrange {} => NormalLaw::Lagrange,
+            NormalLawToml::Penalty { stiffness } => NormalLaw::Penalty { stiffness },
+            NormalLawToml::Augmented {
+                stiffness,
+                tolerance,
+            } => NormalLaw::Augmented {
+                stiffness,
+                tolerance,
+            },
+        }
+    }
 }
 
 /// One component of a rigid target's prescribed translation: `value * amplitude(t)`.
