@@ -281,6 +281,17 @@ impl Parameter {
     }
 }
 
+/// Significant digits a difference must keep above its noise for its finite-difference
+/// derivative not to be flagged round-off dominated (`IncrementSensitivity::roundoff`):
+/// three digits, i.e. a relative error of the difference below about 1e-3.
+pub const ROUNDOFF_DIGITS: f64 = 3.0;
+
+/// Whether a difference `delta` of quantities of size `size`, each known to `noise`
+/// (relative), keeps fewer than [`ROUNDOFF_DIGITS`] digits.
+fn roundoff_dominated(delta: f64, size: f64, noise: f64) -> bool {
+    delta.abs() < 10f64.powf(ROUNDOFF_DIGITS) * noise * size.abs()
+}
+
 /// Settings of a sensitivity run.
 #[derive(Clone, Debug)]
 pub struct Settings {
@@ -339,6 +350,8 @@ struct Step {
     dhist: Vec<f64>,
     /// `dz_n/db` per parameter.
     dz: Vec<Vec<f64>>,
+    /// Round-off dominated, `[r][p]` (SDM; empty for DDM).
+    roundoff: Vec<Vec<bool>>,
 }
 
 /// Sensitivities at one converged increment.
@@ -360,6 +373,11 @@ pub struct IncrementSensitivity {
     /// then carries that change (of the order of the discretisation error) divided by the
     /// perturbation. Empty for the in-line methods.
     pub rerun_substeps: Vec<bool>,
+    /// SDM and FDM, `[r][p]` like `derivatives`: the difference behind this value kept fewer than
+    /// [`ROUNDOFF_DIGITS`] significant digits above its noise (machine precision times the
+    /// size of the cancelling terms for SDM, the Newton tolerance for FDM's reruns): the
+    /// value is round-off dominated and a larger beta should be used.
+    pub roundoff: Vec<Vec<bool>>,
     /// `dz/db` for every parameter (only when requested).
     #[serde(skip)]
     pub state_derivative: Option<Vec<Vec<f64>>>,
@@ -675,7 +693,12 @@ impl<'a> Engine<'a> {
             .flat_map(|j| ev.hist_new.iter().map(move |h| h.part(j)))
             .collect();
         let dz: Vec<Vec<f64>> = (0..np).map(|j| rhs[j * n..(j + 1) * n].to_vec()).collect();
-        Ok(Step { dresp, dhist, dz })
+        Ok(Step {
+            dresp,
+            dhist,
+            dz,
+            roundoff: Vec::new(),
+        })
     }
 
     /// DDM for all parameters, in chunks of up to 8 through vector duals.
@@ -706,6 +729,7 @@ impl<'a> Engine<'a> {
             dresp,
             dhist,
             dz: dz_all,
+            roundoff: Vec::new(),
         })
     }
 
@@ -759,6 +783,15 @@ impl<'a> Engine<'a> {
         let mut ev_m = Evaluation::<f64>::new(c.assembler, ne);
         let mut rhs = vec![0.0; n * np];
         let mut dzc = vec![vec![0.0; n]; np];
+        // round-off: the unbalance against the forces that cancel in it (the reference force
+        // of Newton's criterion), each response difference against the response
+        let nr = c.model.responses.len();
+        let mut roundoff = vec![vec![false; np]; nr];
+        // relative noise of each unbalance (eps times the forces that cancel in it, the
+        // reference force of Newton's criterion), and each response's explicit derivative
+        // (design perturbed, state fixed): the noise reaches a response only through dz
+        let mut unbalance_noise = vec![0.0; np];
+        let mut explicit = vec![vec![0.0; np]; nr];
         for k in 0..np {
             self.prescribed_derivative(c, k, &mut dzc[k]);
             let db = self.params[k].step(self.settings.beta);
@@ -767,6 +800,14 @@ impl<'a> Engine<'a> {
             if central {
                 self.perturbed(c, k, -db, None, frozen, &mut ev_m)?;
                 self.results.cost.residual_evaluations += 1;
+            }
+            for (r, resp) in c.model.responses.iter().enumerate() {
+                let vp = resp.value(&ev_p.response_input(c.z, c.assembler));
+                explicit[r][k] = if central {
+                    (vp - resp.value(&ev_m.response_input(c.z, c.assembler))) / (2.0 * db)
+                } else {
+                    (vp - resp.value(&c.eval.response_input(c.z, c.assembler))) / db
+                };
             }
             for i in 0..n {
                 if c.constrained[i] {
@@ -780,9 +821,23 @@ impl<'a> Engine<'a> {
                 };
                 rhs[k * n + i] = -d;
             }
+            let db_eff = if central { 2.0 * db } else { db };
+            let unbalance = (0..n)
+                .map(|i| (rhs[k * n + i] * db_eff).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            if unbalance != 0.0 {
+                unbalance_noise[k] = f64::EPSILON * c.record.reference_force / unbalance;
+            }
+            // the perturbed parameter itself lost its digits (b + db keeps fewer than
+            // ROUNDOFF_DIGITS digits of db)
+            if roundoff_dominated(db, self.params[k].value, f64::EPSILON) {
+                for row in roundoff.iter_mut() {
+                    row[k] = true;
+                }
+            }
         }
         self.solve(c, &mut rhs, np)?;
-        let nr = c.model.responses.len();
         let mut dresp = vec![vec![0.0; np]; nr];
         let mut dhist = vec![0.0; nh * np];
         let mut dz_all = Vec::with_capacity(np);
@@ -808,6 +863,7 @@ impl<'a> Engine<'a> {
                     let vp = resp.value(&ev_p.response_input(&zp, c.assembler));
                     let vm = resp.value(&ev_m.response_input(&zm, c.assembler));
                     dresp[r][k] = (vp - vm) / (2.0 * db);
+                    roundoff[r][k] |= vp != vm && roundoff_dominated(vp - vm, vp, f64::EPSILON);
                 }
                 for i in 0..nh {
                     dhist[k * nh + i] = (ev_p.hist_new[i] - ev_m.hist_new[i]) / (2.0 * db);
@@ -817,6 +873,7 @@ impl<'a> Engine<'a> {
                     let vp = resp.value(&ev_p.response_input(&zp, c.assembler));
                     let v0 = resp.value(&c.eval.response_input(c.z, c.assembler));
                     dresp[r][k] = (vp - v0) / db;
+                    roundoff[r][k] |= vp != v0 && roundoff_dominated(vp - v0, v0, f64::EPSILON);
                 }
                 for i in 0..nh {
                     dhist[k * nh + i] = (ev_p.hist_new[i] - c.eval.hist_new[i]) / db;
@@ -824,10 +881,21 @@ impl<'a> Engine<'a> {
             }
             dz_all.push(dz);
         }
+        // the unbalance's noise carried through dz into each response: flag where it exceeds
+        // 10^-ROUNDOFF_DIGITS of the derivative
+        for r in 0..nr {
+            for k in 0..np {
+                let implicit = dresp[r][k] - explicit[r][k];
+                roundoff[r][k] |= dresp[r][k] != 0.0
+                    && implicit.abs() * unbalance_noise[k]
+                        > 10f64.powf(-ROUNDOFF_DIGITS) * dresp[r][k].abs();
+            }
+        }
         Ok(Step {
             dresp,
             dhist,
             dz: dz_all,
+            roundoff,
         })
     }
 }
@@ -839,7 +907,12 @@ impl Observer for Engine<'_> {
             self.initial_history_derivative(c)?;
         }
         let kinks = self.kinks(c);
-        let Step { dresp, dhist, dz } =
+        let Step {
+            dresp,
+            dhist,
+            dz,
+            roundoff,
+        } =
             match self.settings.method {
                 Method::Ddm => self.ddm(
                     c,
@@ -928,6 +1001,7 @@ impl Observer for Engine<'_> {
             kinks,
             one_sided,
             rerun_substeps: Vec::new(),
+            roundoff,
             state_derivative: if self.keep_state_derivative {
                 Some(dz)
             } else {
@@ -1149,11 +1223,15 @@ pub fn run_fdm_sweep(
     }
     let nr = model.responses.len();
     let np = params.len();
+    let size: Vec<f64> = (0..nr)
+        .map(|r| base.iter().map(|v| v[r].abs()).fold(0.0, f64::max))
+        .collect();
     let mut out = Vec::new();
     for (b, &beta) in betas.iter().enumerate() {
         let variants: &[bool] = if central { &[false, true] } else { &[false] };
         for &is_central in variants {
             let mut derivs = vec![vec![vec![f64::NAN; np]; nr]; times.len()];
+            let mut roundoff = vec![vec![vec![false; np]; nr]; times.len()];
             let mut substep_from = vec![f64::INFINITY; np];
             let mut failures = Vec::new();
             let mut seconds = 0.0;
@@ -1178,11 +1256,19 @@ pub fn run_fdm_sweep(
                 }
                 for i in 0..times.len() {
                     for r in 0..nr {
-                        derivs[i][r][k] = if is_central {
-                            (used[0].values[i][r] - used[1].values[i][r]) / (2.0 * db)
+                        let delta = if is_central {
+                            used[0].values[i][r] - used[1].values[i][r]
                         } else {
-                            (used[0].values[i][r] - base[i][r]) / db
+                            used[0].values[i][r] - base[i][r]
                         };
+                        derivs[i][r][k] = delta / if is_central { 2.0 * db } else { db };
+                        // each rerun's response is converged to the Newton tolerance relative
+                        // to the response's size over the history (in practice much better:
+                        // the last Newton steps are quadratic), so a difference below that
+                        // tolerance itself is indistinguishable from convergence noise
+                        roundoff[i][r][k] = (delta != 0.0
+                            && delta.abs() < model.solver.force_tol * size[r])
+                            || roundoff_dominated(db, p.value, f64::EPSILON);
                     }
                 }
             }
@@ -1204,6 +1290,7 @@ pub fn run_fdm_sweep(
                         values: base[i].clone(),
                         derivatives: derivs[i].clone(),
                         rerun_substeps: substep_from.iter().map(|f| *t >= *f).collect(),
+                        roundoff: roundoff[i].clone(),
                         ..Default::default()
                     })
                     .collect(),

@@ -135,6 +135,9 @@ pub struct ErrorRow {
     /// Increments left out because a finite-difference rerun took sub-increments the
     /// nominal run did not (see `IncrementSensitivity::rerun_substeps`).
     pub substep_excluded: usize,
+    /// Increments whose value of this parameter's derivative (any response) is flagged
+    /// round-off dominated (`IncrementSensitivity::roundoff`).
+    pub roundoff_flagged: usize,
 }
 
 /// A closed-form check.
@@ -330,6 +333,15 @@ pub fn validate_scene(
                     .iter()
                     .filter(|i| i.rerun_substeps.get(p).copied().unwrap_or(false))
                     .count(),
+                roundoff_flagged: s
+                    .increments
+                    .iter()
+                    .filter(|i| {
+                        i.roundoff
+                            .iter()
+                            .any(|row| row.get(p).copied().unwrap_or(false))
+                    })
+                    .count(),
             });
         }
     }
@@ -511,16 +523,6 @@ fn oracles(v: &SceneValidation) -> Vec<OracleRow> {
                         p11 / e,
                         end.derivatives[r][p],
                         1e-10,
-                    ));
-                }
-                if let Some(p) = p_of("nu") {
-                    // an exact zero: measured as |nu dP11/dnu| / P11
-                    out.push(row_scaled(
-                        "d P11 / d nu = 0 (error: |nu dP11/dnu| / P11)",
-                        0.0,
-                        0.3 * end.derivatives[r][p],
-                        1e-10,
-                        p11,
                     ));
                 }
             }
@@ -800,17 +802,18 @@ pub fn validate(scenes: &[Scene], opts: &ValidateOptions) -> Result<Validation, 
 /// Errors of every (method, beta, parameter); sensitivity histories of DDM and of the other
 /// methods at the figures' beta.
 fn write_scene_data(v: &SceneValidation, dir: &Path, beta: f64) -> Result<(), ValidateError> {
-    let mut e = String::from("scene,method,beta,param,error,cost_ratio,failure\n");
+    let mut e = String::from("scene,method,beta,param,error,cost_ratio,roundoff_flagged,failure\n");
     for r in &v.errors {
         let _ = writeln!(
             e,
-            "{},{},{:e},{},{:e},{:e},\"{}\"",
+            "{},{},{:e},{},{:e},{:e},{},\"{}\"",
             r.scene,
             r.method,
             r.beta,
             r.param,
             r.error,
             r.cost_ratio,
+            r.roundoff_flagged,
             r.failure.as_deref().unwrap_or("").replace('"', "'")
         );
     }
@@ -1253,6 +1256,32 @@ fn findings(
             median(betas),
             all.map(|(b, e)| format!("{b:.0e}: {e:.1e}"))
                 .unwrap_or_else(|| "-".into())
+        );
+    }
+    // round-off flags: the largest beta at which each method flagged a result
+    let mut flags = Vec::new();
+    for m in BETA_METHODS {
+        let rows: Vec<&ErrorRow> = val
+            .scenes
+            .iter()
+            .flat_map(|v| &v.errors)
+            .filter(|e| e.method == m.name() && e.roundoff_flagged > 0)
+            .collect();
+        let largest = rows.iter().map(|e| e.beta).fold(0.0f64, f64::max);
+        if largest > 0.0 {
+            flags.push(format!(
+                "{} from beta = {largest:.0e} down ({} scene-parameter-beta cases)",
+                m.name(),
+                rows.len()
+            ));
+        }
+    }
+    if !flags.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n**Round-off flags.** A difference that keeps fewer than {} significant digits above its noise (machine precision times the cancelling forces for SDM, the Newton tolerance for FDM's reruns) flags its value round-off dominated: {}. The flags sit on the right-hand, rising side of the V-curves.\n",
+            crate::sensitivity::ROUNDOFF_DIGITS,
+            flags.join("; ")
         );
     }
     // cost per parameter
