@@ -680,7 +680,14 @@ fn v_curve(v: &SceneValidation, param: &str) -> Figure {
             .collect();
         f = f.series(m.name(), pts, Style::LinePoints);
     }
-    f
+    // vertical marks: the betas at which forward SDM flagged values round-off dominated
+    let flagged: Vec<f64> = v
+        .errors
+        .iter()
+        .filter(|e| e.param == param && e.method == Method::Sdm.name() && e.roundoff_flagged > 0)
+        .map(|e| e.beta)
+        .collect();
+    f.marks(flagged)
 }
 
 /// The time history of a response's derivative by every method at one beta.
@@ -1175,6 +1182,7 @@ fn report(
         }
     }
     let _ = writeln!(s, "## Error against perturbation size\n");
+    let _ = writeln!(s, "One plot per scene and parameter: the largest error over responses and unflagged increments against beta, for each method. Vertical marks: the betas at which forward SDM flagged some of its values round-off dominated.\n");
     for v in &val.scenes {
         let _ = writeln!(s, "### {}\n\n{}\n", v.scene, v.description);
         for p in &v.params {
