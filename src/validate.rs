@@ -1159,7 +1159,7 @@ fn report(
     for o in &val.oracles {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.6e} | {:.6e} | {:.2e} | {} | {} |",
+            "| {} | {} | {:.6e} | {:.6e} | {:.2e} | {:.0e} | {} |",
             o.scene,
             o.quantity,
             o.expected,
