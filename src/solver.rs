@@ -384,20 +384,26 @@ impl<'m> Solver<'m> {
             // every attempt (converged or not) within this nominal increment; a budget keeps a
             // converge-grow-fail cycle from running forever
             let mut attempts = 0usize;
+            // failed attempts within this nominal increment (`cutbacks` counts only those since
+            // the last converged sub-increment), and the residuals and reason of the last one:
+            // the attempt budget's error reports them
+            let mut failed = 0usize;
+            let mut last_failure: Option<(f64, Vec<f64>, String)> = None;
             while t_prev < t_end - 1e-14 * t_end.abs().max(1.0) {
                 let t = (t_prev + step).min(t_end);
                 attempts += 1;
                 if attempts > 64 * (model.solver.max_cutbacks + 1) {
                     res.history = hist;
                     res.cost.wall_seconds = start.elapsed().as_secs_f64();
+                    let (t_failed, residuals, why) = last_failure.take().unwrap_or_default();
                     return Err(AnalysisError::Diverged {
                         increment: index + 1,
                         time: t,
                         step,
-                        cutbacks,
-                        residuals: Vec::new(),
+                        cutbacks: failed,
+                        residuals,
                         reason: format!(
-                            "{attempts} attempts within the increment ending at t = {t_end} (sub-increments keep failing)"
+                            "{attempts} attempts within the increment ending at t = {t_end} (sub-increments keep failing); the last failed attempt, to t = {t_failed:.9}: {why}"
                         ),
                         partial: Box::new(res),
                     });
@@ -555,6 +561,12 @@ impl<'m> Solver<'m> {
                                 record.residuals
                             );
                         }
+                        let why = match &why {
+                            AttemptFailure::Element(f) => f.to_string(),
+                            AttemptFailure::Diverged(s) => s.to_string(),
+                        };
+                        last_failure = Some((t, std::mem::take(&mut record.residuals), why));
+                        failed += 1;
                         cutbacks += 1;
                         step *= 0.5;
                     }
