@@ -380,6 +380,10 @@ impl<'m> Solver<'m> {
         for &t_end in &model.times {
             let t_prev_nominal = t_prev;
             let mut step = t_end - t_prev;
+            // the smallest sub-increment: max_cutbacks halvings of the nominal one (the
+            // cutback counter restarts after every converged sub-increment, so without it a
+            // run creeping towards a limit point halves its step down to round-off)
+            let min_step = step / 2f64.powi(model.solver.max_cutbacks as i32);
             let mut cutbacks = 0;
             // every attempt (converged or not) within this nominal increment; a budget keeps a
             // converge-grow-fail cycle from running forever
@@ -527,11 +531,18 @@ impl<'m> Solver<'m> {
                         }
                     }
                     Err(why) => {
-                        if cutbacks >= model.solver.max_cutbacks {
-                            let reason = match why {
+                        let at_minimum = step <= min_step * (1.0 + 1e-9);
+                        if cutbacks >= model.solver.max_cutbacks || at_minimum {
+                            let mut reason = match why {
                                 AttemptFailure::Element(f) => f.to_string(),
                                 AttemptFailure::Diverged(s) => s.to_string(),
                             };
+                            if at_minimum {
+                                reason.push_str(&format!(
+                                    " (at the minimum increment {min_step:.3e}: the nominal one halved {} times)",
+                                    model.solver.max_cutbacks
+                                ));
+                            }
                             res.history = hist;
                             res.cost.wall_seconds = start.elapsed().as_secs_f64();
                             return Err(AnalysisError::Diverged {

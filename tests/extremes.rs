@@ -836,6 +836,16 @@ fn check_failure(what: &str, err: &AnalysisError) -> Results {
         panic!("{what}: not a Newton failure: {msg}");
     };
     assert_eq!(*increment, partial.records.len() + 1, "{what}");
+    // cutback stops at the minimum increment (the nominal one halved max_cutbacks times)
+    // instead of creeping towards the limit point in steps shrinking to round-off
+    let step = match err {
+        AnalysisError::Diverged { step, .. } => *step,
+        _ => unreachable!(),
+    };
+    assert!(
+        step > 1e-6,
+        "{what}: step {step:e} went below the minimum increment"
+    );
     assert!(*time > *partial.times.last().unwrap(), "{what}");
     assert!(
         msg.contains(&format!("increment {increment} (t = {time:.6})")),
