@@ -383,9 +383,8 @@ fn write(path: &Path, text: &str) -> Result<(), ValidateError> {
 /// Closed-form checks on the DDM results of the oracle scenes.
 fn oracles(v: &SceneValidation) -> Vec<OracleRow> {
     let mut out = Vec::new();
-    // relative error, or |got| / scale for an expected zero
-    let row_scaled = |quantity: &str, expected: f64, got: f64, tolerance: f64, scale: f64| {
-        let rel = (got - expected).abs() / expected.abs().max(scale);
+    let row = |quantity: &str, expected: f64, got: f64, tolerance: f64| {
+        let rel = ((got - expected) / expected).abs();
         OracleRow {
             scene: v.scene.clone(),
             quantity: quantity.to_string(),
@@ -395,9 +394,6 @@ fn oracles(v: &SceneValidation) -> Vec<OracleRow> {
             tolerance,
             pass: rel <= tolerance,
         }
-    };
-    let row = |quantity: &str, expected: f64, got: f64, tolerance: f64| {
-        row_scaled(quantity, expected, got, tolerance, 0.0)
     };
     let res = &v.ddm;
     let r_of = |name: &str| res.responses.iter().position(|r| r == name);
