@@ -23,6 +23,7 @@
 
 use crate::scalar::{safe_norm, Scalar};
 use nalgebra::Vector3;
+use num_dual::DualSVec64;
 
 /// Stick or slip.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -253,6 +254,260 @@ impl FrictionLaw for PressureDependentCoulomb {
             S::zero()
         };
         radial_return(t_trial, limit, margin, frozen)
+    }
+}
+
+/// Most parameters a [`UserFriction`] law may have: its Jacobian is taken with one dual number
+/// of width `4 + MAX_USER_PARAMS` (the trial force, the normal force and the parameters).
+pub const MAX_USER_PARAMS: usize = 12;
+
+/// Width of the dual number that differentiates a user law: `t_trial` (3), `p_n` (1) and up to
+/// [`MAX_USER_PARAMS`] parameters.
+const USER_INPUTS: usize = 4 + MAX_USER_PARAMS;
+
+/// The dual number a user law is differentiated with.
+type UserJet = DualSVec64<USER_INPUTS>;
+
+/// The object-safe face of a [`FrictionLaw`] the [`crate::contact::Friction`] enum does not
+/// name: the law evaluated on plain values, and on plain values with the Jacobian of its
+/// traction with respect to its inputs. The blanket implementation below gives it to every
+/// `FrictionLaw + Clone`; users never implement it.
+trait ErasedFrictionLaw: Send + Sync + std::fmt::Debug {
+    fn name(&self) -> &'static str;
+    fn param_names(&self) -> &'static [&'static str];
+    fn params(&self) -> &[f64];
+    fn params_mut(&mut self) -> &mut [f64];
+    fn return_map_f64(
+        &self,
+        p: &[f64],
+        t_trial: &Vector3<f64>,
+        p_n: f64,
+        margin: f64,
+        frozen: Option<FrictionBranch>,
+    ) -> FrictionUpdate<f64>;
+    /// The update and `J[i][j] = d traction_i / d input_j`, inputs ordered
+    /// `(t_trial_x, t_trial_y, t_trial_z, p_n, p_0, p_1, ..)`.
+    fn return_map_jacobian(
+        &self,
+        p: &[f64],
+        t_trial: &Vector3<f64>,
+        p_n: f64,
+        margin: f64,
+        frozen: Option<FrictionBranch>,
+    ) -> (FrictionUpdate<f64>, [[f64; USER_INPUTS]; 3]);
+    fn clone_box(&self) -> Box<dyn ErasedFrictionLaw>;
+}
+
+impl<L: FrictionLaw + Clone + 'static> ErasedFrictionLaw for L {
+    fn name(&self) -> &'static str {
+        FrictionLaw::name(self)
+    }
+    fn param_names(&self) -> &'static [&'static str] {
+        FrictionLaw::param_names(self)
+    }
+    fn params(&self) -> &[f64] {
+        FrictionLaw::params(self)
+    }
+    fn params_mut(&mut self) -> &mut [f64] {
+        FrictionLaw::params_mut(self)
+    }
+    fn return_map_f64(
+        &self,
+        p: &[f64],
+        t_trial: &Vector3<f64>,
+        p_n: f64,
+        margin: f64,
+        frozen: Option<FrictionBranch>,
+    ) -> FrictionUpdate<f64> {
+        self.return_map(p, t_trial, p_n, margin, frozen)
+    }
+    fn return_map_jacobian(
+        &self,
+        p: &[f64],
+        t_trial: &Vector3<f64>,
+        p_n: f64,
+        margin: f64,
+        frozen: Option<FrictionBranch>,
+    ) -> (FrictionUpdate<f64>, [[f64; USER_INPUTS]; 3]) {
+        let t = Vector3::from_fn(|i, _| UserJet::seeded(t_trial[i], i));
+        let pn = UserJet::seeded(p_n, 3);
+        let mut pj = [UserJet::from_re(0.0); MAX_USER_PARAMS];
+        for (k, (pk, v)) in pj.iter_mut().zip(p).enumerate() {
+            *pk = UserJet::seeded(*v, 4 + k);
+        }
+        let u = self.return_map(&pj[..p.len()], &t, pn, margin, frozen);
+        let mut jac = [[0.0; USER_INPUTS]; 3];
+        for (i, row) in jac.iter_mut().enumerate() {
+            u.traction[i].parts_into(row);
+        }
+        let value = FrictionUpdate {
+            traction: u.traction.map(|x| x.value()),
+            branch: u.branch,
+            slip_ratio: u.slip_ratio,
+        };
+        (value, jac)
+    }
+    fn clone_box(&self) -> Box<dyn ErasedFrictionLaw> {
+        Box::new(self.clone())
+    }
+}
+
+/// A friction law defined outside this crate, plugged into the solver and all three
+/// sensitivity methods through [`FrictionLaw`] alone.
+///
+/// Write the law once, generic over the scalar, as the shipped laws are; wrap it with
+/// [`UserFriction::new`] and put it in [`crate::contact::Friction::User`]. The wrapper erases
+/// its type (the `Friction` enum is closed) and keeps every derivative exact:
+///
+/// * on `f64` (residuals, SDM's perturbed unbalance, FDM's reruns) the law runs as written;
+/// * on a dual scalar `S` (the consistent tangent, DDM) the law runs once on a dual number
+///   seeded on its own inputs `x = (t_trial, p_n, p)`, which gives its Jacobian
+///   `J = d traction / d x`, and the chain rule carries the derivatives of `S`:
+///   `traction_S = traction(x_re) + J (x_S - x_re)`, exact to first order, which is all a
+///   first-order dual number holds.
+///
+/// The parameters become design parameters by name (`PAIR.NAME`), like those of the shipped
+/// laws. A user law cannot be written to a scene file.
+pub struct UserFriction {
+    law: Box<dyn ErasedFrictionLaw>,
+}
+
+/// Why a law cannot be wrapped as a [`UserFriction`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum UserFrictionError {
+    /// The law has more parameters than the Jacobian's dual number holds.
+    #[error("friction law '{name}' has {count} parameters; at most {max} are supported")]
+    TooManyParameters {
+        /// The law's name.
+        name: &'static str,
+        /// Its number of parameters.
+        count: usize,
+        /// [`MAX_USER_PARAMS`].
+        max: usize,
+    },
+    /// The law's parameter names and values differ in number.
+    #[error("friction law '{name}' names {names} parameters but has {values} values")]
+    ParameterCount {
+        /// The law's name.
+        name: &'static str,
+        /// Length of `param_names()`.
+        names: usize,
+        /// Length of `params()`.
+        values: usize,
+    },
+}
+
+impl UserFriction {
+    /// Wrap a law. Fails when it has more than [`MAX_USER_PARAMS`] parameters, or when its
+    /// parameter names and values differ in number.
+    pub fn new<L: FrictionLaw + Clone + 'static>(law: L) -> Result<Self, UserFrictionError> {
+        let name = law.name();
+        let (names, values) = (law.param_names().len(), law.params().len());
+        if names != values {
+            return Err(UserFrictionError::ParameterCount {
+                name,
+                names,
+                values,
+            });
+        }
+        if values > MAX_USER_PARAMS {
+            return Err(UserFrictionError::TooManyParameters {
+                name,
+                count: values,
+                max: MAX_USER_PARAMS,
+            });
+        }
+        Ok(UserFriction { law: Box::new(law) })
+    }
+}
+
+impl Clone for UserFriction {
+    fn clone(&self) -> Self {
+        UserFriction {
+            law: self.law.clone_box(),
+        }
+    }
+}
+
+impl std::fmt::Debug for UserFriction {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("UserFriction").field(&self.law).finish()
+    }
+}
+
+impl PartialEq for UserFriction {
+    /// Two user laws are equal when they have the same name, parameter names and values.
+    fn eq(&self, other: &Self) -> bool {
+        self.law.name() == other.law.name()
+            && self.law.param_names() == other.law.param_names()
+            && self.law.params() == other.law.params()
+    }
+}
+
+impl FrictionLaw for UserFriction {
+    fn name(&self) -> &'static str {
+        self.law.name()
+    }
+    fn param_names(&self) -> &'static [&'static str] {
+        self.law.param_names()
+    }
+    fn params(&self) -> &[f64] {
+        self.law.params()
+    }
+    fn params_mut(&mut self) -> &mut [f64] {
+        self.law.params_mut()
+    }
+    fn return_map<S: Scalar>(
+        &self,
+        p: &[S],
+        t_trial: &Vector3<S>,
+        p_n: S,
+        margin: f64,
+        frozen: Option<FrictionBranch>,
+    ) -> FrictionUpdate<S> {
+        let np = p.len().min(MAX_USER_PARAMS);
+        let mut pv = [0.0; MAX_USER_PARAMS];
+        for (v, x) in pv.iter_mut().zip(p) {
+            *v = x.value();
+        }
+        let tv = t_trial.map(|x| x.value());
+        if S::NPARTS == 0 {
+            let u = self
+                .law
+                .return_map_f64(&pv[..np], &tv, p_n.value(), margin, frozen);
+            return FrictionUpdate {
+                traction: u.traction.map(S::lift),
+                branch: u.branch,
+                slip_ratio: u.slip_ratio,
+            };
+        }
+        let (u, jac) = self
+            .law
+            .return_map_jacobian(&pv[..np], &tv, p_n.value(), margin, frozen);
+        // the inputs' derivative parts: x_S - x_re has a zero value and the parts of x_S
+        let delta = |x: S| x - S::lift(x.value());
+        let mut dx = [S::zero(); USER_INPUTS];
+        for i in 0..3 {
+            dx[i] = delta(t_trial[i]);
+        }
+        dx[3] = delta(p_n);
+        for k in 0..np {
+            dx[4 + k] = delta(p[k]);
+        }
+        let traction = Vector3::from_fn(|i, _| {
+            let mut t = S::lift(u.traction[i]);
+            for (j, d) in dx.iter().enumerate().take(4 + np) {
+                if jac[i][j] != 0.0 {
+                    t += *d * jac[i][j];
+                }
+            }
+            t
+        });
+        FrictionUpdate {
+            traction,
+            branch: u.branch,
+            slip_ratio: u.slip_ratio,
+        }
     }
 }
 

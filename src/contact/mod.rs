@@ -51,6 +51,7 @@ use crate::model::Amplitude;
 use crate::scalar::Scalar;
 use friction::{
     Coulomb, FrictionBranch, FrictionLaw, PressureDependentCoulomb, RegularizedCoulomb,
+    UserFriction, UserFrictionError,
 };
 use geometry::{project_on_quad, Projection, RigidSurface};
 use nalgebra::Vector3;
@@ -62,6 +63,10 @@ pub enum Friction {
     Coulomb(Coulomb),
     RegularizedCoulomb(RegularizedCoulomb),
     PressureDependent(PressureDependentCoulomb),
+    /// A law defined outside the crate ([`friction::UserFriction`]); not written to scene
+    /// files.
+    #[serde(skip)]
+    User(UserFriction),
 }
 
 /// Call `$body` with `$f` bound to the concrete law inside a [`Friction`].
@@ -72,11 +77,17 @@ macro_rules! with_friction {
             $crate::contact::Friction::Coulomb($f) => $body,
             $crate::contact::Friction::RegularizedCoulomb($f) => $body,
             $crate::contact::Friction::PressureDependent($f) => $body,
+            $crate::contact::Friction::User($f) => $body,
         }
     };
 }
 
 impl Friction {
+    /// A user's law (see [`friction::UserFriction`]): any [`friction::FrictionLaw`] written
+    /// generic over the scalar.
+    pub fn user<L: FrictionLaw + Clone + 'static>(law: L) -> Result<Self, UserFrictionError> {
+        UserFriction::new(law).map(Friction::User)
+    }
     pub fn params(&self) -> &[f64] {
         with_friction!(self, f => f.params())
     }
