@@ -6,7 +6,7 @@
 //! for SDM), so that every kernel sees its parameters as `S`.
 
 use crate::element::{Hex8Formulation, Kinematics, Spring};
-use crate::material::{J2Plasticity, MaterialLaw, StVenantKirchhoff};
+use crate::material::{J2Plasticity, MaterialLaw, NeoHookean, StVenantKirchhoff};
 use crate::mesh::{BlockGeometry, Mesh};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
@@ -19,6 +19,8 @@ pub enum Material {
     Svk(StVenantKirchhoff),
     /// J2 elastoplasticity with isotropic hardening.
     J2(J2Plasticity),
+    /// Compressible Neo-Hookean hyperelasticity.
+    NeoHookean(NeoHookean),
 }
 
 /// Call `$body` with `$m` bound to the concrete law inside a [`Material`].
@@ -28,6 +30,7 @@ macro_rules! with_material {
         match $mat {
             $crate::model::Material::Svk($m) => $body,
             $crate::model::Material::J2($m) => $body,
+            $crate::model::Material::NeoHookean($m) => $body,
         }
     };
 }

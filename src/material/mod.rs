@@ -23,9 +23,11 @@
 //! | `lambda`, `mu` | Lame constants, `lambda = E nu / ((1+nu)(1-2nu))`, `mu = E / (2(1+nu))` |
 
 pub mod j2;
+pub mod neo_hookean;
 pub mod svk;
 
 pub use j2::J2Plasticity;
+pub use neo_hookean::NeoHookean;
 pub use svk::StVenantKirchhoff;
 
 use crate::scalar::Scalar;

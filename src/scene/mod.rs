@@ -9,7 +9,7 @@ use crate::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCou
 use crate::contact::geometry::RigidSurface;
 use crate::contact::{ContactPair, Friction, NormalLaw, RigidMotion, Target};
 use crate::element::{Hex8Formulation, Kinematics, Spring};
-use crate::material::{J2Plasticity, StVenantKirchhoff};
+use crate::material::{J2Plasticity, NeoHookean, StVenantKirchhoff};
 use crate::mesh::{Axis, BlockSpec, Mesh, Zone};
 use crate::model::{Amplitude, Body, Material, Model, NodalLoad, Prescribed, SolverSettings};
 use crate::response::{Response, ResponseKind};
@@ -63,12 +63,21 @@ pub enum MaterialSpec {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         delta: Option<f64>,
     },
+    /// Compressible Neo-Hookean hyperelasticity (`E`, `nu` its small-strain constants).
+    NeoHookean {
+        #[serde(rename = "E")]
+        young: f64,
+        nu: f64,
+    },
 }
 
 impl MaterialSpec {
     fn build(&self) -> Material {
         match self {
             MaterialSpec::Svk { young, nu } => Material::Svk(StVenantKirchhoff::new(*young, *nu)),
+            MaterialSpec::NeoHookean { young, nu } => {
+                Material::NeoHookean(NeoHookean::new(*young, *nu))
+            }
             MaterialSpec::J2 {
                 young,
                 nu,
@@ -87,7 +96,7 @@ impl MaterialSpec {
 
     fn check(&self, at: &str) -> Result<(), SceneError> {
         match self {
-            MaterialSpec::Svk { young, nu } => {
+            MaterialSpec::Svk { young, nu } | MaterialSpec::NeoHookean { young, nu } => {
                 positive(*young, &format!("{at}.E"))?;
                 poisson(*nu, &format!("{at}.nu"))
             }

@@ -1,0 +1,194 @@
+//! Every shipped material through the one `MaterialLaw` interface, on a small frictional scene
+//! under large deformation: a strip held by friction on a rigid ground, pulled into the plastic
+//! range and released (the release unloads the plastic zone and turns the friction round). For each law: the
+//! consistent tangent against the dual-number derivative of the residual, and DDM against
+//! central finite differences of complete reruns for each of its parameters along the whole
+//! path (which exercises the history sensitivities of J2 and of the stick anchors).
+
+use fricsens::assembly::{Assembler, Evaluation};
+use fricsens::element::Kinematics;
+use fricsens::linalg::SparseMatrix;
+use fricsens::model::Model;
+use fricsens::scene::{strip_pullout, MaterialSpec, StripSpec};
+use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
+use fricsens::solver::{NoObserver, RunOptions, Solver};
+use num_dual::Dual64;
+
+fn materials() -> Vec<(&'static str, MaterialSpec, Vec<&'static str>)> {
+    // the pull force over the strip's section peaks at 1.5 / (0.02 x 0.1) = 750: a yield stress
+    // of 500 makes the pulled half yield, and the friction holds the rest elastic
+    let j2 = |sigma_inf, delta| MaterialSpec::J2 {
+        young: 1e5,
+        nu: 0.3,
+        sigma_y: 500.0,
+        hardening: 1e4,
+        sigma_inf,
+        delta,
+    };
+    vec![
+        (
+            "svk",
+            MaterialSpec::Svk {
+                young: 1e5,
+                nu: 0.3,
+            },
+            vec!["E", "nu"],
+        ),
+        ("j2 linear", j2(None, None), vec!["E", "sigma_y", "H"]),
+        (
+            "j2 saturation",
+            j2(Some(700.0), Some(50.0)),
+            vec!["sigma_y", "H", "sigma_inf", "delta"],
+        ),
+        (
+            "neo-hookean",
+            MaterialSpec::NeoHookean {
+                young: 1e5,
+                nu: 0.3,
+            },
+            vec!["E", "nu"],
+        ),
+    ]
+}
+
+/// The frictional strip pull-out (`shared/oracles.md` section 7, 20 elements) under large
+/// deformation: pulled to 1.5 and released, so the plastic zone unloads and the friction turns
+/// round.
+fn model(material: &MaterialSpec) -> Model {
+    let spec = StripSpec {
+        elements: 20,
+        ..StripSpec::default()
+    };
+    let mut scene = strip_pullout(&spec);
+    for b in &mut scene.bodies {
+        b.material = material.clone();
+        b.kinematics = Kinematics::Large;
+    }
+    scene.build().unwrap()
+}
+
+#[test]
+fn each_material_has_a_tangent_equal_to_the_dual_derivative_of_its_residual() {
+    for (name, material, _) in materials() {
+        let mut m = model(&material);
+        m.times.retain(|t| *t <= 0.9 + 1e-12); // loading, partly plastic
+        let res = Solver::new(&m)
+            .unwrap()
+            .run(&RunOptions::default(), &mut NoObserver)
+            .unwrap();
+        let k_inc = res.states.len() - 1;
+        let t = res.times[k_inc];
+        let (z, hist) = (&res.states[k_inc], &res.histories[k_inc - 1]);
+        let asm = Assembler::new(&m, &[]).unwrap();
+        let ne = m.mesh.elements.len();
+        let mut k = SparseMatrix::new(asm.pattern.clone());
+        let mut ev = Evaluation::<f64>::new(&asm, ne);
+        asm.evaluate(
+            &m,
+            &m.lifted::<f64>(&[]),
+            z,
+            hist,
+            t,
+            None,
+            Some(&mut k),
+            &mut ev,
+        )
+        .unwrap();
+        let plastic = ev
+            .branches
+            .iter()
+            .filter(|b| **b == fricsens::material::Branch::Plastic)
+            .count();
+        if name.starts_with("j2") {
+            assert!(plastic > 0, "{name}: the J2 check needs plastic points");
+        }
+        let v: Vec<f64> = (0..z.len())
+            .map(|i| 1e-4 * ((i as f64) * 0.61).cos())
+            .collect();
+        let zd: Vec<Dual64> = z.iter().zip(&v).map(|(a, b)| Dual64::new(*a, *b)).collect();
+        let hd: Vec<Dual64> = hist.iter().map(|h| Dual64::from(*h)).collect();
+        let mut evd = Evaluation::<Dual64>::new(&asm, ne);
+        asm.evaluate(
+            &m,
+            &m.lifted::<Dual64>(&[]),
+            &zd,
+            &hd,
+            t,
+            None,
+            None,
+            &mut evd,
+        )
+        .unwrap();
+        let mut kv = vec![0.0; z.len()];
+        k.mul_vec(&v, &mut kv).unwrap();
+        let scale = kv.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        for (i, (r, kvi)) in evd.residual.iter().zip(&kv).enumerate() {
+            assert!(
+                (r.eps - kvi).abs() <= 1e-8 * scale,
+                "{name}: unknown {i}: {} vs {kvi}",
+                r.eps
+            );
+        }
+        println!("{name}: tangent matches, {plastic} plastic points");
+    }
+}
+
+#[test]
+fn each_material_ddm_equals_central_fdm_along_loading_and_release() {
+    for (name, material, params) in materials() {
+        let m = model(&material);
+        let ps: Vec<Parameter> = params
+            .iter()
+            .map(|p| Parameter::by_name(&m, p).unwrap())
+            .collect();
+        let run = |method, beta| {
+            let settings = Settings {
+                method,
+                beta,
+                tangent: TangentChoice::Exact,
+                ..Settings::default()
+            };
+            run_sensitivity(&m, &ps, &settings).unwrap().1
+        };
+        let ddm = run(Method::Ddm, 0.0);
+        let fdm = run(Method::FdmCentral, 1e-6);
+        println!(
+            "{name}: {} increments, primal {:.1} s, FDM {:.1} s",
+            ddm.increments.len(),
+            ddm.primal_seconds,
+            fdm.cost.wall_seconds
+        );
+        assert_eq!(ddm.increments.len(), fdm.increments.len());
+        for (r, response) in ddm.responses.iter().enumerate() {
+            for (p, param) in ps.iter().enumerate() {
+                // relative to the largest sensitivity over the path, or, where the response
+                // hardly depends on the parameter, to max|R| / |b| (a unit logarithmic
+                // sensitivity): differences of a response that is flat in b are round-off of
+                // the reruns, at ~1e-11 of |R| / |b| here
+                let largest = ddm
+                    .increments
+                    .iter()
+                    .fold(0.0f64, |m, i| m.max(i.derivatives[r][p].abs()));
+                let magnitude = ddm
+                    .increments
+                    .iter()
+                    .fold(0.0f64, |m, i| m.max(i.values[r].abs()));
+                let floor = largest.max(magnitude / param.value.abs());
+                let mut worst: f64 = 0.0;
+                for (a, b) in ddm.increments.iter().zip(&fdm.increments) {
+                    // an increment whose rerun needed sub-steps the nominal run did not take
+                    // followed another discrete path: no derivative to compare
+                    if b.rerun_substeps.get(p).copied().unwrap_or(false) {
+                        continue;
+                    }
+                    worst = worst.max((a.derivatives[r][p] - b.derivatives[r][p]).abs() / floor);
+                }
+                println!(
+                    "{name} d{response}/d{}: DDM vs central FDM {worst:.2e} (largest |dR/db| {largest:.2e})",
+                    param.name
+                );
+                assert!(worst < 1e-6, "{name} d{response}/d{}: {worst}", param.name);
+            }
+        }
+    }
+}
