@@ -43,6 +43,9 @@ pub struct ValidateOptions {
     /// Scenes whose finite-difference sweep (a full rerun per beta, parameter and sign) is
     /// thinned to [`REDUCED_FDM_BETAS`] (the in-line methods keep every beta).
     pub reduced_fdm: Vec<String>,
+    /// Compare the shipped friction laws on the strip pull-out with this many elements
+    /// ([`crate::compare_laws`]); `None` leaves the section out.
+    pub friction_laws: Option<usize>,
 }
 
 /// The finite-difference betas of a scene in [`ValidateOptions::reduced_fdm`] (those of the
@@ -60,6 +63,7 @@ impl Default for ValidateOptions {
             // primal ~20 s (leaf spring) and ~8 s on 21,000 unknowns (Hertz): 56 and 28
             // reruns for a full sweep
             reduced_fdm: vec!["leaf-spring".into(), "hertz".into()],
+            friction_laws: Some(100),
         }
     }
 }
@@ -77,6 +81,8 @@ pub enum ValidateError {
     },
     #[error(transparent)]
     Plot(#[from] PlotError),
+    #[error(transparent)]
+    Laws(#[from] crate::compare_laws::CompareLawsError),
     #[error("{path}: {source}")]
     Io {
         path: String,
@@ -771,6 +777,16 @@ pub fn validate(scenes: &[Scene], opts: &ValidateOptions) -> Result<Validation, 
                 .collect::<Vec<_>>(),
         )
     });
+    let laws = match opts.friction_laws {
+        Some(elements) => {
+            let c = crate::compare_laws::compare_laws(elements)?;
+            c.write_figures(&figs)?;
+            let json = serde_json::to_string_pretty(&c).expect("serialisable");
+            write(&data.join("friction-laws.json"), &json)?;
+            Some(c)
+        }
+        None => None,
+    };
     let validation = Validation {
         scenes: out,
         oracles: oracle_rows,
@@ -797,7 +813,13 @@ pub fn validate(scenes: &[Scene], opts: &ValidateOptions) -> Result<Validation, 
     write(&data.join("validation.json"), &json)?;
     write(
         &opts.out.join("README.md"),
-        &report(&validation, indentation.as_ref(), leaf_mu0.as_deref(), opts),
+        &report(
+            &validation,
+            indentation.as_ref(),
+            leaf_mu0.as_deref(),
+            laws.as_ref(),
+            opts,
+        ),
     )?;
     Ok(validation)
 }
@@ -1044,6 +1066,7 @@ fn report(
     val: &Validation,
     indentation: Option<&PressureProfile>,
     leaf_mu0: Option<&[(f64, f64)]>,
+    laws: Option<&crate::compare_laws::LawComparison>,
     opts: &ValidateOptions,
 ) -> String {
     let mut s = String::new();
@@ -1175,6 +1198,25 @@ fn report(
     ] {
         if opts.out.join("figures").join(f).exists() {
             let _ = writeln!(s, "{what}\n\n![{f}](figures/{f})\n");
+        }
+    }
+    if let Some(l) = laws {
+        s.push_str(&l.section());
+    }
+    // sections written by `fricsens scaling` and `fricsens ccx` (long, or needing CalculiX):
+    // included as they were last generated
+    for (file, what) in [
+        ("scaling/scaling.md", "fricsens scaling"),
+        ("ccx/ccx.md", "fricsens ccx"),
+    ] {
+        if let Ok(text) = std::fs::read_to_string(opts.out.join(file)) {
+            let dir = file.split('/').next().unwrap_or("");
+            let _ = writeln!(
+                s,
+                "<!-- included from {file}, written by `{what}` -->\n{}\n",
+                text.replace("](", &format!("]({dir}/"))
+                    .replace(&format!("]({dir}/http"), "](http"),
+            );
         }
     }
     let _ = writeln!(s, "## Error against perturbation size\n");

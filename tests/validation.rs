@@ -22,6 +22,8 @@ fn reduced_validation_agrees_and_writes_the_report() {
     let opts = ValidateOptions {
         out: out.clone(),
         betas: vec![1e-2, 1e-4, 1e-6, 1e-8],
+        // the friction-law section on a coarse strip
+        friction_laws: Some(20),
         ..ValidateOptions::default()
     };
     let v = validate(&scenes, &opts).expect("validation runs");
@@ -70,12 +72,17 @@ fn reduced_validation_agrees_and_writes_the_report() {
         "data/stacked-leaves-sensitivities.csv",
         "figures/stacked-leaves-mu-error.svg",
         "figures/stacked-leaves-cost.svg",
+        "figures/laws-u0.svg",
+        "figures/laws-du0dmu.svg",
+        "data/friction-laws.json",
     ] {
         let p = out.join(f);
         assert!(p.exists(), "{} missing", p.display());
     }
     let report = std::fs::read_to_string(out.join("README.md")).unwrap();
     assert!(report.contains("| stacked-leaves | mu |"));
+    assert!(report.contains("## Friction laws compared"));
+    assert!(report.contains("| pressure-dependent | ground.n |"));
     let _ = std::fs::remove_dir_all(&out);
 }
 
@@ -105,6 +112,7 @@ fn paper_scene_agreement(scene: fricsens::scene::Scene, fdm_tol: f64) {
         out: out.clone(),
         betas: vec![1e-3, 1e-4, 1e-5, 1e-6],
         reduced_fdm: vec![],
+        friction_laws: None,
         ..ValidateOptions::default()
     };
     let v = validate(std::slice::from_ref(&scene), &opts).expect("validation runs");

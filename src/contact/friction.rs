@@ -173,7 +173,7 @@ impl FrictionLaw for RegularizedCoulomb {
         t_trial: &Vector3<S>,
         p_n: S,
         _margin: f64,
-        _frozen: Option<FrictionBranch>,
+        frozen: Option<FrictionBranch>,
     ) -> FrictionUpdate<S> {
         let limit = p[0] * p_n;
         let norm = safe_norm(t_trial);
@@ -197,13 +197,14 @@ impl FrictionLaw for RegularizedCoulomb {
         let scale = (r * r + 1.0).sqrt().recip();
         FrictionUpdate {
             traction: t_trial * scale,
-            // the smooth law has no transition; report the trial's side of the cone so the
-            // state map still shows where sliding dominates
-            branch: if r.value() > 1.0 {
+            // the smooth law has no transition in its force; the trial's side of the cone
+            // still decides whether the anchor follows the slip (as for Coulomb), a branch
+            // decision that a frozen evaluation (SDM's perturbed unbalance) must keep
+            branch: frozen.unwrap_or(if r.value() > 1.0 {
                 FrictionBranch::Slip
             } else {
                 FrictionBranch::Stick
-            },
+            }),
             slip_ratio: f64::INFINITY,
         }
     }
