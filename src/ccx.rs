@@ -1175,13 +1175,17 @@ impl Comparison {
         );
         let _ = writeln!(
             s,
-            "Time ratio CalculiX / fricsens, primal: **{ratio:.2}** ({}); primal and one sensitivity: **{:.2}**. Single runs on a shared two-core machine: take the ratios to about 20 %.\n",
+            "Time ratio CalculiX / fricsens, primal: **{ratio:.2}** ({}); primal and one sensitivity: **{:.2}**. Single runs on a shared machine: the two CalculiX reruns, the same work, took {:.2} s and {:.2} s, a spread of {:.0} % that bounds how far to trust the ratios.\n",
             if ratio >= 1.0 {
                 "fricsens is at least as fast"
             } else {
                 "CalculiX is faster"
             },
-            (self.ccx_seconds + fd_cost) / (self.ddm_primal_seconds + self.ddm_seconds).max(1e-12)
+            (self.ccx_seconds + fd_cost) / (self.ddm_primal_seconds + self.ddm_seconds).max(1e-12),
+            self.ccx_rerun_seconds[0],
+            self.ccx_rerun_seconds[1],
+            100.0 * (self.ccx_rerun_seconds[0] - self.ccx_rerun_seconds[1]).abs()
+                / (0.5 * fd_cost).max(1e-12)
         );
         let _ = writeln!(s, "### Forces\n");
         let _ = writeln!(
