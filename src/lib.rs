@@ -31,6 +31,7 @@
 //! ```
 
 pub mod assembly;
+pub mod ccx;
 pub mod compare_laws;
 pub mod contact;
 pub mod element;

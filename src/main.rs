@@ -88,6 +88,26 @@ enum Command {
         #[arg(long, default_value_t = 1e-14)]
         beta_min: f64,
     },
+    /// Compare with CalculiX (ccx): the same mesh, increments and tolerance; time ratio,
+    /// forces, and ccx's finite-difference d/d mu against fricsens' DDM. Skips (exit 0)
+    /// when ccx is not on PATH.
+    Ccx {
+        /// A built-in scene name or a TOML scene file with a rigid contact target.
+        #[arg(default_value = "indentation")]
+        scene: String,
+        /// Report directory (ccx.csv, ccx.svg, ccx.md).
+        #[arg(long, default_value = "validation/ccx")]
+        out: PathBuf,
+        /// Relative step of ccx's central difference, mu (1 +- beta).
+        #[arg(long, default_value_t = 1e-2)]
+        beta: f64,
+        /// Write only the CalculiX deck to this file (no run; ccx not needed).
+        #[arg(long)]
+        deck: Option<PathBuf>,
+        /// Keep ccx's scratch files in this directory (default: a temporary one, removed).
+        #[arg(long)]
+        keep: Option<PathBuf>,
+    },
     /// Primal analysis: history CSV, Newton records, VTK files.
     Run {
         /// A built-in scene name or a TOML scene file.
@@ -349,6 +369,63 @@ fn validate(
     Ok(())
 }
 
+fn ccx(
+    scene_name: &str,
+    out: PathBuf,
+    beta: f64,
+    deck: Option<PathBuf>,
+    keep: Option<PathBuf>,
+) -> Result<(), String> {
+    use fricsens::ccx::{compare, export, find_ccx, CompareOptions, ExportOptions};
+    let scene = Scene::load(scene_name).map_err(|e| e.to_string())?;
+    let model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
+    if let Some(path) = deck {
+        let d = export(&model, &ExportOptions::default()).map_err(|e| e.to_string())?;
+        std::fs::write(&path, &d.text).map_err(|e| format!("{}: {e}", path.display()))?;
+        out!(
+            "{}: {} nodes, {} elements written to {}",
+            scene.name,
+            d.nodes,
+            d.elements,
+            path.display()
+        );
+        return Ok(());
+    }
+    let Some(program) = find_ccx() else {
+        out!(
+            "ccx not found: skipping the CalculiX comparison (install Debian package calculix-ccx)"
+        );
+        return Ok(());
+    };
+    let work = keep.clone().unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("fricsens-ccx-{}", std::process::id()))
+    });
+    let opts = CompareOptions {
+        ccx: program,
+        work: work.clone(),
+        beta,
+        threads: rayon::current_num_threads(),
+        export: ExportOptions::default(),
+    };
+    let result = compare(&model, &scene.name, &opts);
+    if keep.is_none() {
+        let _ = std::fs::remove_dir_all(&work);
+    }
+    let c = result.map_err(|e| e.to_string())?;
+    c.write(&out).map_err(|e| e.to_string())?;
+    out!(
+        "{}: fricsens primal {:.2} s, ccx {:.2} s (ratio ccx/fricsens {:.2}); DDM {:.2} s, ccx FD reruns {:.2} s; report in {}",
+        c.scene,
+        c.fricsens_primal_seconds,
+        c.ccx_seconds,
+        c.ccx_seconds / c.fricsens_primal_seconds.max(1e-12),
+        c.ddm_seconds,
+        c.ccx_rerun_seconds[0] + c.ccx_rerun_seconds[1],
+        out.join("ccx.md").display()
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -368,6 +445,13 @@ fn main() -> ExitCode {
             )),
         },
         Command::Run { scene, out } => run(&scene, out),
+        Command::Ccx {
+            scene,
+            out,
+            beta,
+            deck,
+            keep,
+        } => ccx(&scene, out, beta, deck, keep),
         Command::Validate {
             scenes,
             out,

@@ -1,0 +1,1358 @@
+//! CalculiX (`ccx`) as a peer: export a [`Model`] as a CalculiX input deck, run it, read its
+//! reaction forces back, and compare it with fricsens — cost of the primal, force histories,
+//! and the peer's own finite-difference sensitivity (two reruns) against fricsens' DDM.
+//!
+//! ## The deck
+//! * nodes and hex8 elements one for one (fricsens node `i` is CalculiX node `i + 1`); the
+//!   element type follows the body's formulation: [`Hex8Formulation::Full`] (2x2x2 Gauss points)
+//!   is `C3D8`, [`Hex8Formulation::IncompatibleModes`] is `C3D8I` (CalculiX's incompatible
+//!   modes after Taylor, the same family as fricsens' nine Wilson-Taylor modes). F-bar has no
+//!   CalculiX counterpart and is refused. Small kinematics leaves `NLGEOM` off, large
+//!   kinematics sets it (CalculiX's `*ELASTIC` under `NLGEOM` is St Venant-Kirchhoff).
+//! * St Venant-Kirchhoff materials as `*ELASTIC`; J2 plasticity is refused.
+//! * prescribed displacements as `*BOUNDARY` on node sets, nodal loads as `*CLOAD`, each with
+//!   its amplitude written as `*AMPLITUDE, TIME=TOTAL TIME`;
+//! * the load history as one `*STATIC, DIRECT` step per run of equal increments, so CalculiX
+//!   takes exactly fricsens' increments (`DIRECT` switches its automatic incrementation off);
+//! * `*CONTROLS` with fricsens' force tolerance as CalculiX's residual and correction ratios,
+//!   fricsens' iteration limit as its iteration limit, and no cutback (see
+//!   [`ExportOptions`]);
+//! * contact as node-to-face penalty contact (`TYPE=NODE TO SURFACE`, large sliding): the
+//!   slave surface is made of the free element faces whose four nodes are hitting nodes (a
+//!   nodal surface if there are none), the master of the target faces. A rigid
+//!   [`RigidSurface::RoundedBox`] target is meshed: its side facing the hitting nodes (the
+//!   flat face, its two rounded edges and one radius of the adjacent faces), extruded along
+//!   z over the hitting nodes' extent, one layer of `C3D8` elements made a `*RIGID BODY`
+//!   whose reference node carries the prescribed motion and whose `RF` is the force on the
+//!   block. Other rigid surfaces are refused.
+//! * normal contact `PRESSURE-OVERCLOSURE=LINEAR` with slope `K = factor * k / A` (`k` the
+//!   pair's constraint scale, force per unit gap, `A` the median tributary area of the
+//!   hitting nodes), Coulomb friction `*FRICTION` with `mu` and the stick slope
+//!   `eps_T / A` (fricsens' tangential stiffness per unit area).
+//!
+//! CalculiX's contact is a penalty (the bodies overlap by `p / K`), fricsens' a Lagrange
+//! multiplier (no overlap): the force histories differ by about the overlap over the
+//! indentation, which the report states.
+
+use crate::contact::geometry::RigidSurface;
+use crate::contact::{ContactPair, Friction, Target};
+use crate::element::{Hex8Formulation, Kinematics};
+use crate::model::{Amplitude, DesignParam, Material, Model};
+use crate::response::ResponseKind;
+use crate::sensitivity::{run_sensitivity, Method, Parameter, Settings};
+use crate::solver::{NoObserver, RunOptions, Solver};
+use nalgebra::Vector3;
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+// Reals are written with `{:.12e}`: CalculiX reads a real from at most 20 characters, and 13
+// significant digits with sign and exponent fit.
+
+/// Errors of the export, of a CalculiX run and of the comparison.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CcxError {
+    /// The model uses something the exporter cannot write as CalculiX input.
+    #[error("cannot export to CalculiX: {0}")]
+    Unsupported(String),
+    /// An option is out of range.
+    #[error("invalid option: {0}")]
+    Option(String),
+    /// A file could not be written or read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// What went wrong.
+        #[source]
+        source: std::io::Error,
+    },
+    /// CalculiX could not be started, stopped with an error or did not converge.
+    #[error("ccx {job}: {what}")]
+    Run {
+        /// Job name.
+        job: String,
+        /// What went wrong, with the end of CalculiX's output.
+        what: String,
+    },
+    /// The `.dat` file does not hold the expected reaction forces.
+    #[error("{path}: {what}")]
+    Parse {
+        /// The `.dat` file.
+        path: String,
+        /// What is missing or malformed.
+        what: String,
+    },
+    /// fricsens' own analysis failed.
+    #[error("fricsens: {0}")]
+    Analysis(#[from] crate::solver::AnalysisError),
+    /// A figure could not be drawn.
+    #[error("figure: {0}")]
+    Plot(#[from] crate::plot::PlotError),
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> CcxError + '_ {
+    move |source| CcxError::Io {
+        path: path.display().to_string(),
+        source,
+    }
+}
+
+/// How the contact and the rigid targets are translated.
+#[derive(Clone, Debug)]
+pub struct ExportOptions {
+    /// Normal penalty slope `K = normal_factor * k / A` (pressure per unit overlap), with `k`
+    /// the pair's constraint scale (force per unit gap) and `A` the median tributary area of
+    /// its hitting nodes.
+    pub normal_factor: f64,
+    /// CalculiX's tension at large clearance `sigma_inf` as a fraction of the largest Young's
+    /// modulus (it sets the smoothing length `pi sigma_inf / K` of the penalty's kink).
+    pub tension_fraction: f64,
+    /// Facets per quarter circle on a rounded edge of a rigid box.
+    pub arc_segments: usize,
+    /// Facets along the flat face of a rigid box.
+    pub flat_segments: usize,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        ExportOptions {
+            normal_factor: 10.0,
+            tension_fraction: 1e-6,
+            arc_segments: 32,
+            flat_segments: 6,
+        }
+    }
+}
+
+/// A written deck and what it is made of.
+#[derive(Clone, Debug)]
+pub struct Deck {
+    /// The input deck.
+    pub text: String,
+    /// Nodes written (model nodes, rigid-body nodes, reference and rotation nodes).
+    pub nodes: usize,
+    /// Elements written (model elements and rigid-body elements).
+    pub elements: usize,
+    /// CalculiX element type of each body.
+    pub element_types: Vec<&'static str>,
+    /// Whether `NLGEOM` is set.
+    pub nlgeom: bool,
+    /// Reference node of each contact pair's rigid body (`None`: deformable target).
+    pub reference_nodes: Vec<Option<usize>>,
+    /// Normal penalty slope of each pair (force / length^3).
+    pub normal_stiffness: Vec<f64>,
+    /// Tension at large clearance of each pair (stress).
+    pub tension: Vec<f64>,
+    /// Stick slope of each frictional pair (force / length^3; 0 when frictionless).
+    pub stick_slope: Vec<f64>,
+    /// Median tributary area of each pair's hitting nodes.
+    pub median_area: Vec<f64>,
+    /// End time of every increment CalculiX is told to take.
+    pub times: Vec<f64>,
+}
+
+/// CalculiX face `k` (S1..S6) of a hex8, as local node indices.
+const CCX_FACES: [[usize; 4]; 6] = [
+    [0, 1, 2, 3],
+    [4, 7, 6, 5],
+    [0, 4, 5, 1],
+    [1, 5, 6, 2],
+    [2, 6, 7, 3],
+    [3, 7, 4, 0],
+];
+
+fn sorted4(f: &[usize; 4]) -> [usize; 4] {
+    let mut s = *f;
+    s.sort_unstable();
+    s
+}
+
+/// Write lists of integers, 16 a line (CalculiX reads at most 16 entries per set line).
+fn write_ids(s: &mut String, ids: impl IntoIterator<Item = usize>) {
+    let ids: Vec<usize> = ids.into_iter().collect();
+    for chunk in ids.chunks(16) {
+        let line: Vec<String> = chunk.iter().map(|i| i.to_string()).collect();
+        let _ = writeln!(s, "{},", line.join(","));
+    }
+}
+
+fn write_amplitude(s: &mut String, name: &str, a: &Amplitude) {
+    let _ = writeln!(s, "*AMPLITUDE,NAME={name},TIME=TOTAL TIME");
+    for (t, v) in &a.points {
+        let _ = writeln!(s, "{t:.12e},{v:.12e}");
+    }
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut w: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if w.is_empty() {
+        return 1.0;
+    }
+    w.sort_by(f64::total_cmp);
+    w[w.len() / 2]
+}
+
+/// Outer profile (x, y) of the lower side of a rounded box and its outward normals, from the
+/// left side down over the left rounded edge, along the bottom, up over the right edge.
+fn box_profile(
+    c: &Vector3<f64>,
+    h: &Vector3<f64>,
+    r: f64,
+    opts: &ExportOptions,
+) -> Vec<([f64; 2], [f64; 2])> {
+    let (x0, x1, y0) = (c.x - h.x, c.x + h.x, c.y - h.y);
+    let side = if r > 0.0 { r } else { 0.1 * h.y.min(h.x) };
+    let mut p: Vec<([f64; 2], [f64; 2])> = Vec::new();
+    p.push(([x0, y0 + r + side], [-1.0, 0.0]));
+    let na = opts.arc_segments.max(1);
+    let quarter = std::f64::consts::FRAC_PI_2;
+    if r > 0.0 {
+        // left edge: angle from pi (pointing -x) to 3 pi / 2 (pointing -y)
+        for k in 0..=na {
+            let a = std::f64::consts::PI + quarter * k as f64 / na as f64;
+            let n = [a.cos(), a.sin()];
+            p.push(([x0 + r + r * n[0], y0 + r + r * n[1]], n));
+        }
+    } else {
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        p.push(([x0, y0], [-s, -s]));
+    }
+    let nf = opts.flat_segments.max(1);
+    for k in 1..nf {
+        let x = x0 + r + (x1 - x0 - 2.0 * r) * k as f64 / nf as f64;
+        p.push(([x, y0], [0.0, -1.0]));
+    }
+    if r > 0.0 {
+        for k in 0..=na {
+            let a = 1.5 * std::f64::consts::PI + quarter * k as f64 / na as f64;
+            let n = [a.cos(), a.sin()];
+            p.push(([x1 - r + r * n[0], y0 + r + r * n[1]], n));
+        }
+    } else {
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        p.push(([x1, y0], [s, -s]));
+    }
+    p.push(([x1, y0 + r + side], [1.0, 0.0]));
+    p
+}
+
+/// Write `model` as a CalculiX input deck.
+///
+/// # Errors
+/// [`CcxError::Unsupported`] for what is not translated: F-bar elements, J2 plasticity,
+/// springs, friction laws other than Coulomb, rigid surfaces other than a rounded box with the
+/// hitting nodes below it; [`CcxError::Option`] for out-of-range options.
+pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
+    if !(opts.normal_factor.is_finite() && opts.normal_factor > 0.0) {
+        return Err(CcxError::Option(format!(
+            "normal_factor must be positive, got {}",
+            opts.normal_factor
+        )));
+    }
+    if !(opts.tension_fraction.is_finite() && opts.tension_fraction > 0.0) {
+        return Err(CcxError::Option(format!(
+            "tension_fraction must be positive, got {}",
+            opts.tension_fraction
+        )));
+    }
+    if !model.springs.is_empty() {
+        return Err(CcxError::Unsupported("springs".into()));
+    }
+    if model.times.is_empty() {
+        return Err(CcxError::Unsupported("no load increment".into()));
+    }
+    let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+    let mut s = String::new();
+    let _ = writeln!(s, "** written by fricsens {}", env!("CARGO_PKG_VERSION"));
+    let _ = writeln!(s, "*HEADING");
+    let _ = writeln!(s, "fricsens model exported for CalculiX");
+    let _ = writeln!(s, "*NODE,NSET=NALL");
+    for (i, p) in x.iter().enumerate() {
+        let _ = writeln!(s, "{},{:.12e},{:.12e},{:.12e}", i + 1, p.x, p.y, p.z);
+    }
+    let mut next_node = x.len() + 1;
+    let mut next_elem = model.mesh.elements.len() + 1;
+    let mut element_types = Vec::new();
+    let mut nlgeom = false;
+    let mut young_max: f64 = 0.0;
+    for (b, body) in model.bodies.iter().enumerate() {
+        let ty = match body.formulation {
+            Hex8Formulation::Full => "C3D8",
+            Hex8Formulation::IncompatibleModes => "C3D8I",
+            Hex8Formulation::FBar => {
+                return Err(CcxError::Unsupported(format!(
+                    "body '{}': F-bar has no CalculiX element",
+                    body.name
+                )))
+            }
+        };
+        nlgeom |= body.kinematics == Kinematics::Large;
+        element_types.push(ty);
+        let _ = writeln!(s, "*ELEMENT,TYPE={ty},ELSET=B{b}");
+        for e in model.mesh.block_elements[body.block].clone() {
+            let c = model.mesh.elements[e];
+            let ids: Vec<String> = c.iter().map(|n| (n + 1).to_string()).collect();
+            let _ = writeln!(s, "{},{}", e + 1, ids.join(","));
+        }
+        match &body.material {
+            Material::Svk(_) => {
+                young_max = young_max.max(body.material.params()[0]);
+            }
+            Material::J2(_) => {
+                return Err(CcxError::Unsupported(format!(
+                    "body '{}': J2 plasticity is not exported",
+                    body.name
+                )))
+            }
+        }
+    }
+    // every face of every element, to find the free faces and their CalculiX numbers
+    let mut face_of: HashMap<[usize; 4], Vec<(usize, usize)>> = HashMap::new();
+    for (e, c) in model.mesh.elements.iter().enumerate() {
+        for (k, f) in CCX_FACES.iter().enumerate() {
+            let nodes = [c[f[0]], c[f[1]], c[f[2]], c[f[3]]];
+            face_of.entry(sorted4(&nodes)).or_default().push((e, k));
+        }
+    }
+    let mut contact_text = String::new();
+    let mut rigid_text = String::new();
+    let mut step_bc = String::new();
+    let mut reference_nodes = Vec::new();
+    let (mut normal_stiffness, mut tension, mut stick_slope, mut median_area) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut node_print = Vec::new();
+    for (ci, pair) in model.contacts.iter().enumerate() {
+        let a_med = median(&pair.area);
+        let k_n = opts.normal_factor * pair.constraint_scale / a_med;
+        let sig_inf = opts.tension_fraction * young_max.max(f64::MIN_POSITIVE);
+        median_area.push(a_med);
+        normal_stiffness.push(k_n);
+        tension.push(sig_inf);
+        // slave surface: free faces whose four nodes are hitting nodes
+        let hitting: HashSet<usize> = pair.hitting.iter().copied().collect();
+        let mut slave: Vec<(usize, usize)> = face_of
+            .iter()
+            .filter(|(f, owners)| owners.len() == 1 && f.iter().all(|n| hitting.contains(n)))
+            .map(|(_, owners)| owners[0])
+            .collect();
+        slave.sort_unstable();
+        let covered: HashSet<usize> = slave
+            .iter()
+            .flat_map(|&(e, k)| CCX_FACES[k].map(|l| model.mesh.elements[e][l]))
+            .collect();
+        if !slave.is_empty() && covered.len() == hitting.len() {
+            let _ = writeln!(contact_text, "*SURFACE,NAME=SLAVE{ci},TYPE=ELEMENT");
+            for (e, k) in &slave {
+                let _ = writeln!(contact_text, "{},S{}", e + 1, k + 1);
+            }
+        } else {
+            let _ = writeln!(contact_text, "*NSET,NSET=NSLAVE{ci}");
+            write_ids(&mut contact_text, pair.hitting.iter().map(|n| n + 1));
+            let _ = writeln!(contact_text, "*SURFACE,NAME=SLAVE{ci},TYPE=NODE");
+            let _ = writeln!(contact_text, "NSLAVE{ci}");
+        }
+        let _ = writeln!(contact_text, "*SURFACE,NAME=MASTER{ci},TYPE=ELEMENT");
+        match &pair.target {
+            Target::Faces { faces } => {
+                for f in faces {
+                    let owners = face_of.get(&sorted4(f)).ok_or_else(|| {
+                        CcxError::Unsupported(format!(
+                            "pair '{}': target face {f:?} is not an element face",
+                            pair.name
+                        ))
+                    })?;
+                    let (e, k) = owners[0];
+                    let _ = writeln!(contact_text, "{},S{}", e + 1, k + 1);
+                }
+                reference_nodes.push(None);
+            }
+            Target::Rigid { surface, motion } => {
+                let RigidSurface::RoundedBox {
+                    center,
+                    half_extents,
+                    radius,
+                } = surface
+                else {
+                    return Err(CcxError::Unsupported(format!(
+                        "pair '{}': only a rigid rounded box is meshed for CalculiX",
+                        pair.name
+                    )));
+                };
+                let bottom = center.y - half_extents.y;
+                if pair
+                    .hitting
+                    .iter()
+                    .any(|&n| x[n].y > bottom + 1e-9 * half_extents.y)
+                {
+                    return Err(CcxError::Unsupported(format!(
+                        "pair '{}': the hitting nodes must lie below the rigid box (its -y face is meshed)",
+                        pair.name
+                    )));
+                }
+                let (zlo, zhi) = pair
+                    .hitting
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &n| {
+                        (a.min(x[n].z), b.max(x[n].z))
+                    });
+                let margin = if zhi > zlo { zhi - zlo } else { 1.0 };
+                let z0 = (center.z - half_extents.z).max(zlo - margin);
+                let z1 = (center.z + half_extents.z).min(zhi + margin);
+                let profile = box_profile(center, half_extents, *radius, opts);
+                let t = if *radius > 0.0 {
+                    0.5 * radius
+                } else {
+                    0.05 * half_extents.x.min(half_extents.y)
+                };
+                // nodes: outer and inner profile points at z0 and z1
+                let first = next_node;
+                let np = profile.len();
+                let id = |i: usize, inner: usize, top: usize| first + i + np * (inner + 2 * top);
+                let _ = writeln!(rigid_text, "*NODE,NSET=NRIGID{ci}");
+                for (top, z) in [z0, z1].iter().enumerate() {
+                    for inner in 0..2 {
+                        for (i, (p, n)) in profile.iter().enumerate() {
+                            let off = if inner == 1 { t } else { 0.0 };
+                            let _ = writeln!(
+                                rigid_text,
+                                "{},{:.12e},{:.12e},{:.12e}",
+                                id(i, inner, top),
+                                p[0] - off * n[0],
+                                p[1] - off * n[1],
+                                z
+                            );
+                        }
+                    }
+                }
+                next_node += 4 * np;
+                let reference = next_node;
+                let rotation = next_node + 1;
+                next_node += 2;
+                let _ = writeln!(
+                    rigid_text,
+                    "{reference},{:.12e},{:.12e},{:.12e}\n{rotation},{:.12e},{:.12e},{:.12e}",
+                    center.x, center.y, center.z, center.x, center.y, center.z
+                );
+                let _ = writeln!(rigid_text, "*NSET,NSET=REF{ci}\n{reference},");
+                let _ = writeln!(rigid_text, "*NSET,NSET=ROT{ci}\n{rotation},");
+                let _ = writeln!(rigid_text, "*ELEMENT,TYPE=C3D8,ELSET=RIGID{ci}");
+                for i in 0..np - 1 {
+                    let nodes = [
+                        id(i, 0, 0),
+                        id(i + 1, 0, 0),
+                        id(i + 1, 1, 0),
+                        id(i, 1, 0),
+                        id(i, 0, 1),
+                        id(i + 1, 0, 1),
+                        id(i + 1, 1, 1),
+                        id(i, 1, 1),
+                    ];
+                    let ids: Vec<String> = nodes.iter().map(|n| n.to_string()).collect();
+                    let _ = writeln!(rigid_text, "{},{}", next_elem, ids.join(","));
+                    // the outer face (nodes 1, 2, 6, 5) is S3
+                    let _ = writeln!(contact_text, "{next_elem},S3");
+                    next_elem += 1;
+                }
+                let _ = writeln!(
+                    rigid_text,
+                    "*SOLID SECTION,ELSET=RIGID{ci},MATERIAL=M0\n*RIGID BODY,ELSET=RIGID{ci},REF NODE={reference},ROT NODE={rotation}"
+                );
+                // motion of the reference node; components without motion are held
+                let _ = writeln!(step_bc, "*BOUNDARY\nROT{ci},1,3,0.");
+                for comp in 0..3 {
+                    match motion.iter().find(|m| m.component == comp) {
+                        Some(m) => {
+                            let amp = format!("AM{ci}_{comp}");
+                            write_amplitude(&mut rigid_text, &amp, &m.amplitude);
+                            let _ = writeln!(
+                                step_bc,
+                                "*BOUNDARY,AMPLITUDE={amp}\nREF{ci},{c},{c},{:.12e}",
+                                m.value,
+                                c = comp + 1
+                            );
+                        }
+                        None => {
+                            let _ =
+                                writeln!(step_bc, "*BOUNDARY\nREF{ci},{c},{c},0.", c = comp + 1);
+                        }
+                    }
+                }
+                node_print.push(format!("REF{ci}"));
+                reference_nodes.push(Some(reference));
+            }
+        }
+        let _ = writeln!(contact_text, "*SURFACE INTERACTION,NAME=SI{ci}");
+        let _ = writeln!(
+            contact_text,
+            "*SURFACE BEHAVIOR,PRESSURE-OVERCLOSURE=LINEAR\n{k_n:.9e},{sig_inf:.9e}"
+        );
+        match &pair.friction {
+            None => stick_slope.push(0.0),
+            Some(f @ Friction::Coulomb(_)) => {
+                let lambda = pair.tangential_stiffness / a_med;
+                stick_slope.push(lambda);
+                let _ = writeln!(
+                    contact_text,
+                    "*FRICTION\n{:.12e},{lambda:.9e}",
+                    f.params()[0]
+                );
+            }
+            Some(f) => {
+                return Err(CcxError::Unsupported(format!(
+                    "pair '{}': friction law '{}' (only Coulomb is exported)",
+                    pair.name,
+                    f.name()
+                )))
+            }
+        }
+        let _ = writeln!(
+            contact_text,
+            "*CONTACT PAIR,INTERACTION=SI{ci},TYPE=NODE TO SURFACE\nSLAVE{ci},MASTER{ci}"
+        );
+    }
+    // materials and sections, then the rigid bodies (their elements borrow material M0)
+    for (b, body) in model.bodies.iter().enumerate() {
+        let p = body.material.params();
+        let _ = writeln!(
+            s,
+            "*MATERIAL,NAME=M{b}\n*ELASTIC\n{:.12e},{:.12e}\n*SOLID SECTION,ELSET=B{b},MATERIAL=M{b}",
+            p[0], p[1]
+        );
+    }
+    s.push_str(&rigid_text);
+    s.push_str(&contact_text);
+    // prescribed displacements and loads (model data: node sets and amplitudes)
+    for (i, p) in model.prescribed.iter().enumerate() {
+        let _ = writeln!(s, "*NSET,NSET=P{i}");
+        write_ids(&mut s, p.nodes.iter().map(|n| n + 1));
+        let c = p.component + 1;
+        if p.value == 0.0 {
+            let _ = writeln!(step_bc, "*BOUNDARY\nP{i},{c},{c},0.");
+        } else {
+            write_amplitude(&mut s, &format!("AP{i}"), &p.amplitude);
+            let _ = writeln!(
+                step_bc,
+                "*BOUNDARY,AMPLITUDE=AP{i}\nP{i},{c},{c},{:.12e}",
+                p.value
+            );
+        }
+    }
+    for (i, l) in model.loads.iter().enumerate() {
+        write_amplitude(&mut s, &format!("AL{i}"), &l.amplitude);
+        let _ = writeln!(step_bc, "*CLOAD,AMPLITUDE=AL{i}");
+        for (n, w) in l.nodes.iter().zip(&l.weights) {
+            let _ = writeln!(
+                step_bc,
+                "{},{},{:.12e}",
+                n + 1,
+                l.component + 1,
+                l.value * w
+            );
+        }
+    }
+    // steps: runs of equal increments
+    let mut runs: Vec<(f64, f64, usize)> = Vec::new(); // (start, increment, count)
+    let mut t0 = 0.0;
+    for &t in &model.times {
+        let dt = t - t0;
+        match runs.last_mut() {
+            Some((_, d, n)) if (dt - *d).abs() <= 1e-9 * d.abs() => *n += 1,
+            _ => runs.push((t0, dt, 1)),
+        }
+        t0 = t;
+    }
+    let sv = &model.solver;
+    for (k, (_, dt, n)) in runs.iter().enumerate() {
+        let period = dt * *n as f64;
+        let _ = writeln!(
+            s,
+            "*STEP{},INC={}",
+            if nlgeom { ",NLGEOM" } else { "" },
+            n + 1
+        );
+        let _ = writeln!(s, "*STATIC,DIRECT\n{dt:.12e},{period:.12e}");
+        let tol = sv.force_tol;
+        let _ = writeln!(
+            s,
+            "*CONTROLS,PARAMETERS=FIELD\n{tol:.3e},{tol:.3e},,,{tol:.3e},,,{tol:.3e}"
+        );
+        let it = sv.max_iterations;
+        let _ = writeln!(
+            s,
+            "*CONTROLS,PARAMETERS=TIME INCREMENTATION\n{it},{it},{},{it},{it},{it},,1",
+            it + 1
+        );
+        if k == 0 {
+            s.push_str(&step_bc);
+        }
+        for set in &node_print {
+            let _ = writeln!(s, "*NODE PRINT,NSET={set}\nRF,U");
+        }
+        let _ = writeln!(s, "*END STEP");
+    }
+    let times = model.times.clone();
+    Ok(Deck {
+        text: s,
+        nodes: next_node - 1,
+        elements: next_elem - 1,
+        element_types,
+        nlgeom,
+        reference_nodes,
+        normal_stiffness,
+        tension,
+        stick_slope,
+        median_area,
+        times,
+    })
+}
+
+/// Reaction forces of a node set per output time, read from a CalculiX `.dat` file:
+/// `(time, [fx, fy, fz])` summed over the set's nodes, in file order.
+///
+/// # Errors
+/// [`CcxError::Parse`] if a force block is malformed or none is found for `set`.
+pub fn parse_dat_forces(
+    text: &str,
+    set: &str,
+    path: &Path,
+) -> Result<Vec<(f64, [f64; 3])>, CcxError> {
+    let perr = |what: String| CcxError::Parse {
+        path: path.display().to_string(),
+        what,
+    };
+    let header = format!("forces (fx,fy,fz) for set {} and time", set.to_uppercase());
+    let mut out = Vec::new();
+    let mut lines = text.lines().peekable();
+    while let Some(line) = lines.next() {
+        let l = line.trim();
+        let Some(rest) = l.strip_prefix(&header) else {
+            continue;
+        };
+        let t: f64 = rest
+            .trim()
+            .parse()
+            .map_err(|_| perr(format!("bad time in '{l}'")))?;
+        let mut f = [0.0; 3];
+        let mut rows = 0;
+        // blank line(s), then one row per node until a blank line
+        while let Some(next) = lines.peek() {
+            if next.trim().is_empty() && rows == 0 {
+                lines.next();
+                continue;
+            }
+            if next.trim().is_empty() {
+                break;
+            }
+            let cols: Vec<&str> = next.split_whitespace().collect();
+            if cols.len() < 4 || cols[0].parse::<usize>().is_err() {
+                break;
+            }
+            for c in 0..3 {
+                f[c] += cols[c + 1]
+                    .parse::<f64>()
+                    .map_err(|_| perr(format!("bad force in '{}'", next.trim())))?;
+            }
+            rows += 1;
+            lines.next();
+        }
+        if rows == 0 {
+            return Err(perr(format!("no rows after '{l}'")));
+        }
+        out.push((t, f));
+    }
+    if out.is_empty() {
+        return Err(perr(format!("no force output for set {set}")));
+    }
+    Ok(out)
+}
+
+/// The `ccx` program on `PATH`, if any.
+pub fn find_ccx() -> Option<PathBuf> {
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path)
+        .map(|d| d.join("ccx"))
+        .find(|p| p.is_file())
+}
+
+/// One CalculiX run: wall time and the force on the rigid target of a pair per increment.
+#[derive(Clone, Debug)]
+pub struct CcxRun {
+    /// Wall-clock seconds of the `ccx` process (start to exit).
+    pub seconds: f64,
+    /// `(time, force on the target)`: minus the reaction at the rigid body's reference node.
+    pub forces: Vec<(f64, [f64; 3])>,
+    /// Newton iterations CalculiX reports, summed over the increments.
+    pub iterations: usize,
+}
+
+/// Write `deck` as `dir/job.inp`, run `ccx` on it with `threads` threads, and read the force
+/// on the rigid target whose reference node set is `REF{pair}`.
+///
+/// # Errors
+/// [`CcxError::Io`] for files, [`CcxError::Run`] if ccx cannot start, fails, or stops before
+/// the last increment, [`CcxError::Parse`] for its output.
+pub fn run_ccx(
+    ccx: &Path,
+    deck: &Deck,
+    dir: &Path,
+    job: &str,
+    pair: usize,
+    threads: usize,
+) -> Result<CcxRun, CcxError> {
+    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    let inp = dir.join(format!("{job}.inp"));
+    std::fs::write(&inp, &deck.text).map_err(io_err(&inp))?;
+    let n = threads.max(1).to_string();
+    let start = Instant::now();
+    let out = std::process::Command::new(ccx)
+        .arg("-i")
+        .arg(job)
+        .current_dir(dir)
+        .env("OMP_NUM_THREADS", &n)
+        .env("CCX_NPROC_EQUATION_SOLVER", &n)
+        .env("CCX_NPROC_STIFFNESS", &n)
+        .env("CCX_NPROC_RESULTS", &n)
+        .output()
+        .map_err(|e| CcxError::Run {
+            job: job.into(),
+            what: format!("cannot start {}: {e}", ccx.display()),
+        })?;
+    let seconds = start.elapsed().as_secs_f64();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let tail = |s: &str| {
+        let lines: Vec<&str> = s.lines().collect();
+        lines[lines.len().saturating_sub(15)..].join("\n")
+    };
+    if !out.status.success() || stdout.contains("*ERROR") {
+        return Err(CcxError::Run {
+            job: job.into(),
+            what: format!(
+                "exit status {}; output ends:\n{}\n{}",
+                out.status,
+                tail(&stdout),
+                tail(&String::from_utf8_lossy(&out.stderr))
+            ),
+        });
+    }
+    let iterations = stdout
+        .lines()
+        .filter(|l| l.trim_start().starts_with("iteration "))
+        .count();
+    let dat = dir.join(format!("{job}.dat"));
+    let text = std::fs::read_to_string(&dat).map_err(io_err(&dat))?;
+    let forces: Vec<(f64, [f64; 3])> = parse_dat_forces(&text, &format!("REF{pair}"), &dat)?
+        .into_iter()
+        .map(|(t, f)| (t, [-f[0], -f[1], -f[2]]))
+        .collect();
+    let last = deck.times.last().copied().unwrap_or(0.0);
+    if forces
+        .last()
+        .is_none_or(|(t, _)| (t - last).abs() > 1e-6 * last.abs().max(1.0))
+    {
+        return Err(CcxError::Run {
+            job: job.into(),
+            what: format!("stopped before t = {last}; output ends:\n{}", tail(&stdout)),
+        });
+    }
+    Ok(CcxRun {
+        seconds,
+        forces,
+        iterations,
+    })
+}
+
+/// Settings of a comparison.
+#[derive(Clone, Debug)]
+pub struct CompareOptions {
+    /// The `ccx` program.
+    pub ccx: PathBuf,
+    /// Directory for CalculiX's files (decks, `.dat`, `.sta`...).
+    pub work: PathBuf,
+    /// Relative step of CalculiX's central difference: `mu (1 +- beta)`.
+    pub beta: f64,
+    /// Threads for CalculiX (fricsens uses rayon's pool).
+    pub threads: usize,
+    /// The translation of the model.
+    pub export: ExportOptions,
+}
+
+/// The comparison's data, per increment and in all.
+#[derive(Clone, Debug)]
+pub struct Comparison {
+    /// Scene name.
+    pub scene: String,
+    /// Contact pair compared (its rigid target's force).
+    pub pair: String,
+    /// Friction coefficient.
+    pub mu: f64,
+    /// Relative finite-difference step of CalculiX's reruns.
+    pub beta: f64,
+    /// The deck of the nominal run (for its counts and contact constants).
+    pub deck: Deck,
+    /// Unknowns of fricsens' system.
+    pub unknowns: usize,
+    /// Increment end times.
+    pub times: Vec<f64>,
+    /// Force on the target by fricsens, per increment.
+    pub force_fricsens: Vec<[f64; 3]>,
+    /// Force on the target by CalculiX, per increment.
+    pub force_ccx: Vec<[f64; 3]>,
+    /// d(force)/d(mu) by fricsens' DDM.
+    pub dforce_ddm: Vec<[f64; 3]>,
+    /// d(force)/d(mu) by CalculiX's central difference.
+    pub dforce_fd: Vec<[f64; 3]>,
+    /// fricsens primal wall seconds (solver set-up and run).
+    pub fricsens_primal_seconds: f64,
+    /// fricsens Newton iterations.
+    pub fricsens_iterations: usize,
+    /// DDM's own work for the one parameter (on top of its primal run).
+    pub ddm_seconds: f64,
+    /// The primal run inside the DDM run.
+    pub ddm_primal_seconds: f64,
+    /// CalculiX nominal wall seconds.
+    pub ccx_seconds: f64,
+    /// CalculiX Newton iterations (nominal run).
+    pub ccx_iterations: usize,
+    /// CalculiX reruns at mu (1 + beta) and mu (1 - beta), wall seconds.
+    pub ccx_rerun_seconds: [f64; 2],
+    /// Threads of each code.
+    pub threads: usize,
+    /// fricsens' force tolerance (also written as CalculiX's ratios).
+    pub force_tol: f64,
+    /// fricsens' hex8 formulation of each body.
+    pub formulations: Vec<String>,
+    /// The export options used.
+    pub export: ExportOptions,
+    /// `ccx -v`'s version.
+    pub ccx_version: String,
+    /// Mean and largest contact pressure of the pair's closed hitting nodes at the last
+    /// increment (fricsens), for the penalty overlap estimate.
+    pub pressure: (f64, f64),
+    /// Largest prescribed motion of the rigid target along y (the indentation).
+    pub normal_motion: f64,
+}
+
+/// Run the comparison on a model whose contact pair `pair` has a rigid target and Coulomb
+/// friction: fricsens primal (timed), DDM for d/d mu, CalculiX nominal and at mu (1 +- beta).
+///
+/// # Errors
+/// Export, run and parse errors of CalculiX, fricsens' analysis errors, and
+/// [`CcxError::Unsupported`] when the pair has no rigid target, no friction, or the model no
+/// target-force response.
+pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Comparison, CcxError> {
+    if !(opts.beta > 0.0 && opts.beta < 1.0) {
+        return Err(CcxError::Option(format!(
+            "beta must lie in (0, 1), got {}",
+            opts.beta
+        )));
+    }
+    let (pi, pair) = rigid_pair(model)?;
+    let mu = match &pair.friction {
+        Some(f @ Friction::Coulomb(_)) => f.params()[0],
+        _ => {
+            return Err(CcxError::Unsupported(format!(
+                "pair '{}' has no Coulomb friction",
+                pair.name
+            )))
+        }
+    };
+    // fricsens: primal, timed from the solver's set-up
+    let start = Instant::now();
+    let mut solver = Solver::new(model)?;
+    let res = solver.run(&RunOptions::default(), &mut NoObserver)?;
+    let fricsens_primal_seconds = start.elapsed().as_secs_f64();
+    let unknowns = solver.assembler.dofs.n_total;
+    let fricsens_iterations = res.records.iter().map(|r| r.iterations).sum();
+    // the target-force responses of the pair, by component
+    let comp: Vec<Option<usize>> = (0..3)
+        .map(|c| {
+            model.responses.iter().position(|r| {
+                matches!(r.kind, ResponseKind::TargetForce { pair: p, component } if p == pi && component == c)
+            })
+        })
+        .collect();
+    if comp.iter().all(Option::is_none) {
+        return Err(CcxError::Unsupported(format!(
+            "the model has no target-force response of pair '{}'",
+            pair.name
+        )));
+    }
+    let times = model.times.clone();
+    let mut force_fricsens = Vec::new();
+    for t in &times {
+        let k = res.increment_at(*t).ok_or_else(|| {
+            CcxError::Analysis(crate::solver::AnalysisError::Sensitivity(format!(
+                "no increment at t = {t}"
+            )))
+        })?;
+        let mut f = [f64::NAN; 3];
+        for (c, r) in comp.iter().enumerate() {
+            if let Some(r) = r {
+                f[c] = res.response_value(model, *r, k);
+            }
+        }
+        force_fricsens.push(f);
+    }
+    // contact pressures at the end, for the penalty overlap estimate
+    let last = res.states.len() - 1;
+    let closed: Vec<f64> = model
+        .responses
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| matches!(r.kind, ResponseKind::ContactPressure { pair: p, .. } if p == pi))
+        .map(|(k, _)| res.response_value(model, k, last))
+        .filter(|p| *p > 0.0)
+        .collect();
+    let pressure = (
+        closed.iter().sum::<f64>() / closed.len().max(1) as f64,
+        closed.iter().copied().fold(0.0, f64::max),
+    );
+    let normal_motion = match &pair.target {
+        Target::Rigid { motion, .. } => motion
+            .iter()
+            .filter(|m| m.component == 1)
+            .map(|m| {
+                m.amplitude
+                    .points
+                    .iter()
+                    .map(|(_, a)| (a * m.value).abs())
+                    .fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max),
+        Target::Faces { .. } => 0.0,
+    };
+    // DDM in mu
+    let param = Parameter::single(
+        model,
+        &format!("{}.mu", pair.name),
+        DesignParam::Friction { pair: pi, index: 0 },
+    )?;
+    let settings = Settings {
+        method: Method::Ddm,
+        ..Settings::default()
+    };
+    let (_, sens) = run_sensitivity(model, std::slice::from_ref(&param), &settings)?;
+    let mut dforce_ddm = Vec::new();
+    for t in &times {
+        let inc = sens
+            .increments
+            .iter()
+            .find(|i| (i.time - t).abs() <= 1e-12 * t.abs().max(1.0));
+        let mut d = [f64::NAN; 3];
+        if let Some(inc) = inc {
+            for (c, r) in comp.iter().enumerate() {
+                if let Some(r) = r {
+                    d[c] = inc.derivatives[*r][0];
+                }
+            }
+        }
+        dforce_ddm.push(d);
+    }
+    // CalculiX: nominal and the two reruns
+    let deck = export(model, &opts.export)?;
+    let nominal = run_ccx(&opts.ccx, &deck, &opts.work, "nominal", pi, opts.threads)?;
+    let mut reruns = Vec::new();
+    for (job, sign) in [("mu-plus", 1.0), ("mu-minus", -1.0)] {
+        let mut m = model.clone();
+        m.set_param(
+            DesignParam::Friction { pair: pi, index: 0 },
+            mu * (1.0 + sign * opts.beta),
+        );
+        let d = export(&m, &opts.export)?;
+        reruns.push(run_ccx(&opts.ccx, &d, &opts.work, job, pi, opts.threads)?);
+    }
+    let at = |run: &CcxRun, t: f64| -> Result<[f64; 3], CcxError> {
+        run.forces
+            .iter()
+            .rev()
+            .find(|(s, _)| (s - t).abs() <= 1e-6 * t.abs().max(1.0))
+            .map(|(_, f)| *f)
+            .ok_or_else(|| CcxError::Run {
+                job: "output".into(),
+                what: format!("no CalculiX output at t = {t}"),
+            })
+    };
+    let mut force_ccx = Vec::new();
+    let mut dforce_fd = Vec::new();
+    for t in &times {
+        force_ccx.push(at(&nominal, *t)?);
+        let (p, m) = (at(&reruns[0], *t)?, at(&reruns[1], *t)?);
+        let h = 2.0 * opts.beta * mu;
+        dforce_fd.push([(p[0] - m[0]) / h, (p[1] - m[1]) / h, (p[2] - m[2]) / h]);
+    }
+    Ok(Comparison {
+        scene: name.to_string(),
+        pair: pair.name.clone(),
+        mu,
+        beta: opts.beta,
+        deck,
+        unknowns,
+        times,
+        force_fricsens,
+        force_ccx,
+        dforce_ddm,
+        dforce_fd,
+        fricsens_primal_seconds,
+        fricsens_iterations,
+        ddm_seconds: sens.cost.wall_seconds,
+        ddm_primal_seconds: sens.primal_seconds,
+        ccx_seconds: nominal.seconds,
+        ccx_iterations: nominal.iterations,
+        ccx_rerun_seconds: [reruns[0].seconds, reruns[1].seconds],
+        threads: opts.threads,
+        force_tol: model.solver.force_tol,
+        formulations: model
+            .bodies
+            .iter()
+            .map(|b| format!("{:?}", b.formulation))
+            .collect(),
+        export: opts.export.clone(),
+        ccx_version: ccx_version(&opts.ccx).unwrap_or_else(|| "(version unknown)".into()),
+        pressure,
+        normal_motion,
+    })
+}
+
+/// The first contact pair with a rigid target.
+fn rigid_pair(model: &Model) -> Result<(usize, &ContactPair), CcxError> {
+    model
+        .contacts
+        .iter()
+        .enumerate()
+        .find(|(_, c)| matches!(c.target, Target::Rigid { .. }))
+        .ok_or_else(|| CcxError::Unsupported("no contact pair with a rigid target".into()))
+}
+
+/// Smoothness of a history: total variation `sum |d_{k+1} - d_k|` and the largest jump.
+pub fn variation(v: &[f64]) -> (f64, f64) {
+    v.windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| d.is_finite())
+        .fold((0.0, 0.0), |(tv, mx), d| (tv + d, f64::max(mx, d)))
+}
+
+/// Largest `|a - b|` over the history, relative to the largest `|b|` (the floor keeps
+/// near-zero values from exploding), and the index where it occurs.
+pub fn relative_difference(a: &[f64], b: &[f64]) -> (f64, usize) {
+    let scale = b.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    a.iter()
+        .zip(b)
+        .enumerate()
+        .map(|(k, (x, y))| ((x - y).abs() / scale.max(f64::MIN_POSITIVE), k))
+        .fold((0.0, 0), |m, v| if v.0 > m.0 { v } else { m })
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+impl Comparison {
+    /// Components that fricsens records (those with a target-force response).
+    fn components(&self) -> Vec<usize> {
+        (0..3)
+            .filter(|&c| self.force_fricsens.iter().all(|f| f[c].is_finite()))
+            .collect()
+    }
+
+    fn column(v: &[[f64; 3]], c: usize) -> Vec<f64> {
+        v.iter().map(|f| f[c]).collect()
+    }
+
+    /// The CSV: increment, time, then per component F fricsens, F ccx, dF/dmu DDM,
+    /// dF/dmu ccx FD.
+    pub fn csv(&self) -> String {
+        let comps = self.components();
+        let mut s = String::from("increment,time");
+        for c in &comps {
+            let a = AXES[*c];
+            let _ = write!(
+                s,
+                ",F{a}_fricsens,F{a}_ccx,dF{a}/dmu_fricsens_ddm,dF{a}/dmu_ccx_fd"
+            );
+        }
+        s.push('\n');
+        for (k, t) in self.times.iter().enumerate() {
+            let _ = write!(s, "{},{t:.10e}", k + 1);
+            for &c in &comps {
+                let _ = write!(
+                    s,
+                    ",{:.12e},{:.12e},{:.12e},{:.12e}",
+                    self.force_fricsens[k][c],
+                    self.force_ccx[k][c],
+                    self.dforce_ddm[k][c],
+                    self.dforce_fd[k][c]
+                );
+            }
+            s.push('\n');
+        }
+        s
+    }
+
+    /// The figure: force histories and derivative histories of both codes (all in force units).
+    pub fn figure(&self) -> crate::plot::Figure {
+        use crate::plot::{Figure, Style};
+        let mut fig = Figure::new(
+            format!(
+                "{}: force on the block and its derivative in mu, fricsens vs CalculiX",
+                self.scene
+            ),
+            "pseudo-time",
+            "force, d force / d mu (N)",
+        );
+        let pts = |v: Vec<f64>| -> Vec<(f64, f64)> { self.times.iter().copied().zip(v).collect() };
+        for c in self.components() {
+            let a = AXES[c];
+            fig = fig
+                .series(
+                    format!("F{a} fricsens"),
+                    pts(Self::column(&self.force_fricsens, c)),
+                    Style::Line,
+                )
+                .series(
+                    format!("F{a} CalculiX"),
+                    pts(Self::column(&self.force_ccx, c)),
+                    Style::Points,
+                )
+                .series(
+                    format!("dF{a}/dmu fricsens DDM"),
+                    pts(Self::column(&self.dforce_ddm, c)),
+                    Style::Dashed,
+                )
+                .series(
+                    format!("dF{a}/dmu CalculiX FD"),
+                    pts(Self::column(&self.dforce_fd, c)),
+                    Style::LinePoints,
+                );
+        }
+        fig
+    }
+
+    /// The Markdown report, starting with `## Against CalculiX`.
+    pub fn markdown(&self) -> String {
+        let mut s = String::from("## Against CalculiX\n\n");
+        let d = &self.deck;
+        let n_inc = self.times.len();
+        let ratio = self.ccx_seconds / self.fricsens_primal_seconds.max(1e-12);
+        let _ = writeln!(
+            s,
+            "The `{}` scene solved by CalculiX {} (`ccx`) with the same mesh, the same {n_inc} increments (`*STATIC, DIRECT`: no automatic incrementation) and fricsens' force tolerance {:.0e} as CalculiX's residual and correction ratios (`*CONTROLS, PARAMETERS=FIELD`), written by `fricsens ccx` (`src/ccx.rs`). Both codes on {} thread(s). Regenerate with `cargo run --release -- ccx {}`.\n",
+            self.scene,
+            self.ccx_version,
+            self.force_tol,
+            self.threads,
+            self.scene
+        );
+        let _ = writeln!(s, "### Cost\n");
+        let _ = writeln!(s, "| | fricsens | CalculiX |\n|---|---|---|");
+        let _ = writeln!(
+            s,
+            "| unknowns | {} (incl. incompatible modes and multipliers) | {} nodes, {} elements (incl. the rigid block) |",
+            self.unknowns, d.nodes, d.elements
+        );
+        let _ = writeln!(
+            s,
+            "| primal, wall clock | {:.2} s ({} Newton iterations) | {:.2} s ({} iterations) |",
+            self.fricsens_primal_seconds,
+            self.fricsens_iterations,
+            self.ccx_seconds,
+            self.ccx_iterations
+        );
+        let fd_cost = self.ccx_rerun_seconds[0] + self.ccx_rerun_seconds[1];
+        let _ = writeln!(
+            s,
+            "| d/d mu, one parameter | DDM: {:.2} s on top of its primal ({:.2} x the primal) | central FD: two reruns, {:.2} s ({:.2} x its primal) |",
+            self.ddm_seconds,
+            self.ddm_seconds / self.ddm_primal_seconds.max(1e-12),
+            fd_cost,
+            fd_cost / self.ccx_seconds.max(1e-12)
+        );
+        let _ = writeln!(
+            s,
+            "| primal + d/d mu | {:.2} s | {:.2} s |\n",
+            self.ddm_primal_seconds + self.ddm_seconds,
+            self.ccx_seconds + fd_cost
+        );
+        let _ = writeln!(
+            s,
+            "Time ratio CalculiX / fricsens, primal: **{ratio:.2}** ({}); primal and one sensitivity: **{:.2}**. Single runs on a shared machine: the two CalculiX reruns, the same work, took {:.2} s and {:.2} s, a spread of {:.0} % that bounds how far to trust the ratios.\n",
+            if ratio >= 1.0 {
+                "fricsens is at least as fast"
+            } else {
+                "CalculiX is faster"
+            },
+            (self.ccx_seconds + fd_cost) / (self.ddm_primal_seconds + self.ddm_seconds).max(1e-12),
+            self.ccx_rerun_seconds[0],
+            self.ccx_rerun_seconds[1],
+            100.0 * (self.ccx_rerun_seconds[0] - self.ccx_rerun_seconds[1]).abs()
+                / (0.5 * fd_cost).max(1e-12)
+        );
+        let _ = writeln!(s, "### Forces\n");
+        let _ = writeln!(
+            s,
+            "Force on the rigid block (fricsens: the target-force response; CalculiX: minus the reaction `RF` at the rigid body's reference node).\n"
+        );
+        let _ = writeln!(
+            s,
+            "| component | final fricsens (N) | final CalculiX (N) | largest difference / largest fricsens value | at increment |\n|---|---|---|---|---|"
+        );
+        let comps = self.components();
+        for &c in &comps {
+            let f = Self::column(&self.force_fricsens, c);
+            let g = Self::column(&self.force_ccx, c);
+            let (rel, k) = relative_difference(&g, &f);
+            let _ = writeln!(
+                s,
+                "| F{} | {:.6e} | {:.6e} | {:.2e} | {} (t = {:.2}) |",
+                AXES[c],
+                f.last().copied().unwrap_or(f64::NAN),
+                g.last().copied().unwrap_or(f64::NAN),
+                rel,
+                k + 1,
+                self.times[k]
+            );
+        }
+        let k_n = d.normal_stiffness.first().copied().unwrap_or(f64::NAN);
+        let lam = d.stick_slope.first().copied().unwrap_or(f64::NAN);
+        let a = d.median_area.first().copied().unwrap_or(f64::NAN);
+        let fy = comps
+            .iter()
+            .map(|&c| {
+                self.force_fricsens
+                    .iter()
+                    .map(|f| f[c].abs())
+                    .fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max);
+        let _ = writeln!(
+            s,
+            "\nWhy they differ. (1) Normal contact: fricsens enforces impenetrability with a Lagrange multiplier per hitting node; CalculiX's node-to-face contact is a penalty, `p = K d` with K = {k_n:.3e} N/mm^3 ({:.0} x fricsens' constraint scale over the median tributary area {a:.3} mm^2), so the block sinks into the slab by p / K in addition to the prescribed indentation: a softer response by about (p / K) / indentation. (2) Friction: both are Coulomb with an elastic stick range; fricsens' tangential stiffness per node over the median tributary area gives CalculiX's stick slope {lam:.3e} N/mm^3, equal on the fine region, larger where the nodes' areas are larger. (3) Elements: {} in CalculiX for fricsens' {}; the same incompatible-mode idea, not the same implementation (Taylor's modes vs Wilson-Taylor / Simo-Armero). (4) Geometry: fricsens' rigid block is analytic (a rounded box); CalculiX's is meshed with {} facets per rounded edge and {} along the flat face. (5) Tolerance: the same number, on different norms (fricsens: Euclidean norm of the free residual over the reference force; CalculiX: the largest residual component over the mean element nodal force). The largest force is {fy:.4e} N.\n",
+            self.export.normal_factor,
+            d.element_types.join(", "),
+            self.formulations.join(", "),
+            self.export.arc_segments,
+            self.export.flat_segments,
+        );
+        let (p_mean, p_max) = self.pressure;
+        if p_mean > 0.0 && self.normal_motion > 0.0 {
+            let _ = writeln!(
+                s,
+                "Penalty overlap, estimated from fricsens' contact pressures at the end (mean {p_mean:.1} MPa, largest {p_max:.1} MPa over the closed nodes): p / K = {:.2e} mm on average, {:.2e} mm at most, i.e. {:.2} % and {:.2} % of the {} mm indentation.\n",
+                p_mean / k_n,
+                p_max / k_n,
+                100.0 * p_mean / k_n / self.normal_motion,
+                100.0 * p_max / k_n / self.normal_motion,
+                self.normal_motion
+            );
+        }
+        let _ = writeln!(s, "### Sensitivity to mu\n");
+        let _ = writeln!(
+            s,
+            "fricsens: DDM (exact derivative of its discrete solution). CalculiX: central difference of two reruns at mu (1 +- {:.0e}).\n",
+            self.beta
+        );
+        let _ = writeln!(
+            s,
+            "| component | final DDM (N) | final CalculiX FD (N) | largest difference / largest DDM value | at increment | total variation DDM | total variation FD | largest jump DDM | largest jump FD | variation beyond the largest jump, DDM | the same, FD |\n|---|---|---|---|---|---|---|---|---|---|---|"
+        );
+        for &c in &comps {
+            let dd = Self::column(&self.dforce_ddm, c);
+            let fd = Self::column(&self.dforce_fd, c);
+            let (rel, k) = relative_difference(&fd, &dd);
+            let (tv_d, j_d) = variation(&dd);
+            let (tv_f, j_f) = variation(&fd);
+            let _ = writeln!(
+                s,
+                "| dF{}/dmu | {:.6e} | {:.6e} | {:.2e} | {} (t = {:.2}) | {:.4e} | {:.4e} | {:.4e} | {:.4e} | {:.3e} | {:.3e} |",
+                AXES[c],
+                dd.last().copied().unwrap_or(f64::NAN),
+                fd.last().copied().unwrap_or(f64::NAN),
+                rel,
+                k + 1,
+                self.times[k],
+                tv_d,
+                tv_f,
+                j_d,
+                j_f,
+                tv_d - j_d,
+                tv_f - j_f
+            );
+        }
+        let quantum: Vec<String> = comps
+            .iter()
+            .map(|&c| {
+                let big = self
+                    .force_ccx
+                    .iter()
+                    .map(|f| f[c].abs())
+                    .fold(0.0, f64::max);
+                let ulp = if big > 0.0 {
+                    10f64.powf(big.log10().floor() - 6.0)
+                } else {
+                    0.0
+                };
+                format!(
+                    "{:.2e} N on dF{}/dmu",
+                    ulp / (2.0 * self.beta * self.mu),
+                    AXES[c]
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "\nCalculiX prints forces to 7 significant digits in its `.dat` file, so its difference quotient moves in steps of one unit in the 7th digit over 2 beta mu: {}. A smaller beta makes that step larger; fricsens' DDM has no step and no beta.",
+            quantum.join(", ")
+        );
+        let _ = writeln!(
+            s,
+            "\nSmoothness: the total variation sums the changes between increments (the histories start from zero, so it is at least the largest value); a difference quotient carries the solver's tolerance and the branch changes of the perturbed runs divided by 2 beta mu, which shows as extra variation. The variation beyond the largest jump leaves out the one genuine jump (stick to slip when the block starts sliding) and measures the wiggles. The derivative histories are in `ccx.csv`, drawn in `ccx.svg`.\n"
+        );
+        let _ = writeln!(
+            s,
+            "![force and d force / d mu histories](ccx.svg)\n\nDeck: {} nodes, {} elements, element types {}, NLGEOM {}, normal penalty K = {k_n:.3e}, tension at large clearance {:.3e}, stick slope {lam:.3e}.",
+            d.nodes,
+            d.elements,
+            d.element_types.join(", "),
+            if d.nlgeom { "on" } else { "off (small kinematics, as fricsens)" },
+            d.tension.first().copied().unwrap_or(f64::NAN),
+        );
+        s
+    }
+
+    /// Write `ccx.csv`, `ccx.svg` and `ccx.md` into `dir`.
+    ///
+    /// # Errors
+    /// [`CcxError::Io`] and [`CcxError::Plot`].
+    pub fn write(&self, dir: &Path) -> Result<(), CcxError> {
+        std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+        let p = dir.join("ccx.csv");
+        std::fs::write(&p, self.csv()).map_err(io_err(&p))?;
+        crate::plot::write_svg(&self.figure(), &dir.join("ccx.svg"))?;
+        let p = dir.join("ccx.md");
+        std::fs::write(&p, self.markdown()).map_err(io_err(&p))?;
+        Ok(())
+    }
+}
+
+/// The version line of `ccx -v`, e.g. "2.20".
+pub fn ccx_version(ccx: &Path) -> Option<String> {
+    let out = std::process::Command::new(ccx).arg("-v").output().ok()?;
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    text.lines().find_map(|l| {
+        l.trim()
+            .strip_prefix("This is Version")
+            .map(|v| v.trim().to_string())
+    })
+}
+
+/// Keyword blocks of a deck, counted by name (for tests and sanity checks).
+pub fn keyword_counts(deck: &str) -> BTreeMap<String, usize> {
+    let mut m = BTreeMap::new();
+    for l in deck.lines() {
+        if l.starts_with('*') && !l.starts_with("**") {
+            let kw = l[1..].split(',').next().unwrap_or("").trim().to_uppercase();
+            *m.entry(kw).or_insert(0) += 1;
+        }
+    }
+    m
+}
