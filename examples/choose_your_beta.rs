@@ -198,8 +198,8 @@ pub fn study(svg: &Path) -> Result<Summary, Box<dyn std::error::Error>> {
          difference's V: error {:.1e} here. In this scene mu\nenters the residual so simply \
          that central SDM's truncation is below round-off even at beta = 1e-1, but a\n\
          parameter that enters nonlinearly (a shape parameter, a plastic modulus) has a \
-         truncation error of order\nbeta^2 there, and to the right of sqrt(eps) ~ 1e-8 \
-         round-off (eps / beta) takes over: 1e-5 keeps clear of both.\n\
+         truncation error of order\nbeta^2 there, and below sqrt(eps) ~ 1e-8 round-off \
+         (eps / beta) takes over: 1e-5 keeps clear of both.\n\
          Forward SDM reaches only about sqrt(eps) ~ 1e-8. FDM's noise is the Newton \
          tolerance of two reruns, not eps,\nso its V sits higher and its best beta is larger; \
          it is the check that needs nothing but the solver.",

@@ -15,8 +15,8 @@
 //! * **central FDM**, beta = 1e-5: four complete reruns (mu and E, each +- beta).
 //!
 //! DDM and SDM run in line with one primal analysis and solve with the tangent at the converged
-//! state (`TangentChoice::Exact`); the timings are each method's own work,
-//! and, for FDM, the sum of its reruns (they run in parallel, two at a time on two cores).
+//! state (`TangentChoice::Exact`); the timings are each method's own work and, for FDM, the sum
+//! of its reruns (they run in parallel, two at a time on two cores).
 //!
 //! **Why.** Finite sliding with friction is the case a sensitivity method must survive: the
 //! friction history is path dependent, the contact zone travels two element widths, and the
