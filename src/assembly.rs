@@ -22,7 +22,10 @@ const CHUNK: usize = 512;
 
 /// The fixed structure of the global system: unknown numbering and sparsity pattern.
 pub struct Assembler {
+    /// Where each unknown lives in the global vector `z`.
     pub dofs: DofMap,
+    /// The sparsity pattern of the tangent, fixed over the run (every candidate contact pair
+    /// included), shared with the linear solvers that factor it.
     pub pattern: std::sync::Arc<SparsePattern>,
     /// Global unknowns of each element (nodal, then internal), flattened with `elem_ndof`.
     elem_dofs: Vec<[usize; MAX_DOF]>,
@@ -49,11 +52,15 @@ pub struct Frozen<'a> {
 /// What failed during assembly, and where.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AssemblyFailure {
+    /// An element could not be evaluated (e.g. an inverted element, `det F <= 0`).
     #[error("element {element}: {failure}")]
     Element {
+        /// Global element number.
         element: usize,
+        /// What went wrong in it.
         failure: ElementFailure,
     },
+    /// The contact kernel failed (e.g. a degenerate target segment).
     #[error("{0}")]
     Contact(ContactError),
 }

@@ -20,8 +20,11 @@ use std::collections::BTreeMap;
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Zone {
+    /// Fraction of the axis length this zone covers (the fractions of an axis add up to one).
     pub fraction: f64,
+    /// Number of elements in the zone.
     pub elements: usize,
+    /// Size of the zone's last element over its first (1 = uniform; default 1).
     #[serde(default = "one")]
     pub ratio: f64,
 }
@@ -90,10 +93,15 @@ impl Axis {
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BlockSpec {
+    /// Block name: the prefix of its node and face sets (`NAME.xmin`, `NAME.all`, ...).
     pub name: String,
+    /// Reference position of the block's corner with the smallest coordinates.
     pub origin: [f64; 3],
+    /// Division along x.
     pub x: Axis,
+    /// Division along y.
     pub y: Axis,
+    /// Division along z.
     pub z: Axis,
 }
 
@@ -107,7 +115,12 @@ impl BlockSpec {
 #[derive(Clone, Debug, PartialEq)]
 pub enum NodePlace {
     /// Inside block `block` at fractional position `t`.
-    Block { block: usize, t: [f64; 3] },
+    Block {
+        /// Index of the generating block in [`Mesh::blocks`].
+        block: usize,
+        /// Fractional position `t in [0, 1]^3`: `X = origin + L o t`.
+        t: [f64; 3],
+    },
     /// Fixed coordinates.
     Free([f64; 3]),
 }
@@ -115,19 +128,24 @@ pub enum NodePlace {
 /// Block geometry lifted to a scalar type: the design-dependent part of the coordinates.
 #[derive(Clone, Debug)]
 pub struct BlockGeometry<S: Scalar> {
+    /// The block's origin: its corner with the smallest coordinates.
     pub origin: Vector3<S>,
+    /// Block lengths `L` along x, y, z.
     pub lengths: Vector3<S>,
 }
 
 /// A mesh of hex8 elements grouped by generating block.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
+    /// Where each node's reference position comes from, by node number.
     pub places: Vec<NodePlace>,
+    /// The generating blocks, in the order they were added.
     pub blocks: Vec<BlockSpec>,
     /// Connectivity of every element.
     pub elements: Vec<[usize; 8]>,
     /// Element range of each block.
     pub block_elements: Vec<std::ops::Range<usize>>,
+    /// Named node sets (`BLOCK.all`, `BLOCK.xmin`, ..., and those added by the caller).
     pub node_sets: BTreeMap<String, Vec<usize>>,
     /// Faces as 4 node numbers ordered counter-clockwise seen from outside the block.
     pub face_sets: BTreeMap<String, Vec<[usize; 4]>>,
@@ -137,16 +155,30 @@ pub struct Mesh {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum MeshError {
+    /// An axis of a block is divided into no elements.
     #[error("block '{block}': axis {axis} has no elements")]
-    NoElements { block: String, axis: char },
+    NoElements {
+        /// Block name.
+        block: String,
+        /// `x`, `y` or `z`.
+        axis: char,
+    },
+    /// An axis of a block is ill-formed (non-positive length, fraction or ratio, ...).
     #[error("block '{block}': axis {axis}: {what}")]
     BadAxis {
+        /// Block name.
         block: String,
+        /// `x`, `y` or `z`.
         axis: char,
+        /// What is wrong with it.
         what: String,
     },
+    /// Two blocks share a name (their node and face sets would collide).
     #[error("block '{block}': a block of that name already exists")]
-    DuplicateBlock { block: String },
+    DuplicateBlock {
+        /// The repeated name.
+        block: String,
+    },
 }
 
 impl Mesh {

@@ -15,14 +15,23 @@ use vtkio::model::{
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum OutputError {
+    /// Creating or writing a file failed.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// The I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// vtkio could not write a VTK file.
     #[error("{path}: VTK: {message}")]
-    Vtk { path: PathBuf, message: String },
+    Vtk {
+        /// The file.
+        path: PathBuf,
+        /// vtkio's message.
+        message: String,
+    },
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> OutputError + '_ {

@@ -11,6 +11,8 @@ use crate::scalar::Scalar;
 
 /// The converged state a response is evaluated at.
 pub struct ResponseInput<'a, S: Scalar> {
+    /// Unknowns `z`: nodal displacements (3 per node), element-internal unknowns, contact
+    /// multipliers.
     pub z: &'a [S],
     /// Residual (reactions at prescribed unknowns).
     pub residual: &'a [S],
@@ -27,22 +29,49 @@ pub struct ResponseInput<'a, S: Scalar> {
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum ResponseKind {
     /// Sum of the reactions (residual) of `nodes` in `component`.
-    Reaction { nodes: Vec<usize>, component: usize },
+    Reaction {
+        /// Mesh node numbers.
+        nodes: Vec<usize>,
+        /// 0, 1, 2 for x, y, z.
+        component: usize,
+    },
     /// Mean displacement of `nodes` in `component`.
-    Displacement { nodes: Vec<usize>, component: usize },
+    Displacement {
+        /// Mesh node numbers.
+        nodes: Vec<usize>,
+        /// 0, 1, 2 for x, y, z.
+        component: usize,
+    },
     /// Force exerted on the target of contact pair `pair` in `component`.
-    TargetForce { pair: usize, component: usize },
+    TargetForce {
+        /// Contact pair index in the model.
+        pair: usize,
+        /// 0, 1, 2 for x, y, z.
+        component: usize,
+    },
     /// Normal contact force over tributary area at hitting node `node` of pair `pair`.
-    ContactPressure { pair: usize, node: usize, area: f64 },
+    ContactPressure {
+        /// Contact pair index in the model.
+        pair: usize,
+        /// Hitting node, counted within the pair.
+        node: usize,
+        /// Tributary area of the node in the reference configuration.
+        area: f64,
+    },
     /// One history scalar (e.g. the equivalent plastic strain of a Gauss point), by its index
     /// in the global history vector.
-    History { index: usize },
+    History {
+        /// Index in the global history vector.
+        index: usize,
+    },
 }
 
 /// A named response.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Response {
+    /// Name, as in CSV headers and on the command line.
     pub name: String,
+    /// What it measures.
     pub kind: ResponseKind,
 }
 

@@ -94,8 +94,15 @@ impl Method {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum TangentChoice {
+    /// Newton's last factorization, of the iterate before convergence (the paper's choice; no
+    /// extra factorization). Like `Refined`, falls back to the exact tangent where Newton did
+    /// not factor or its last factorization belongs to other branches than the converged
+    /// state's.
     Last,
+    /// The last factorization plus `Settings::refine_steps` steps of iterative refinement
+    /// against the converged tangent.
     Refined,
+    /// The tangent at the converged state, factored afresh (one factorization per increment).
     Exact,
 }
 
@@ -103,7 +110,9 @@ pub enum TangentChoice {
 /// friction coefficient on two contact pairs).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Parameter {
+    /// Name as given to [`Parameter::by_name`] (e.g. `mu`, `upper.length.x`).
     pub name: String,
+    /// The model quantities that take the value `b` (all set together).
     pub targets: Vec<DesignParam>,
     /// Nominal value `b_0`.
     pub value: f64,
@@ -295,9 +304,11 @@ fn roundoff_dominated(delta: f64, size: f64, noise: f64) -> bool {
 /// Settings of a sensitivity run.
 #[derive(Clone, Debug)]
 pub struct Settings {
+    /// The method.
     pub method: Method,
     /// Relative perturbation (SDM, FDM).
     pub beta: f64,
+    /// Tangent of the sensitivity solve (SDM, DDM).
     pub tangent: TangentChoice,
     /// Refinement steps for `TangentChoice::Refined`.
     pub refine_steps: usize,
@@ -357,7 +368,9 @@ struct Step {
 /// Sensitivities at one converged increment.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct IncrementSensitivity {
+    /// Increment number of the nominal run (1-based, counting cut-back sub-increments).
     pub increment: usize,
+    /// Pseudo-time at the end of the increment.
     pub time: f64,
     /// `values[r]`: response `r`.
     pub values: Vec<f64>,
@@ -386,22 +399,33 @@ pub struct IncrementSensitivity {
 /// Work done by a sensitivity computation.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct SensitivityCost {
+    /// Wall time of the method's own work, seconds: the in-line engine's time after each
+    /// increment (SDM, DDM), or the sum of the reruns' times (FDM; they may run in parallel).
     pub wall_seconds: f64,
+    /// Residual evaluations (perturbed or dual) beyond the primal run's.
     pub residual_evaluations: usize,
+    /// Factorizations beyond Newton's (the converged tangent, forced branches).
     pub factorizations: usize,
+    /// Right-hand-side columns solved (refinement steps included).
     pub solve_columns: usize,
+    /// Complete primal reruns (FDM).
     pub primal_reruns: usize,
 }
 
 /// Everything a sensitivity run produces.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct SensitivityResults {
+    /// The method that produced these results.
     pub method: Option<Method>,
+    /// Relative perturbation (0 or unused for DDM).
     pub beta: f64,
+    /// Parameter names, in the order of the derivative columns.
     pub parameters: Vec<String>,
+    /// Response names, in the order of the rows.
     pub responses: Vec<String>,
     /// Per converged increment of the nominal run.
     pub increments: Vec<IncrementSensitivity>,
+    /// The method's work.
     pub cost: SensitivityCost,
     /// Cost of the nominal primal run (with the inline sensitivity work excluded).
     pub primal_seconds: f64,
@@ -421,10 +445,13 @@ pub struct Engine<'a> {
     /// Tangent to solve with instead of the Newton one (one-sided derivatives: the tangent of
     /// the forced branches).
     forced_tangent: Option<crate::linalg::SparseMatrix>,
+    /// What the engine has computed so far.
     pub results: SensitivityResults,
 }
 
 impl<'a> Engine<'a> {
+    /// An engine for `params` with `settings`, before the first increment (`dh/db = 0`; the
+    /// initial history's derivative is set at the first converged increment).
     pub fn new(model: &Model, params: &'a [Parameter], settings: Settings) -> Self {
         let nh = model.dof_map().n_history;
         Engine {

@@ -51,10 +51,15 @@ pub struct IncrementRecord {
 
 /// A converged increment: what the sensitivity engine and the output writers see.
 pub struct Converged<'a> {
+    /// The model being solved.
     pub model: &'a Model,
+    /// Its unknown numbering and sparsity pattern.
     pub assembler: &'a Assembler,
+    /// The nominal design lifted to `f64` (reference coordinates, parameters).
     pub lifted: &'a Lifted<f64>,
+    /// Increment number (counting converged sub-increments after cutbacks).
     pub index: usize,
+    /// Pseudo-time at the end of the increment.
     pub time: f64,
     /// Time at the start of the increment.
     pub time_prev: f64,
@@ -80,11 +85,14 @@ pub struct Converged<'a> {
     /// iterate, off by Newton's last correction: 3.5e-6 relative on the leaf spring's second
     /// increment, which is why the validation harness uses `TangentChoice::Exact`.
     pub factor_matches: bool,
+    /// Newton's record of the increment.
     pub record: &'a IncrementRecord,
 }
 
 /// Called after every converged increment.
 pub trait Observer {
+    /// Look at the converged increment `c` (the solver goes on to the next one). An error
+    /// stops the analysis.
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError>;
 }
 
@@ -126,12 +134,19 @@ pub struct Results {
 /// Work done by a primal run.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct PrimalCost {
+    /// Wall time of the whole run (observers included), seconds.
     pub wall_seconds: f64,
+    /// Residual and tangent assemblies.
     pub assemblies: usize,
+    /// Numeric LU factorizations.
     pub factorizations: usize,
+    /// Linear solves.
     pub solves: usize,
+    /// Wall time spent assembling, seconds.
     pub assembly_seconds: f64,
+    /// Wall time spent factoring, seconds.
     pub factor_seconds: f64,
+    /// Wall time spent in triangular solves, seconds.
     pub solve_seconds: f64,
 }
 
@@ -139,23 +154,35 @@ pub struct PrimalCost {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum AnalysisError {
+    /// Newton did not converge within the allowed cutbacks (or the attempt budget).
     #[error("increment {increment} (t = {time:.6}): Newton failed after {cutbacks} cutbacks, last step {step:.3e}; residual history of the last attempt: {residuals:?}; reason: {reason}")]
     Diverged {
+        /// The increment that failed (counting converged sub-increments).
         increment: usize,
+        /// Pseudo-time the failed attempt aimed at.
         time: f64,
+        /// Pseudo-time step of the last attempt.
         step: f64,
+        /// Failed attempts (halvings of the step) before giving up.
         cutbacks: usize,
+        /// `|R_free|` at each iteration of the last attempt.
         residuals: Vec<f64>,
+        /// Why the last attempt failed.
         reason: String,
         /// Everything computed up to the last converged increment.
         partial: Box<Results>,
     },
+    /// Assembly failed where no cutback applies: a degenerate reference mesh, or an evaluation
+    /// outside Newton's loop (e.g. a perturbed design in the sensitivity engine).
     #[error("mesh: {0}")]
     Mesh(#[from] AssemblyFailure),
+    /// The sparse linear algebra failed (e.g. a singular tangent).
     #[error("linear algebra: {0}")]
     Linalg(#[from] LinalgError),
+    /// The model is inconsistent (e.g. a prescribed unknown that does not exist).
     #[error("model: {0}")]
     Model(String),
+    /// A sensitivity computation failed (e.g. an unknown parameter name).
     #[error("sensitivity: {0}")]
     Sensitivity(String),
 }
@@ -231,8 +258,11 @@ enum AttemptFailure {
 
 /// The primal solver of one model.
 pub struct Solver<'m> {
+    /// The model it solves.
     pub model: &'m Model,
+    /// Unknown numbering and the fixed sparsity pattern.
     pub assembler: Assembler,
+    /// The nominal design lifted to `f64`.
     pub lifted: Lifted<f64>,
     linear: LinearSolver,
     matrix: SparseMatrix,

@@ -40,6 +40,7 @@ pub struct ContactLayout {
     pub history: Vec<usize>,
     /// First flat hitting-node index of each pair (for per-node result arrays).
     pub flat: Vec<usize>,
+    /// Hitting nodes over all pairs (the length of the per-node result arrays).
     pub n_hitting: usize,
 }
 
@@ -108,6 +109,8 @@ pub struct ContactEval<S: Scalar> {
 }
 
 impl<S: Scalar> ContactEval<S> {
+    /// Empty results for `n_hitting` hitting nodes over `n_pairs` pairs: every node open,
+    /// no force, distances and gaps infinite.
     pub fn new(n_hitting: usize, n_pairs: usize) -> Self {
         ContactEval {
             choice: vec![ContactChoice::default(); n_hitting],
@@ -125,8 +128,11 @@ impl<S: Scalar> ContactEval<S> {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("contact pair '{pair}', hitting node {node}: {failure}")]
 pub struct ContactError {
+    /// Name of the contact pair.
     pub pair: String,
+    /// The hitting node (global mesh node number).
     pub node: usize,
+    /// What went wrong.
     pub failure: ContactFailure,
 }
 

@@ -175,19 +175,33 @@ pub const MAX_GEN: usize = 11;
 /// Maximum number of element unknowns.
 pub const MAX_DOF: usize = 3 * MAX_GEN;
 
-/// Element failure that the solver recovers from by cutting the increment back.
+/// Why an element evaluation failed. The solver recovers from an inverted element or a
+/// non-finite stress by cutting the increment back; a bad reference geometry is fatal.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ElementFailure {
     /// The reference Jacobian is singular or negative: a bad mesh (not recoverable).
     #[error("reference Jacobian determinant {det:.3e} at Gauss point {gauss_point}: the element is degenerate or inverted in the mesh")]
-    BadReferenceGeometry { gauss_point: usize, det: f64 },
+    BadReferenceGeometry {
+        /// Gauss point (0-7).
+        gauss_point: usize,
+        /// Determinant of the reference Jacobian `dX/dxi` there.
+        det: f64,
+    },
     /// det F <= 0 at a Gauss point: the element turned inside out (recoverable by cutback).
     /// `gauss_point == usize::MAX`: the element-average `det F0` of the F-bar variant.
     #[error("det F = {det_f:.3e} at Gauss point {gauss_point}: element inverted")]
-    Inverted { gauss_point: usize, det_f: f64 },
+    Inverted {
+        /// Gauss point (0-7), or `usize::MAX` for the F-bar average.
+        gauss_point: usize,
+        /// `det F` there.
+        det_f: f64,
+    },
     /// A non-finite number appeared in the stress.
     #[error("non-finite stress at Gauss point {gauss_point}")]
-    NonFinite { gauss_point: usize },
+    NonFinite {
+        /// Gauss point (0-7).
+        gauss_point: usize,
+    },
 }
 
 /// Everything one element evaluation needs besides its unknowns.
@@ -196,8 +210,11 @@ pub struct Hex8Input<'a, S: Scalar, M: MaterialLaw> {
     pub x_ref: &'a [Vector3<S>; 8],
     /// Unknowns: 8 nodal displacements, then the incompatible-mode amplitudes if any.
     pub dofs: &'a [Vector3<S>],
+    /// Strain measure: Green-Lagrange (large) or linear (small).
     pub kinematics: Kinematics,
+    /// Element variant: plain, incompatible modes or F-bar.
     pub formulation: Hex8Formulation,
+    /// The material law (its parameters come in `params`).
     pub material: &'a M,
     /// Material parameters lifted to `S`.
     pub params: &'a [S],

@@ -23,9 +23,13 @@ pub struct LeafSpringSpec {
     /// Clearance between the leaves in the unloaded state (keeps the clamped root nodes, which
     /// can never move, out of the active contact set).
     pub clearance: f64,
+    /// Young's modulus E of both leaves.
     pub young: f64,
+    /// Poisson's ratio nu.
     pub nu: f64,
+    /// Initial yield stress sigma_y (von Mises).
     pub sigma_y: f64,
+    /// Linear isotropic hardening modulus H.
     pub hardening: f64,
     /// One friction coefficient for the leaf-leaf and block-leaf interfaces.
     pub mu: f64,
@@ -272,17 +276,24 @@ fn unload_increments(s: &LeafSpringSpec) -> usize {
 /// Dimensions and load of the stacked-leaves oracle (shared/oracles.md section 8).
 #[derive(Clone, Debug)]
 pub struct StackedLeavesSpec {
+    /// Length L of each leaf.
     pub length: f64,
+    /// Thickness h of each leaf (also the distance d between their centroids).
     pub thickness: f64,
+    /// Width b of the leaves.
     pub width: f64,
     /// Clearance between the leaves (the oracle's leaves touch along their length with zero
     /// pressure; a small clearance makes them touch at the tip only).
     pub clearance: f64,
+    /// Young's modulus E (nu = 0).
     pub young: f64,
+    /// Coulomb friction coefficient at the tip.
     pub mu: f64,
     /// Tip load on the upper leaf.
     pub load: f64,
+    /// Elements along each leaf (one through the thickness).
     pub elements_along: usize,
+    /// Increments per unit of pseudo-time (loading is t = 0..1, unloading t = 1..2).
     pub increments_per_unit: usize,
 }
 
