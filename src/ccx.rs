@@ -9,7 +9,7 @@
 //!   modes after Taylor, the same family as fricsens' nine Wilson-Taylor modes). F-bar has no
 //!   CalculiX counterpart and is refused. Small kinematics leaves `NLGEOM` off, large
 //!   kinematics sets it (CalculiX's `*ELASTIC` under `NLGEOM` is St Venant-Kirchhoff).
-//! * St Venant-Kirchhoff materials as `*ELASTIC`; J2 plasticity is refused.
+//! * St Venant-Kirchhoff materials as `*ELASTIC`; J2 plasticity and Neo-Hookean are refused.
 //! * prescribed displacements as `*BOUNDARY` on node sets, nodal loads as `*CLOAD`, each with
 //!   its amplitude written as `*AMPLITUDE, TIME=TOTAL TIME`;
 //! * the load history as one `*STATIC, DIRECT` step per run of equal increments, so CalculiX
@@ -243,8 +243,8 @@ fn box_profile(
 ///
 /// # Errors
 /// [`CcxError::Unsupported`] for what is not translated: F-bar elements, J2 plasticity,
-/// springs, friction laws other than Coulomb, rigid surfaces other than a rounded box with the
-/// hitting nodes below it; [`CcxError::Option`] for out-of-range options.
+/// Neo-Hookean, springs, friction laws other than Coulomb, rigid surfaces other than a rounded
+/// box with the hitting nodes below it; [`CcxError::Option`] for out-of-range options.
 pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
     if !(opts.normal_factor.is_finite() && opts.normal_factor > 0.0) {
         return Err(CcxError::Option(format!(
@@ -304,6 +304,12 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
             Material::J2(_) => {
                 return Err(CcxError::Unsupported(format!(
                     "body '{}': J2 plasticity is not exported",
+                    body.name
+                )))
+            }
+            Material::NeoHookean(_) => {
+                return Err(CcxError::Unsupported(format!(
+                    "body '{}': the Neo-Hookean material is not exported",
                     body.name
                 )))
             }
