@@ -1,3 +1,5 @@
+#![warn(missing_docs)]
+
 //! # fricsens
 //!
 //! Finite elements for large-deformation, elastoplastic, frictional contact problems, with design

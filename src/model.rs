@@ -65,11 +65,15 @@ impl Material {
 /// A deformable body: one generated block of hex8 elements with one material.
 #[derive(Clone, Debug)]
 pub struct Body {
+    /// Name of the body (from the scene).
     pub name: String,
     /// Index of the mesh block (elements `mesh.block_elements[block]`).
     pub block: usize,
+    /// Constitutive law.
     pub material: Material,
+    /// Small or large deformation.
     pub kinematics: Kinematics,
+    /// Hex8 element formulation (full integration, incompatible modes, F-bar).
     pub formulation: Hex8Formulation,
 }
 
@@ -114,10 +118,15 @@ impl Amplitude {
 /// A prescribed displacement on some nodes: `u_c(t) = value * amplitude(t)`.
 #[derive(Clone, Debug)]
 pub struct Prescribed {
+    /// Name (from the scene).
     pub name: String,
+    /// Constrained nodes.
     pub nodes: Vec<usize>,
+    /// Constrained displacement component (0 = x, 1 = y, 2 = z).
     pub component: usize,
+    /// Magnitude of the displacement (a length), scaled by `amplitude`.
     pub value: f64,
+    /// Time history of the displacement.
     pub amplitude: Amplitude,
 }
 
@@ -125,11 +134,17 @@ pub struct Prescribed {
 /// (summing to one: tributary areas of a face set, or equal shares of a node set).
 #[derive(Clone, Debug)]
 pub struct NodalLoad {
+    /// Name (from the scene).
     pub name: String,
+    /// Loaded nodes.
     pub nodes: Vec<usize>,
+    /// Share of the total force on each node (summing to one).
     pub weights: Vec<f64>,
+    /// Force component (0 = x, 1 = y, 2 = z).
     pub component: usize,
+    /// Total force (summed over `nodes`), scaled by `amplitude`.
     pub value: f64,
+    /// Time history of the force.
     pub amplitude: Amplitude,
 }
 
@@ -182,10 +197,15 @@ pub struct DofMap {
 /// A complete analysis model.
 #[derive(Clone, Debug, Default)]
 pub struct Model {
+    /// Nodes and hex8 elements, grouped by generating block.
     pub mesh: Mesh,
+    /// Deformable bodies (each one mesh block).
     pub bodies: Vec<Body>,
+    /// Linear springs.
     pub springs: Vec<Spring>,
+    /// Prescribed displacements.
     pub prescribed: Vec<Prescribed>,
+    /// Nodal loads.
     pub loads: Vec<NodalLoad>,
     /// End times of the load increments, increasing.
     pub times: Vec<f64>,
@@ -193,6 +213,7 @@ pub struct Model {
     pub contacts: Vec<crate::contact::ContactPair>,
     /// Responses recorded at every increment.
     pub responses: Vec<crate::response::Response>,
+    /// Newton-Raphson settings.
     pub solver: SolverSettings,
 }
 
@@ -201,21 +222,55 @@ pub struct Model {
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum DesignParam {
     /// Material parameter number `index` of body `body` (e.g. 0 = E, 1 = nu).
-    Material { body: usize, index: usize },
+    Material {
+        /// Index into [`Model::bodies`].
+        body: usize,
+        /// Index into the body's [`Material::params`].
+        index: usize,
+    },
     /// Length of mesh block `block` along `axis` (a shape parameter).
-    BlockLength { block: usize, axis: usize },
+    BlockLength {
+        /// Index of the mesh block.
+        block: usize,
+        /// Axis (0 = x, 1 = y, 2 = z).
+        axis: usize,
+    },
     /// Origin component of mesh block `block` (a shape parameter).
-    BlockOrigin { block: usize, axis: usize },
+    BlockOrigin {
+        /// Index of the mesh block.
+        block: usize,
+        /// Axis (0 = x, 1 = y, 2 = z).
+        axis: usize,
+    },
     /// Magnitude of prescribed displacement number `index`.
-    Prescribed { index: usize },
+    Prescribed {
+        /// Index into [`Model::prescribed`].
+        index: usize,
+    },
     /// Magnitude of nodal load number `index`.
-    Load { index: usize },
+    Load {
+        /// Index into [`Model::loads`].
+        index: usize,
+    },
     /// Friction-law parameter `index` of contact pair `pair` (0 = mu for Coulomb).
-    Friction { pair: usize, index: usize },
+    Friction {
+        /// Index into [`Model::contacts`].
+        pair: usize,
+        /// Index into the law's [`crate::contact::Friction::params`].
+        index: usize,
+    },
     /// Magnitude of motion component `index` of a rigid target of pair `pair`.
-    RigidMotion { pair: usize, index: usize },
+    RigidMotion {
+        /// Index into [`Model::contacts`].
+        pair: usize,
+        /// Index into the target's motion components.
+        index: usize,
+    },
     /// Tangential penalty stiffness of contact pair `pair`.
-    TangentialStiffness { pair: usize },
+    TangentialStiffness {
+        /// Index into [`Model::contacts`].
+        pair: usize,
+    },
 }
 
 /// Model data lifted to a scalar type, design parameters substituted.

@@ -71,21 +71,30 @@ impl Default for ValidateOptions {
 /// Why validation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum ValidateError {
+    /// A scene could not be built.
     #[error(transparent)]
     Scene(#[from] SceneError),
     #[error("scene '{scene}': {source}")]
+    /// The analysis of a scene failed.
     Analysis {
+        /// Name of the scene.
         scene: String,
+        /// The failure.
         #[source]
         source: AnalysisError,
     },
+    /// A figure could not be written.
     #[error(transparent)]
     Plot(#[from] PlotError),
+    /// The friction-law comparison failed.
     #[error(transparent)]
     Laws(#[from] crate::compare_laws::CompareLawsError),
     #[error("{path}: {source}")]
+    /// A report file could not be written.
     Io {
+        /// The file.
         path: String,
+        /// The I/O error.
         #[source]
         source: std::io::Error,
     },
@@ -128,9 +137,13 @@ pub fn default_scenes(full: bool) -> Vec<Scene> {
 /// Error of one method at one beta for one parameter.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ErrorRow {
+    /// Scene name.
     pub scene: String,
+    /// Method name (`sdm`, `sdm-central`, `fdm`, `fdm-central`).
     pub method: String,
+    /// Relative perturbation size.
     pub beta: f64,
+    /// Design parameter name.
     pub param: String,
     /// Largest relative error against DDM over responses and unflagged increments.
     pub error: f64,
@@ -149,34 +162,52 @@ pub struct ErrorRow {
 /// A closed-form check.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct OracleRow {
+    /// Scene name.
     pub scene: String,
+    /// What is checked.
     pub quantity: String,
+    /// Closed-form value.
     pub expected: f64,
+    /// Computed value (DDM run).
     pub got: f64,
+    /// `|got - expected| / |expected|`.
     pub rel_error: f64,
+    /// Largest accepted relative error.
     pub tolerance: f64,
+    /// Whether `rel_error <= tolerance`.
     pub pass: bool,
 }
 
 /// Everything validated for one scene.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SceneValidation {
+    /// Scene name.
     pub scene: String,
+    /// The scene's description.
     pub description: String,
+    /// Design parameters studied.
     pub params: Vec<String>,
+    /// Number of unknowns of the global system.
     pub unknowns: usize,
+    /// Number of load increments.
     pub increments: usize,
+    /// Wall time of the primal analysis (s).
     pub primal_seconds: f64,
     /// Increments flagged non-differentiable (DDM).
     pub flagged: Vec<usize>,
+    /// Wall time of DDM's sensitivity work / primal wall time.
     pub ddm_cost_ratio: f64,
     /// DDM solved with the last Newton factorization instead of the converged tangent: its
     /// cost over the primal, and its error against the reference per parameter.
     pub ddm_last_cost_ratio: f64,
+    /// Error of DDM with the last factorization against the reference, per parameter.
     pub ddm_last_errors: Vec<f64>,
+    /// Error of every method, beta and parameter of the sweep.
     pub errors: Vec<ErrorRow>,
+    /// The reference DDM results.
     #[serde(skip)]
     pub ddm: SensitivityResults,
+    /// The results of the sweep (SDM and SDM central in line, then the FDM reruns).
     #[serde(skip)]
     pub sweeps: Vec<SensitivityResults>,
 }
@@ -184,10 +215,15 @@ pub struct SceneValidation {
 /// The whole validation.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Validation {
+    /// Per-scene results.
     pub scenes: Vec<SceneValidation>,
+    /// Closed-form checks.
     pub oracles: Vec<OracleRow>,
+    /// Perturbation sizes of the sweep.
     pub betas: Vec<f64>,
+    /// Error floor as a fraction of the largest |sensitivity| over the history.
     pub floor: f64,
+    /// Wall time of the whole validation (s).
     pub wall_seconds: f64,
 }
 

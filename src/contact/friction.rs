@@ -28,7 +28,9 @@ use num_dual::DualSVec64;
 /// Stick or slip.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum FrictionBranch {
+    /// The trial force lies within the slip surface: `t = t_trial`.
     Stick,
+    /// The trial force lies outside: `t` is returned onto the slip surface.
     Slip,
 }
 
@@ -37,6 +39,7 @@ pub enum FrictionBranch {
 pub struct FrictionUpdate<S: Scalar> {
     /// Returned tangential force on the hitting node.
     pub traction: Vector3<S>,
+    /// Branch taken (or imposed by `frozen`).
     pub branch: FrictionBranch,
     /// `|t_trial| / limit - 1` (real part); zero on the stick/slip transition.
     pub slip_ratio: f64,
@@ -48,7 +51,9 @@ pub trait FrictionLaw: Send + Sync + std::fmt::Debug {
     fn name(&self) -> &'static str;
     /// Names of the parameters, in the order of `params`.
     fn param_names(&self) -> &'static [&'static str];
+    /// Parameter values, in the order of [`FrictionLaw::param_names`].
     fn params(&self) -> &[f64];
+    /// Parameter values, mutable (to set a design parameter).
     fn params_mut(&mut self) -> &mut [f64];
     /// The return map. `p` are the parameters lifted to `S`, `p_n >= 0` the normal force,
     /// `margin` the round-off of `|t_trial|` (a trial within it of the slip surface sticks),
@@ -108,6 +113,7 @@ pub struct Coulomb {
 }
 
 impl Coulomb {
+    /// Coulomb friction with coefficient `mu`.
     pub fn new(mu: f64) -> Self {
         Coulomb { params: [mu] }
     }
@@ -149,6 +155,7 @@ pub struct RegularizedCoulomb {
 }
 
 impl RegularizedCoulomb {
+    /// Regularised Coulomb friction with coefficient `mu`.
     pub fn new(mu: f64) -> Self {
         RegularizedCoulomb { params: [mu] }
     }
@@ -219,6 +226,8 @@ pub struct PressureDependentCoulomb {
 }
 
 impl PressureDependentCoulomb {
+    /// `mu(p_n) = mu0 (p_n / p0)^(-n)`: coefficient `mu0` at the reference normal force `p0`,
+    /// exponent `n`.
     pub fn new(mu0: f64, p0: f64, n: f64) -> Self {
         PressureDependentCoulomb {
             params: [mu0, p0, n],

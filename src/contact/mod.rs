@@ -60,8 +60,11 @@ use nalgebra::Vector3;
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "law", rename_all = "kebab-case")]
 pub enum Friction {
+    /// Coulomb friction (`law = "coulomb"`).
     Coulomb(Coulomb),
+    /// Regularised Coulomb friction (`law = "regularized-coulomb"`).
     RegularizedCoulomb(RegularizedCoulomb),
+    /// Coulomb friction with a pressure-dependent coefficient (`law = "pressure-dependent"`).
     PressureDependent(PressureDependentCoulomb),
     /// A law defined outside the crate ([`friction::UserFriction`]); not written to scene
     /// files.
@@ -88,15 +91,19 @@ impl Friction {
     pub fn user<L: FrictionLaw + Clone + 'static>(law: L) -> Result<Self, UserFrictionError> {
         UserFriction::new(law).map(Friction::User)
     }
+    /// Parameter values of the law, in the order of [`Friction::param_names`].
     pub fn params(&self) -> &[f64] {
         with_friction!(self, f => f.params())
     }
+    /// Names of the law's parameters (`mu`; `mu0`, `p0`, `n`; ...).
     pub fn param_names(&self) -> &'static [&'static str] {
         with_friction!(self, f => f.param_names())
     }
+    /// Set parameter `i` (in the order of [`Friction::params`]) to `v`.
     pub fn set_param(&mut self, i: usize, v: f64) {
         with_friction!(self, f => f.params_mut()[i] = v)
     }
+    /// Short name of the law, as in scene files.
     pub fn name(&self) -> &'static str {
         with_friction!(self, f => f.name())
     }
@@ -111,11 +118,19 @@ pub enum NormalLaw {
     /// Penalty `p_n = stiffness * A * <-g>`: `stiffness` is a pressure per unit penetration,
     /// `A` the hitting node's tributary area (so a uniform penetration carries a uniform
     /// pressure and the patch test is passed).
-    Penalty { stiffness: f64 },
+    Penalty {
+        /// Penalty stiffness `eps_N` (pressure per unit penetration).
+        stiffness: f64,
+    },
     /// Augmented Lagrangian (Uzawa): `p_n = <lambda_bar - stiffness A g>` with the multiplier
     /// estimate `lambda_bar` carried per node; after each converged increment `lambda_bar <- p_n`
     /// and the increment is solved again until the penetration is below `tolerance` (a length).
-    Augmented { stiffness: f64, tolerance: f64 },
+    Augmented {
+        /// Penalty stiffness `eps_N` (pressure per unit penetration).
+        stiffness: f64,
+        /// Largest penetration accepted (a length).
+        tolerance: f64,
+    },
 }
 
 /// What a scene file may write for a [`NormalLaw`]: serde lets an internally tagged unit
@@ -148,8 +163,11 @@ impl From<NormalLawToml> for NormalLaw {
 /// One component of a rigid target's prescribed translation: `value * amplitude(t)`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RigidMotion {
+    /// Translated direction (0 = x, 1 = y, 2 = z).
     pub component: usize,
+    /// Magnitude of the translation (a length), scaled by `amplitude`.
     pub value: f64,
+    /// Time history of the translation.
     pub amplitude: Amplitude,
 }
 
@@ -157,10 +175,15 @@ pub struct RigidMotion {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Target {
     /// Quad faces of a deformable body (outward oriented).
-    Faces { faces: Vec<[usize; 4]> },
+    Faces {
+        /// Node indices of each face, counter-clockwise seen from outside.
+        faces: Vec<[usize; 4]>,
+    },
     /// An analytic rigid surface and its prescribed translation.
     Rigid {
+        /// The surface in its reference position.
         surface: RigidSurface,
+        /// Prescribed translation, one entry per moving component.
         motion: Vec<RigidMotion>,
     },
 }
@@ -168,13 +191,17 @@ pub enum Target {
 /// A contact pair.
 #[derive(Clone, Debug)]
 pub struct ContactPair {
+    /// Name of the pair (from the scene; used in messages and parameter names).
     pub name: String,
     /// Hitting nodes.
     pub hitting: Vec<usize>,
     /// Tributary reference area of each hitting node.
     pub area: Vec<f64>,
+    /// What the hitting nodes touch.
     pub target: Target,
+    /// Normal contact law.
     pub normal: NormalLaw,
+    /// Friction law (`None`: frictionless).
     pub friction: Option<Friction>,
     /// Tangential penalty stiffness `eps_T` (force per unit elastic slip).
     pub tangential_stiffness: f64,
@@ -209,10 +236,13 @@ impl ContactPair {
 /// Contact state of a hitting node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub enum ContactState {
+    /// Not in contact (`p_n = 0`).
     Open,
     /// Closed, frictionless.
     Closed,
+    /// Closed, sticking.
     Stick,
+    /// Closed, slipping.
     Slip,
 }
 
@@ -231,6 +261,7 @@ impl ContactState {
 /// The branch decisions of one hitting node: what SDM freezes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct ContactChoice {
+    /// Normal and friction branch.
     pub state: ContactState,
     /// Contact face (deformable target), index into the target's faces.
     pub face: usize,
@@ -250,12 +281,18 @@ impl Default for ContactChoice {
 
 /// Target geometry seen by the kernel.
 pub enum TargetGeom<'a, S: Scalar> {
+    /// The contact face of a deformable target.
     Quad {
+        /// Current positions of the face's nodes.
         nodes: [Vector3<S>; 4],
+        /// Starting point of the closest-point Newton iteration.
         xi_start: [f64; 2],
     },
+    /// A rigid target.
     Rigid {
+        /// The surface in its reference position.
         surface: &'a RigidSurface,
+        /// Its current translation.
         d: Vector3<S>,
     },
 }
@@ -267,13 +304,21 @@ pub enum AnchorGeom<S: Scalar> {
     /// Material point `xi` of a target face: reference coordinates and displacements of its
     /// nodes.
     Quad {
+        /// Reference coordinates of the face's nodes.
         reference: [Vector3<S>; 4],
+        /// Displacements of the face's nodes.
         displacement: [Vector3<S>; 4],
+        /// Convected coordinates of the anchor on the face.
         xi: [S; 2],
     },
     /// Material point of a rigid target at `offset` from the hitting node's reference position
     /// (in the body's frame), the body translated by `d`.
-    Rigid { offset: Vector3<S>, d: Vector3<S> },
+    Rigid {
+        /// Anchor minus the hitting node's reference position, in the body's frame.
+        offset: Vector3<S>,
+        /// Current translation of the rigid body.
+        d: Vector3<S>,
+    },
 }
 
 impl<S: Scalar> AnchorGeom<S> {
@@ -325,10 +370,15 @@ pub fn bilinear<S: Scalar>(xi: &[S; 2]) -> [S; 4] {
 
 /// Parameters of the kernel, lifted.
 pub struct KernelParams<'a, S: Scalar> {
+    /// Normal contact law of the pair.
     pub normal: NormalLaw,
+    /// Friction law of the pair (`None`: frictionless).
     pub friction: Option<&'a Friction>,
+    /// The friction law's parameters, lifted.
     pub friction_params: &'a [S],
+    /// Tangential penalty stiffness `eps_T` (force per unit elastic slip), lifted.
     pub eps_t: S,
+    /// Row scale `k` of the multiplier constraint (force per unit gap).
     pub k: f64,
     /// Tributary area of the hitting node (scales the penalty laws).
     pub area: f64,
@@ -342,13 +392,16 @@ pub struct KernelOut<S: Scalar> {
     pub weights: [S; 4],
     /// Residual of the multiplier row.
     pub r_lambda: S,
+    /// Normal contact force `p_n >= 0`.
     pub p_n: S,
+    /// Contact state reached (or imposed by `frozen`).
     pub state: ContactState,
     /// Where the stick anchor goes (spatial position), for the history update.
     pub new_anchor: Vector3<S>,
     /// `x - x_anchor` after the update, formed without cancellation: the old separation on
     /// stick, `-t / eps_T` on slip, the gap vector while open.
     pub new_separation: Vector3<S>,
+    /// Closest-point projection of the hitting node onto the target.
     pub projection: Projection<S>,
     /// Distance to the open/closed transition (gap over length, or force over force scale).
     pub normal_distance: f64,
@@ -359,6 +412,7 @@ pub struct KernelOut<S: Scalar> {
 /// Kernel failures (recoverable by cutback).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ContactFailure {
+    /// The closest-point projection failed (its message).
     #[error("projection: {0}")]
     Geometry(String),
 }

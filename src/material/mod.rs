@@ -41,7 +41,9 @@ pub type Tangent<S> = SMatrix<S, 6, 6>;
 /// Which side of a transition a Gauss point (or a friction point) is on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Branch {
+    /// Inside the transition: the elastic (trial) state is kept.
     Elastic,
+    /// Beyond it: the state is returned (plastic flow).
     Plastic,
 }
 

@@ -23,8 +23,11 @@ pub use leaf::{leaf_spring, stacked_leaves, LeafSpringSpec, StackedLeavesSpec};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Component {
+    /// x (index 0).
     X,
+    /// y (index 1).
     Y,
+    /// z (index 2).
     Z,
 }
 
@@ -45,28 +48,38 @@ impl Component {
 pub enum MaterialSpec {
     /// St Venant-Kirchhoff.
     Svk {
+        /// Young's modulus `E` (stress).
         #[serde(rename = "E")]
         young: f64,
+        /// Poisson's ratio `nu`.
         nu: f64,
     },
     /// J2 plasticity; linear hardening `sigma_y + H alpha`, plus the saturation term
     /// `(sigma_inf - sigma_y)(1 - exp(-delta alpha))` when `sigma_inf` and `delta` are given.
     J2 {
+        /// Young's modulus `E` (stress).
         #[serde(rename = "E")]
         young: f64,
+        /// Poisson's ratio `nu`.
         nu: f64,
+        /// Initial yield stress `sigma_y`.
         sigma_y: f64,
+        /// Linear hardening modulus `H` (stress per unit equivalent plastic strain).
         #[serde(rename = "H")]
         hardening: f64,
+        /// Saturation flow stress `sigma_inf` (with `delta`; `>= sigma_y`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         sigma_inf: Option<f64>,
+        /// Saturation rate `delta` (per unit equivalent plastic strain; with `sigma_inf`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         delta: Option<f64>,
     },
     /// Compressible Neo-Hookean hyperelasticity (`E`, `nu` its small-strain constants).
     NeoHookean {
+        /// Young's modulus `E` (stress).
         #[serde(rename = "E")]
         young: f64,
+        /// Poisson's ratio `nu`.
         nu: f64,
     },
 }
@@ -144,9 +157,13 @@ impl MaterialSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(from = "BodyToml", into = "BodyToml")]
 pub struct BodySpec {
+    /// The generated block of hex8 elements (its name is the body's name).
     pub block: BlockSpec,
+    /// Constitutive law.
     pub material: MaterialSpec,
+    /// Small or large deformation (scene default: large).
     pub kinematics: Kinematics,
+    /// Hex8 element formulation (scene default: incompatible modes).
     pub formulation: Hex8Formulation,
 }
 
@@ -213,6 +230,7 @@ fn incompatible() -> Hex8Formulation {
 pub struct FreeNodeSpec {
     /// Name; the node forms the node set of that name.
     pub name: String,
+    /// Reference position.
     pub x: [f64; 3],
 }
 
@@ -220,7 +238,9 @@ pub struct FreeNodeSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpringSpec {
+    /// Node set of the first node.
     pub a: String,
+    /// Node set of the second node; none ties `a` to the ground.
     #[serde(default)]
     pub b: Option<String>,
     /// Row-major 3x3 stiffness.
@@ -231,11 +251,16 @@ pub struct SpringSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PrescribedSpec {
+    /// Name (for design parameters and messages).
     pub name: String,
+    /// Node set.
     pub set: String,
+    /// Constrained components, each given `value * amplitude(t)`.
     pub components: Vec<Component>,
+    /// Magnitude of the displacement (a length; default 0, a fixed support).
     #[serde(default)]
     pub value: f64,
+    /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
     #[serde(default = "ramp")]
     pub amplitude: Vec<(f64, f64)>,
 }
@@ -244,10 +269,15 @@ pub struct PrescribedSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LoadSpec {
+    /// Name (for design parameters and messages).
     pub name: String,
+    /// Node set.
     pub set: String,
+    /// Force component.
     pub component: Component,
+    /// Total force over the set.
     pub value: f64,
+    /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
     #[serde(default = "ramp")]
     pub amplitude: Vec<(f64, f64)>,
 }
@@ -262,6 +292,7 @@ fn ramp() -> Vec<(f64, f64)> {
 pub struct StepSpec {
     /// Pseudo-time at the end of the step.
     pub end: f64,
+    /// Number of equal increments.
     pub increments: usize,
 }
 
@@ -271,17 +302,28 @@ pub struct StepSpec {
 pub enum RigidSpec {
     /// Plane through `point`, `normal` pointing out of the rigid body (towards the deformable
     /// one).
-    Plane { point: [f64; 3], normal: [f64; 3] },
+    Plane {
+        /// A point of the plane.
+        point: [f64; 3],
+        /// Normal, pointing out of the rigid body (any nonzero length; normalised on use).
+        normal: [f64; 3],
+    },
     /// Cylinder (contact on its outside).
     Cylinder {
+        /// A point of the axis.
         axis_point: [f64; 3],
+        /// Direction of the axis (any nonzero length).
         axis: [f64; 3],
+        /// Radius (a length).
         radius: f64,
     },
     /// Box with rounded edges and corners.
     RoundedBox {
+        /// Centre.
         center: [f64; 3],
+        /// Half extents of the whole (rounded) box along x, y, z.
         half_extents: [f64; 3],
+        /// Radius of the rounded edges and corners (`<= min(half_extents)`).
         radius: f64,
     },
 }
@@ -290,8 +332,11 @@ pub enum RigidSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MotionSpec {
+    /// Translated component.
     pub component: Component,
+    /// Magnitude of the translation (a length).
     pub value: f64,
+    /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
     #[serde(default = "ramp")]
     pub amplitude: Vec<(f64, f64)>,
 }
@@ -304,7 +349,9 @@ pub enum TargetSpec {
     Faces(String),
     /// An analytic rigid surface and its prescribed translation.
     Rigid {
+        /// The surface in its undisplaced position.
         surface: RigidSpec,
+        /// Prescribed translation, one entry per moving component (default: fixed).
         #[serde(default)]
         motion: Vec<MotionSpec>,
     },
@@ -315,20 +362,35 @@ pub enum TargetSpec {
 #[serde(tag = "law", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum FrictionSpec {
     /// Coulomb with penalty stick.
-    Coulomb { mu: f64 },
+    Coulomb {
+        /// Friction coefficient.
+        mu: f64,
+    },
     /// Smooth (regularised) Coulomb: `t = t_trial / sqrt(1 + (|t_trial| / mu p_n)^2)`.
-    RegularizedCoulomb { mu: f64 },
+    RegularizedCoulomb {
+        /// Friction coefficient.
+        mu: f64,
+    },
     /// Pressure-dependent coefficient `mu0 (p_n / p0)^(-n)`.
-    PressureDependent { mu0: f64, p0: f64, n: f64 },
+    PressureDependent {
+        /// Coefficient at the reference normal force.
+        mu0: f64,
+        /// Reference normal force (per hitting node).
+        p0: f64,
+        /// Exponent.
+        n: f64,
+    },
 }
 
 /// A contact pair.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactSpec {
+    /// Name (for design parameters, responses and messages).
     pub name: String,
     /// Hitting nodes: a face set (tributary areas from its faces) or a node set (unit areas).
     pub hitting: String,
+    /// What the hitting nodes touch.
     pub target: TargetSpec,
     /// Normal law; default Lagrange multipliers.
     #[serde(default = "lagrange")]
@@ -360,37 +422,54 @@ fn lagrange() -> NormalLaw {
 pub enum ResponseSpec {
     /// Sum of the reaction forces of a set in one component.
     Reaction {
+        /// Response name.
         name: String,
+        /// Node set.
         set: String,
+        /// Force component.
         component: Component,
     },
     /// Mean displacement of a set in one component.
     Displacement {
+        /// Response name.
         name: String,
+        /// Node set.
         set: String,
+        /// Displacement component.
         component: Component,
     },
     /// Force exerted on the target of a contact pair (the reaction of a rigid target).
     TargetForce {
+        /// Response name.
         name: String,
+        /// Contact pair name.
         pair: String,
+        /// Force component.
         component: Component,
     },
     /// Contact pressure (normal force / tributary area) at every hitting node of a pair: one
     /// response per node, named `NAME[i]`, ordered along `along`.
     PressureProfile {
+        /// Response name prefix.
         name: String,
+        /// Contact pair name.
         pair: String,
+        /// Coordinate the nodes are ordered by (reference configuration).
         along: Component,
     },
     /// A history variable of one Gauss point: `element` counts within the body, `point` is
     /// the Gauss point (0-7), `variable` names a history entry of the body's material
     /// (for J2: `Ep11` ... `Ep13`, `alpha` = equivalent plastic strain).
     History {
+        /// Response name.
         name: String,
+        /// Body name.
         body: String,
+        /// Element index within the body.
         element: usize,
+        /// Gauss point (0-7).
         point: usize,
+        /// History entry of the body's material.
         variable: String,
     },
 }
@@ -412,24 +491,35 @@ impl ResponseSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
+    /// Scene name.
     pub name: String,
+    /// What the scene is (one paragraph).
     #[serde(default)]
     pub description: String,
+    /// Deformable bodies.
     #[serde(default)]
     pub bodies: Vec<BodySpec>,
+    /// Nodes outside every body.
     #[serde(default)]
     pub free_nodes: Vec<FreeNodeSpec>,
+    /// Linear springs.
     #[serde(default)]
     pub springs: Vec<SpringSpec>,
+    /// Prescribed displacements.
     #[serde(default)]
     pub prescribed: Vec<PrescribedSpec>,
+    /// Loads.
     #[serde(default)]
     pub loads: Vec<LoadSpec>,
+    /// Contact pairs.
     #[serde(default)]
     pub contacts: Vec<ContactSpec>,
+    /// The load history: steps of equal increments.
     pub steps: Vec<StepSpec>,
+    /// Responses recorded at every increment.
     #[serde(default)]
     pub responses: Vec<ResponseSpec>,
+    /// Newton-Raphson settings.
     #[serde(default)]
     pub solver: SolverSettings,
     /// The design parameters the scene is studied with, and its default perturbation size.
@@ -467,21 +557,40 @@ impl StudySpec {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SceneError {
+    /// The TOML text does not parse as a scene.
     #[error("{file}: {message}")]
-    Parse { file: String, message: String },
+    Parse {
+        /// The file (or source name).
+        file: String,
+        /// The parser's message, with the field's path when known.
+        message: String,
+    },
+    /// A scene file could not be read.
     #[error("{file}: {source}")]
     Io {
+        /// The file.
         file: String,
+        /// The I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// A field has an invalid value.
     #[error("field `{field}`: {problem}")]
-    Invalid { field: String, problem: String },
+    Invalid {
+        /// Path of the field (`contacts[0].friction.mu`).
+        field: String,
+        /// What is wrong with it.
+        problem: String,
+    },
+    /// Neither a built-in scene nor a scene file.
     #[error("unknown built-in scene '{0}' (see `fricsens scenes`)")]
     UnknownScene(String),
+    /// An error in a scene file, found when it was built.
     #[error("{file}: {source}")]
     InFile {
+        /// The file.
         file: String,
+        /// The error.
         #[source]
         source: Box<SceneError>,
     },
@@ -1482,17 +1591,27 @@ fn builtin_scene(name: &str) -> Option<Scene> {
 /// Parameters of the cantilever scenes.
 #[derive(Clone, Debug)]
 pub struct CantileverSpec {
+    /// Length `L` along x.
     pub length: f64,
+    /// Height `h` along y (the bending direction).
     pub height: f64,
+    /// Width `b` along z.
     pub width: f64,
+    /// Young's modulus `E`.
     pub young: f64,
+    /// Poisson's ratio `nu`.
     pub nu: f64,
+    /// Elements along the length.
     pub nx: usize,
+    /// Elements through the height.
     pub ny: usize,
     /// Load parameter alpha = P L^2 / (E I) at the end of the history.
     pub alpha: f64,
+    /// Number of equal load increments.
     pub increments: usize,
+    /// Small or large deformation.
     pub kinematics: Kinematics,
+    /// Hex8 element formulation.
     pub formulation: Hex8Formulation,
 }
 
@@ -1977,16 +2096,23 @@ pub fn jenkins(increments_per_unit: usize) -> Scene {
 /// Parameters of the strip pull-out scene (shared/oracles.md section 7).
 #[derive(Clone, Debug)]
 pub struct StripSpec {
+    /// Length `L` along x.
     pub length: f64,
+    /// Thickness `t` along y.
     pub thickness: f64,
+    /// Width `b` along z.
     pub width: f64,
+    /// Young's modulus `E`.
     pub young: f64,
+    /// Coulomb friction coefficient `mu`.
     pub mu: f64,
     /// Normal load per unit length.
     pub n: f64,
     /// Largest pull force.
     pub force: f64,
+    /// Elements along the length.
     pub elements: usize,
+    /// Load increments per unit of pseudo-time (the history runs to t = 2).
     pub increments_per_unit: usize,
 }
 
@@ -2085,8 +2211,11 @@ pub fn strip_pullout(s: &StripSpec) -> Scene {
 /// Parameters of the Hertz line-contact scene (shared/oracles.md section 4).
 #[derive(Clone, Debug)]
 pub struct HertzSpec {
+    /// Radius `R` of the rigid cylinder.
     pub radius: f64,
+    /// Young's modulus `E` of the block.
     pub young: f64,
+    /// Poisson's ratio `nu` of the block.
     pub nu: f64,
     /// Target half-width; the load is `P = a^2 pi E* / (4 R)` per unit length.
     pub half_width: f64,
