@@ -45,6 +45,7 @@ pub mod output;
 pub mod plot;
 pub mod response;
 pub mod scalar;
+pub mod scaling;
 pub mod scene;
 pub mod sensitivity;
 pub mod solver;

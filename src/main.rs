@@ -108,6 +108,39 @@ enum Command {
         #[arg(long)]
         keep: Option<PathBuf>,
     },
+    /// Scaling study: the indentation and leaf-spring meshes refined from ~1e3 to >2e5 DOFs;
+    /// primal and sensitivity time and peak memory against DOFs, fitted exponents
+    /// (writes scaling.csv, scaling.svg, scaling.md).
+    Scaling {
+        /// Output directory.
+        #[arg(long, default_value = "validation/scaling")]
+        out: PathBuf,
+        /// Skip sizes with more free unknowns than this.
+        #[arg(long, default_value_t = 300_000)]
+        max_dofs: usize,
+        /// Two small sizes per scene only (checks the tool, measures nothing useful).
+        #[arg(long)]
+        quick: bool,
+        /// Skip sizes whose peak memory, extrapolated from the smaller ones, exceeds this (MiB).
+        #[arg(long, default_value_t = 12288.0)]
+        memory_budget_mib: f64,
+        /// Skip sizes whose wall time, extrapolated from the smaller ones, exceeds this (s).
+        #[arg(long, default_value_t = 300.0)]
+        time_budget_s: f64,
+        /// Only rewrite the CSV, SVG and markdown from DIR/scaling.json (no measuring).
+        #[arg(long)]
+        rewrite: bool,
+    },
+    /// One size of the scaling study, measured in this process; prints one JSON line.
+    #[command(hide = true)]
+    ScalingOne {
+        /// indentation, leaf-spring or leaf-spring-3d.
+        #[arg(long)]
+        scene: String,
+        /// Mesh refinement factor.
+        #[arg(long)]
+        refinement: f64,
+    },
     /// Primal analysis: history CSV, Newton records, VTK files.
     Run {
         /// A built-in scene name or a TOML scene file.
@@ -426,6 +459,35 @@ fn ccx(
     Ok(())
 }
 
+fn scaling(
+    out: PathBuf,
+    max_dofs: usize,
+    quick: bool,
+    memory_budget_mib: f64,
+    time_budget_seconds: f64,
+) -> Result<(), String> {
+    use fricsens::scaling::{run_study, StudyOptions};
+    let exe = std::env::current_exe().map_err(|e| format!("cannot locate fricsens itself: {e}"))?;
+    let study = run_study(&StudyOptions {
+        out: out.clone(),
+        max_dofs,
+        quick,
+        child_exe: Some(exe),
+        memory_budget_mib,
+        time_budget_seconds,
+        verbose: true,
+    })
+    .map_err(|e| e.to_string())?;
+    out!(
+        "{} sizes measured, {} skipped, in {:.0} s; written to {}",
+        study.rows.len(),
+        study.skipped.len(),
+        study.wall_seconds,
+        out.join("scaling.md").display()
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -452,6 +514,24 @@ fn main() -> ExitCode {
             deck,
             keep,
         } => ccx(&scene, out, beta, deck, keep),
+        Command::Scaling {
+            out,
+            max_dofs,
+            quick,
+            memory_budget_mib,
+            time_budget_s,
+            rewrite: false,
+        } => scaling(out, max_dofs, quick, memory_budget_mib, time_budget_s),
+        Command::Scaling {
+            out, rewrite: true, ..
+        } => fricsens::scaling::rewrite_outputs(&out)
+            .map(|_| out!("rewritten from {}", out.join("scaling.json").display()))
+            .map_err(|e| e.to_string()),
+        Command::ScalingOne { scene, refinement } => {
+            fricsens::scaling::measure_child(&scene, refinement)
+                .map(|line| out!("{line}"))
+                .map_err(|e| e.to_string())
+        }
         Command::Validate {
             scenes,
             out,

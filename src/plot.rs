@@ -339,6 +339,53 @@ type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
 /// the reference line); marks outside the x range are not drawn. Returns
 /// [`PlotError::NoData`] when no series has a plottable point.
 pub fn write_svg(fig: &Figure, path: &Path) -> Result<(), PlotError> {
+    write_svg_stack(std::slice::from_ref(fig), path)
+}
+
+/// Write several figures into one SVG file, stacked top to bottom (one panel of the
+/// usual size each), with the rules of [`write_svg`] applied to every panel. Returns
+/// [`PlotError::NoData`] for the first panel without a plottable point.
+pub fn write_svg_stack(figs: &[Figure], path: &Path) -> Result<(), PlotError> {
+    let draw_err = |message: String| PlotError::Drawing {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut axes = Vec::with_capacity(figs.len());
+    for fig in figs {
+        axes.push(fit_axes(fig)?);
+    }
+    if figs.is_empty() {
+        return Err(PlotError::NoData(String::new()));
+    }
+    if !register_font() {
+        return Err(draw_err(
+            "embedded DejaVu Sans font could not be registered".into(),
+        ));
+    }
+    let mut svg = String::new();
+    {
+        let size = (SIZE.0, SIZE.1 * figs.len() as u32);
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+        let panels = root.split_evenly((figs.len(), 1));
+        for ((fig, (x, y)), area) in figs.iter().zip(&axes).zip(&panels) {
+            let r = match (x.log, y.log) {
+                (false, false) => render(area, fig, x, y, lin(x), lin(y)),
+                (true, false) => render(area, fig, x, y, logr(x), lin(y)),
+                (false, true) => render(area, fig, x, y, lin(x), logr(y)),
+                (true, true) => render(area, fig, x, y, logr(x), logr(y)),
+            };
+            r.map_err(draw_err)?;
+        }
+        root.present().map_err(|e| draw_err(e.to_string()))?;
+    }
+    std::fs::write(path, svg).map_err(|source| PlotError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The axes of a figure's plottable data (and reference line).
+fn fit_axes(fig: &Figure) -> Result<(Axis, Axis), PlotError> {
     let all = fig.series.iter().flat_map(|s| s.points.iter());
     let good: Vec<(f64, f64)> = all
         .copied()
@@ -358,31 +405,7 @@ pub fn write_svg(fig: &Figure, path: &Path) -> Result<(), PlotError> {
     ) else {
         return Err(PlotError::NoData(fig.title.clone()));
     };
-    let draw_err = |message: String| PlotError::Drawing {
-        path: path.to_path_buf(),
-        message,
-    };
-    if !register_font() {
-        return Err(draw_err(
-            "embedded DejaVu Sans font could not be registered".into(),
-        ));
-    }
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-        let r = match (x.log, y.log) {
-            (false, false) => render(&root, fig, &x, &y, lin(&x), lin(&y)),
-            (true, false) => render(&root, fig, &x, &y, logr(&x), lin(&y)),
-            (false, true) => render(&root, fig, &x, &y, lin(&x), logr(&y)),
-            (true, true) => render(&root, fig, &x, &y, logr(&x), logr(&y)),
-        };
-        r.and_then(|()| root.present().map_err(|e| e.to_string()))
-            .map_err(draw_err)?;
-    }
-    std::fs::write(path, svg).map_err(|source| PlotError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+    Ok((x, y))
 }
 
 fn lin(a: &Axis) -> RangedCoordf64 {

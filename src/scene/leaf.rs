@@ -41,6 +41,13 @@ pub struct LeafSpringSpec {
     pub elements_along: usize,
     /// Elements through each leaf's thickness.
     pub elements_through: usize,
+    /// Elements across each leaf's width (1 in the paper's model; the scaling study refines it).
+    pub elements_across: usize,
+    /// Reach of the leaf-leaf contact search along the leaves (mm): a lower-leaf node's
+    /// candidate faces on the upper leaf lie within this distance along x (plus half an
+    /// element width across). Every candidate face's nodes are coupled with the node in the
+    /// sparsity pattern, so on refined meshes this should shrink with the element length.
+    pub search_along: f64,
     /// Increments of loading; unloading and reloading get the same increment size.
     pub load_increments: usize,
 }
@@ -65,6 +72,8 @@ impl Default for LeafSpringSpec {
             unload_to: 10.0,
             elements_along: 40,
             elements_through: 2,
+            elements_across: 1,
+            search_along: 10.0,
             load_increments: 15,
         }
     }
@@ -160,7 +169,7 @@ pub fn leaf_spring(s: &LeafSpringSpec) -> Scene {
                 [
                     Axis::uniform(s.upper_length, s.elements_along),
                     Axis::uniform(h, s.elements_through),
-                    Axis::uniform(s.width, 1),
+                    Axis::uniform(s.width, s.elements_across.max(1)),
                 ],
                 j2.clone(),
                 Kinematics::Large,
@@ -171,7 +180,7 @@ pub fn leaf_spring(s: &LeafSpringSpec) -> Scene {
                 [
                     Axis::uniform(s.lower_length, lower_elements),
                     Axis::uniform(h, s.elements_through),
-                    Axis::uniform(s.width, 1),
+                    Axis::uniform(s.width, s.elements_across.max(1)),
                 ],
                 j2,
                 Kinematics::Large,
@@ -198,7 +207,10 @@ pub fn leaf_spring(s: &LeafSpringSpec) -> Scene {
                 // faces within 10 mm along the leaf (the leaves slide about 1 mm on each
                 // other): the default, three face diagonals, is dominated by the width and
                 // couples every lower node with the whole upper leaf (a dense block in the LU)
-                search_radius: Some((0.25 * s.width * s.width + 100.0).sqrt()),
+                search_radius: Some({
+                    let half_face = 0.5 * s.width / s.elements_across.max(1) as f64;
+                    (half_face * half_face + s.search_along * s.search_along).sqrt()
+                }),
             },
             ContactSpec {
                 name: "block".into(),

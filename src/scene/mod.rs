@@ -2422,6 +2422,38 @@ pub fn contact_patch(friction: Option<f64>) -> Scene {
 /// with 1 mm corner radii; it is pressed down u_y = -0.01 mm (t = 0..1), then slid
 /// u_x = 3.33 mm (t = 1..2, two fine elements); Coulomb friction mu = 0.5.
 pub fn indentation(press_increments: usize, slide_increments: usize) -> Scene {
+    indentation_mesh(press_increments, slide_increments, 1.0)
+}
+
+/// Largest refinement factor [`indentation_refined`] accepts (about 4 x 10^6 unknowns).
+pub const MAX_INDENTATION_REFINEMENT: f64 = 16.0;
+
+/// [`indentation`] on a mesh refined (or coarsened) in the plane by `refinement`: every
+/// zone of the x and y axes gets `round(refinement * n)` elements (at least one) where the
+/// paper's mesh has `n`, with the same zone extents and grading, so the fine elements are
+/// `1.67 / refinement` mm wide. Geometry, material, contact, load path and the slab's
+/// one-element thickness (plane strain) are unchanged; `refinement = 1` is [`indentation`].
+/// Fails on a refinement that is not finite or lies outside `(0, MAX_INDENTATION_REFINEMENT]`.
+pub fn indentation_refined(
+    press_increments: usize,
+    slide_increments: usize,
+    refinement: f64,
+) -> Result<Scene, SceneError> {
+    if !(refinement.is_finite() && refinement > 0.0 && refinement <= MAX_INDENTATION_REFINEMENT) {
+        return Err(invalid(
+            "refinement",
+            format!("must lie in (0, {MAX_INDENTATION_REFINEMENT}], got {refinement}"),
+        ));
+    }
+    Ok(indentation_mesh(
+        press_increments,
+        slide_increments,
+        refinement,
+    ))
+}
+
+fn indentation_mesh(press_increments: usize, slide_increments: usize, refinement: f64) -> Scene {
+    let refine = |n: usize| ((n as f64 * refinement).round() as usize).max(1);
     let h: f64 = 1.67;
     let fine_width: f64 = 60.0; // -30 .. +30 mm around the block's start and its slide
     let fine = (fine_width / h).round() as usize;
@@ -2431,17 +2463,17 @@ pub fn indentation(press_increments: usize, slide_increments: usize) -> Scene {
         zones: vec![
             Zone {
                 fraction: side / 500.0,
-                elements: 12,
+                elements: refine(12),
                 ratio: 1.0 / 12.0,
             },
             Zone {
                 fraction: fine_width / 500.0,
-                elements: fine,
+                elements: refine(fine),
                 ratio: 1.0,
             },
             Zone {
                 fraction: side / 500.0,
-                elements: 12,
+                elements: refine(12),
                 ratio: 12.0,
             },
         ],
@@ -2452,12 +2484,12 @@ pub fn indentation(press_increments: usize, slide_increments: usize) -> Scene {
         zones: vec![
             Zone {
                 fraction: (250.0 - fine_depth) / 250.0,
-                elements: 14,
+                elements: refine(14),
                 ratio: 1.0 / 14.0,
             },
             Zone {
                 fraction: fine_depth / 250.0,
-                elements: 10,
+                elements: refine(10),
                 ratio: 1.0,
             },
         ],

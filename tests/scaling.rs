@@ -1,0 +1,165 @@
+//! The scaling study (issue 7): the reduced path of the command line end to end (two small
+//! sizes per scene, each in its own child process), the power-law fits against synthetic
+//! laws (oracle), and bad input. The study itself is `fricsens scaling` (tens of minutes).
+
+use fricsens::scaling::{fit_all, Measurement, ScalingScene, Study, StudyRecord, QUANTITIES};
+use std::path::PathBuf;
+use std::process::Command;
+
+fn fricsens() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_fricsens"))
+}
+
+#[test]
+fn quick_study_writes_csv_svg_and_markdown_with_finite_exponents() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("scaling-quick");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = fricsens()
+        .args(["scaling", "--quick", "--out"])
+        .arg(&dir)
+        .output()
+        .expect("fricsens runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    // CSV: a header and two sizes per scene, each with its own peak memory
+    let csv = std::fs::read_to_string(dir.join("scaling.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    assert_eq!(lines.len(), 1 + 2 * ScalingScene::ALL.len(), "{csv}");
+    let peak = header.iter().position(|h| *h == "peak_mib").unwrap();
+    let dofs = header.iter().position(|h| *h == "dofs").unwrap();
+    for l in &lines[1..] {
+        let f: Vec<&str> = l.split(',').collect();
+        assert_eq!(f.len(), header.len(), "{l}");
+        let mib: f64 = f[peak].parse().expect("peak memory measured in the child");
+        assert!(mib > 1.0 && mib < 4096.0, "{l}");
+        let n: usize = f[dofs].parse().unwrap();
+        assert!((1000..5000).contains(&n), "{l}");
+    }
+
+    // the JSON record gives back the study, every fit finite
+    let json = std::fs::read_to_string(dir.join("scaling.json")).unwrap();
+    let record: StudyRecord = serde_json::from_str(&json).unwrap();
+    let study = Study::from_record(record);
+    assert_eq!(study.fits.len(), ScalingScene::ALL.len() * QUANTITIES.len());
+    for f in &study.fits {
+        let law = f.law.unwrap_or_else(|| panic!("{f:?}"));
+        assert!(law.exponent.is_finite() && law.coefficient > 0.0, "{f:?}");
+    }
+
+    // markdown: the section heading, the table, the exponents, the verdict
+    let md = std::fs::read_to_string(dir.join("scaling.md")).unwrap();
+    assert!(md.starts_with("## Scaling\n"), "{md}");
+    for part in [
+        "| scene | DOFs |",
+        "### Fitted exponents",
+        "### Where the sparse direct solver stops being the right tool",
+        "**Verdict.**",
+        "scaling.svg",
+    ] {
+        assert!(md.contains(part), "missing {part}");
+    }
+    assert!(!md.contains("NaN") && !md.contains(" inf"), "{md}");
+
+    // SVG: three panels (primal, sensitivity, memory)
+    let svg = std::fs::read_to_string(dir.join("scaling.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("Peak resident memory"));
+
+    // --rewrite reproduces the markdown from the record alone
+    std::fs::remove_file(dir.join("scaling.md")).unwrap();
+    let out = fricsens()
+        .args(["scaling", "--rewrite", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert_eq!(std::fs::read_to_string(dir.join("scaling.md")).unwrap(), md);
+}
+
+/// A measurement whose every fitted quantity follows an exact power law of its DOFs.
+fn synthetic(scene: ScalingScene, dofs: usize) -> Measurement {
+    let n = dofs as f64;
+    Measurement {
+        scene,
+        refinement: 1.0,
+        elements: dofs / 13,
+        unknowns: dofs + dofs / 5,
+        dofs,
+        increments: 2,
+        newton_iterations: 4,
+        setup_seconds: 1e-6 * n,
+        primal_seconds: 3e-8 * n.powf(1.5),
+        assembly_seconds: 1e-7 * n,
+        factor_seconds: 2e-8 * n.powf(1.8),
+        solve_seconds: 1e-8 * n,
+        parameters: 2,
+        ddm_seconds: 5e-7 * n.powf(1.1),
+        ddm_factorizations: 0,
+        sdm_seconds: 4e-7 * n.powf(1.05),
+        sdm_factorizations: 0,
+        peak_mib: Some(0.02 * n.powf(4.0 / 3.0)),
+    }
+}
+
+#[test]
+fn fits_recover_synthetic_power_laws_over_the_largest_half() {
+    // the smallest sizes break the law: the fit must use the largest half only
+    let mut rows = Vec::new();
+    for (k, n) in [1_000usize, 3_000, 9_000, 27_000, 81_000, 243_000]
+        .into_iter()
+        .enumerate()
+    {
+        let mut m = synthetic(ScalingScene::LeafSpring3d, n);
+        if k < 3 {
+            m.primal_seconds *= 7.0 + k as f64;
+            m.peak_mib = m.peak_mib.map(|p| p + 500.0);
+        }
+        rows.push(m);
+    }
+    let fits = fit_all(&rows);
+    let get = |q: &str| {
+        fits.iter()
+            .find(|f| f.quantity == q)
+            .and_then(|f| f.law)
+            .unwrap()
+    };
+    let expect = [
+        ("primal-increment", 1.5),
+        ("primal-iteration", 1.5),
+        ("factorization", 1.8),
+        ("ddm", 1.1),
+        ("sdm", 1.05),
+        ("memory", 4.0 / 3.0),
+    ];
+    for (q, a) in expect {
+        let l = get(q);
+        assert!((l.exponent - a).abs() < 1e-9, "{q}: {l:?}");
+        assert_eq!(l.points, 3, "{q}");
+        assert_eq!(l.x_range, (27_000.0, 243_000.0), "{q}");
+    }
+    // the memory law's coefficient, and where it reaches a budget
+    let m = get("memory");
+    assert!((m.coefficient / 0.02 - 1.0).abs() < 1e-9);
+    let n = m.reaches(24.0 * 1024.0).unwrap();
+    assert!((0.02 * n.powf(4.0 / 3.0) / (24.0 * 1024.0) - 1.0).abs() < 1e-9);
+}
+
+#[test]
+fn bad_scene_and_refinement_fail_with_a_message() {
+    for args in [
+        ["--scene", "cantilever", "--refinement", "1"],
+        ["--scene", "indentation", "--refinement", "-1"],
+        ["--scene", "leaf-spring", "--refinement", "NaN"],
+        ["--scene", "leaf-spring-3d", "--refinement", "1e9"],
+    ] {
+        let out = fricsens().arg("scaling-one").args(args).output().unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.starts_with("error: "), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}
