@@ -3,15 +3,13 @@
 //! and DDM against central finite differences of complete reruns for each of the law's
 //! parameters along a load-unload path (which exercises the history sensitivities).
 
-use fricsens::assembly::{Assembler, Evaluation};
+mod common;
+
 use fricsens::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCoulomb};
 use fricsens::contact::Friction;
-use fricsens::linalg::SparseMatrix;
 use fricsens::model::Model;
 use fricsens::scene::{strip_pullout, StripSpec};
 use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
-use fricsens::solver::{NoObserver, RunOptions, Solver};
-use num_dual::Dual64;
 
 fn laws() -> Vec<(&'static str, Friction, Vec<&'static str>)> {
     vec![
@@ -61,54 +59,8 @@ fn each_law_has_a_tangent_equal_to_the_dual_derivative_of_its_residual() {
     for (name, law, _) in laws() {
         let mut m = model(law);
         m.times.retain(|t| *t <= 0.5 + 1e-12); // partial slip
-        let res = Solver::new(&m)
-            .unwrap()
-            .run(&RunOptions::default(), &mut NoObserver)
-            .unwrap();
-        let k_inc = res.states.len() - 1;
-        let (z, hist) = (&res.states[k_inc], &res.histories[k_inc - 1]);
-        let asm = Assembler::new(&m, &[]).unwrap();
-        let ne = m.mesh.elements.len();
-        let mut k = SparseMatrix::new(asm.pattern.clone());
-        let mut ev = Evaluation::<f64>::new(&asm, ne);
-        asm.evaluate(
-            &m,
-            &m.lifted::<f64>(&[]),
-            z,
-            hist,
-            0.5,
-            None,
-            Some(&mut k),
-            &mut ev,
-        )
-        .unwrap();
-        let v: Vec<f64> = (0..z.len())
-            .map(|i| 1e-3 * ((i as f64) * 0.61).cos())
-            .collect();
-        let zd: Vec<Dual64> = z.iter().zip(&v).map(|(a, b)| Dual64::new(*a, *b)).collect();
-        let hd: Vec<Dual64> = hist.iter().map(|h| Dual64::from(*h)).collect();
-        let mut evd = Evaluation::<Dual64>::new(&asm, ne);
-        asm.evaluate(
-            &m,
-            &m.lifted::<Dual64>(&[]),
-            &zd,
-            &hd,
-            0.5,
-            None,
-            None,
-            &mut evd,
-        )
-        .unwrap();
-        let mut kv = vec![0.0; z.len()];
-        k.mul_vec(&v, &mut kv).unwrap();
-        let scale = kv.iter().fold(0.0f64, |a, x| a.max(x.abs()));
-        for (i, (r, kvi)) in evd.residual.iter().zip(&kv).enumerate() {
-            assert!(
-                (r.eps - kvi).abs() <= 1e-8 * scale,
-                "{name}: unknown {i}: {} vs {kvi}",
-                r.eps
-            );
-        }
+        let c = common::tangent_check(&m, 1e-3);
+        assert!(c.mismatch <= 1e-8, "{name}: {}", c.mismatch);
     }
 }
 

@@ -136,3 +136,59 @@ pub fn element<S: fricsens::scalar::Scalar, M: MaterialLaw>(
         cauchy,
     }
 }
+
+/// The consistent tangent of a whole model against the dual-number derivative of its residual,
+/// at the last converged state of a run of `model` (its `times` as given).
+pub struct TangentCheck {
+    /// Largest `|dR(z + s v)/ds - K v|` over the unknowns, relative to the largest `|K v|`.
+    pub mismatch: f64,
+    /// Gauss points on the plastic branch at that state.
+    pub plastic: usize,
+}
+
+/// Run `model`, then compare `K v` with the derivative of the residual along a fixed
+/// direction `v` (size `amplitude`), evaluated with `Dual64` at the last converged state.
+pub fn tangent_check(model: &Model, amplitude: f64) -> TangentCheck {
+    use fricsens::assembly::{Assembler, Evaluation};
+    use fricsens::linalg::SparseMatrix;
+    use fricsens::solver::{NoObserver, RunOptions, Solver};
+    use num_dual::Dual64;
+    let res = Solver::new(model)
+        .unwrap()
+        .run(&RunOptions::default(), &mut NoObserver)
+        .unwrap();
+    let k_inc = res.states.len() - 1;
+    let t = res.times[k_inc];
+    let (z, hist) = (&res.states[k_inc], &res.histories[k_inc - 1]);
+    let asm = Assembler::new(model, &[]).unwrap();
+    let ne = model.mesh.elements.len();
+    let mut k = SparseMatrix::new(asm.pattern.clone());
+    let mut ev = Evaluation::<f64>::new(&asm, ne);
+    let lifted = model.lifted::<f64>(&[]);
+    asm.evaluate(model, &lifted, z, hist, t, None, Some(&mut k), &mut ev)
+        .unwrap();
+    let plastic = ev
+        .branches
+        .iter()
+        .filter(|b| **b == Branch::Plastic)
+        .count();
+    let v: Vec<f64> = (0..z.len())
+        .map(|i| amplitude * ((i as f64) * 0.61).cos())
+        .collect();
+    let zd: Vec<Dual64> = z.iter().zip(&v).map(|(a, b)| Dual64::new(*a, *b)).collect();
+    let hd: Vec<Dual64> = hist.iter().map(|h| Dual64::from(*h)).collect();
+    let mut evd = Evaluation::<Dual64>::new(&asm, ne);
+    let lifted_d = model.lifted::<Dual64>(&[]);
+    asm.evaluate(model, &lifted_d, &zd, &hd, t, None, None, &mut evd)
+        .unwrap();
+    let mut kv = vec![0.0; z.len()];
+    k.mul_vec(&v, &mut kv).unwrap();
+    let scale = kv.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let mismatch = evd
+        .residual
+        .iter()
+        .zip(&kv)
+        .fold(0.0f64, |m, (r, kvi)| m.max((r.eps - kvi).abs()))
+        / scale;
+    TangentCheck { mismatch, plastic }
+}
