@@ -695,14 +695,16 @@ pub struct Skipped {
     pub reason: String,
 }
 
-/// The outcome of a study.
-#[derive(Clone, Debug, serde::Serialize)]
+/// The outcome of a study. `scaling.json` keeps everything but the fits, which
+/// [`Study::fitted`] recomputes from the rows.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Study {
     /// Measured sizes, scene by scene, smallest first.
     pub rows: Vec<Measurement>,
     /// Sizes not measured.
     pub skipped: Vec<Skipped>,
-    /// Fitted power laws.
+    /// Fitted power laws (not stored: recomputed by [`Study::fitted`]).
+    #[serde(skip)]
     pub fits: Vec<Fit>,
     /// Machine memory (MiB) the extrapolation is made against.
     pub machine_mib: f64,
@@ -713,6 +715,7 @@ pub struct Study {
     /// Quick mode.
     pub quick: bool,
     /// The per-size time budget (seconds).
+    #[serde(default)]
     pub time_budget_seconds: Option<f64>,
 }
 
@@ -832,7 +835,8 @@ pub fn run_study(opts: &StudyOptions) -> Result<Study, ScalingError> {
             max_dofs: opts.max_dofs,
         });
     }
-    let study = Study::from_record(StudyRecord {
+    let study = Study {
+        fits: Vec::new(),
         rows,
         skipped,
         machine_mib: machine_memory_mib().unwrap_or(DEFAULT_MACHINE_MIB),
@@ -840,57 +844,17 @@ pub fn run_study(opts: &StudyOptions) -> Result<Study, ScalingError> {
         wall_seconds: start.elapsed().as_secs_f64(),
         quick: opts.quick,
         time_budget_seconds: Some(opts.time_budget_seconds),
-    });
+    }
+    .fitted();
     write_outputs(&study, &opts.out)?;
     Ok(study)
 }
 
-/// What `scaling.json` keeps of a study: everything but the fits, which are recomputed.
-#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
-pub struct StudyRecord {
-    /// Measured sizes.
-    pub rows: Vec<Measurement>,
-    /// Sizes not measured.
-    pub skipped: Vec<Skipped>,
-    /// Machine memory (MiB).
-    pub machine_mib: f64,
-    /// Logical CPUs.
-    pub cpus: usize,
-    /// Wall time of the study (seconds).
-    pub wall_seconds: f64,
-    /// Quick mode.
-    pub quick: bool,
-    /// The per-size time budget of the run (seconds).
-    #[serde(default)]
-    pub time_budget_seconds: Option<f64>,
-}
-
 impl Study {
-    /// The study of a record, with its fits.
-    pub fn from_record(r: StudyRecord) -> Self {
-        Study {
-            fits: fit_all(&r.rows),
-            rows: r.rows,
-            skipped: r.skipped,
-            machine_mib: r.machine_mib,
-            cpus: r.cpus,
-            wall_seconds: r.wall_seconds,
-            quick: r.quick,
-            time_budget_seconds: r.time_budget_seconds,
-        }
-    }
-
-    /// The record of this study.
-    pub fn record(&self) -> StudyRecord {
-        StudyRecord {
-            rows: self.rows.clone(),
-            skipped: self.skipped.clone(),
-            machine_mib: self.machine_mib,
-            cpus: self.cpus,
-            wall_seconds: self.wall_seconds,
-            quick: self.quick,
-            time_budget_seconds: self.time_budget_seconds,
-        }
+    /// The study with its fits computed from its rows.
+    pub fn fitted(mut self) -> Self {
+        self.fits = fit_all(&self.rows);
+        self
     }
 }
 
@@ -902,11 +866,11 @@ pub fn rewrite_outputs(dir: &Path) -> Result<Study, ScalingError> {
         path: path.clone(),
         source,
     })?;
-    let record: StudyRecord = serde_json::from_str(&text).map_err(|e| ScalingError::Io {
+    let study: Study = serde_json::from_str(&text).map_err(|e| ScalingError::Io {
         path,
         source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
     })?;
-    let study = Study::from_record(record);
+    let study = study.fitted();
     write_outputs(&study, dir)?;
     Ok(study)
 }
@@ -922,7 +886,7 @@ pub fn write_outputs(study: &Study, dir: &Path) -> Result<(), ScalingError> {
     let path = dir.join("scaling.md");
     std::fs::write(&path, markdown(study)).map_err(io(path.clone()))?;
     let path = dir.join("scaling.json");
-    let json = serde_json::to_string_pretty(&study.record())
+    let json = serde_json::to_string_pretty(study)
         .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
         .map_err(io(path.clone()))?;
     std::fs::write(&path, json).map_err(io(path.clone()))?;

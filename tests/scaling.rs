@@ -2,7 +2,7 @@
 //! sizes per scene, each in its own child process), the power-law fits against synthetic
 //! laws (oracle), and bad input. The study itself is `fricsens scaling` (tens of minutes).
 
-use fricsens::scaling::{fit_all, Measurement, ScalingScene, Study, StudyRecord, QUANTITIES};
+use fricsens::scaling::{fit_all, Measurement, ScalingScene, Study, QUANTITIES};
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -43,8 +43,8 @@ fn quick_study_writes_csv_svg_and_markdown_with_finite_exponents() {
 
     // the JSON record gives back the study, every fit finite
     let json = std::fs::read_to_string(dir.join("scaling.json")).unwrap();
-    let record: StudyRecord = serde_json::from_str(&json).unwrap();
-    let study = Study::from_record(record);
+    let study: Study = serde_json::from_str(&json).unwrap();
+    let study = study.fitted();
     assert_eq!(study.fits.len(), ScalingScene::ALL.len() * QUANTITIES.len());
     for f in &study.fits {
         let law = f.law.unwrap_or_else(|| panic!("{f:?}"));
