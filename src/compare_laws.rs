@@ -18,7 +18,8 @@ use crate::contact::Friction;
 use crate::plot::{write_svg, Figure, PlotError, Style};
 use crate::scene::{strip_pullout, StripSpec};
 use crate::sensitivity::{
-    run_sensitivity, Method, Parameter, SensitivityResults, Settings, TangentChoice,
+    run_inline_sweep, run_sensitivity, Method, Parameter, SensitivityResults, Settings,
+    TangentChoice,
 };
 use crate::solver::AnalysisError;
 use std::fmt::Write as _;
@@ -136,18 +137,28 @@ pub fn compare_laws(elements: usize) -> Result<LawComparison, CompareLawsError> 
             .map(|n| Parameter::by_name(&model, &format!("ground.{n}")))
             .collect::<Result<Vec<_>, _>>()
             .map_err(fail)?;
-        let run = |method, beta| {
-            let settings = Settings {
-                method,
-                beta,
-                tangent: TangentChoice::Exact,
-                ..Settings::default()
-            };
-            run_sensitivity(&model, &params, &settings).map(|r| r.1)
+        let settings = |method, beta| Settings {
+            method,
+            beta,
+            tangent: TangentChoice::Exact,
+            ..Settings::default()
         };
-        let ddm = run(Method::Ddm, 0.0).map_err(fail)?;
-        let sdm = run(Method::SdmCentral, BETA_SDM).map_err(fail)?;
-        let fdm = run(Method::FdmCentral, BETA_FDM).map_err(fail)?;
+        // DDM and SDM central observe one primal run; central FDM reruns it
+        let (_, inline) = run_inline_sweep(
+            &model,
+            &params,
+            &[
+                settings(Method::Ddm, 0.0),
+                settings(Method::SdmCentral, BETA_SDM),
+            ],
+        )
+        .map_err(fail)?;
+        let [ddm, sdm]: [SensitivityResults; 2] = inline
+            .try_into()
+            .map_err(|_| fail(AnalysisError::Sensitivity("two in-line methods".into())))?;
+        let fdm = run_sensitivity(&model, &params, &settings(Method::FdmCentral, BETA_FDM))
+            .map_err(fail)?
+            .1;
         let np = params.len() as f64;
         let primal = ddm.primal_seconds.max(f64::MIN_POSITIVE);
         let cost = [

@@ -68,21 +68,7 @@ fn each_law_has_a_tangent_equal_to_the_dual_derivative_of_its_residual() {
 fn each_law_ddm_equals_central_fdm_along_loading_and_unloading() {
     for (name, law, params) in laws() {
         let m = model(law);
-        let ps: Vec<Parameter> = params
-            .iter()
-            .map(|p| Parameter::by_name(&m, p).unwrap())
-            .collect();
-        let run = |method, beta| {
-            let settings = Settings {
-                method,
-                beta,
-                tangent: TangentChoice::Exact,
-                ..Settings::default()
-            };
-            run_sensitivity(&m, &ps, &settings).unwrap().1
-        };
-        let ddm = run(Method::Ddm, 0.0);
-        let fdm = run(Method::FdmCentral, 1e-6);
+        let (ps, ddm, fdm) = common::ddm_and_central_fdm(&m, &params);
         let mut worst: f64 = 0.0;
         for (a, b) in ddm.increments.iter().zip(&fdm.increments) {
             for p in 0..ps.len() {

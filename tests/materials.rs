@@ -10,7 +10,6 @@ mod common;
 use fricsens::element::Kinematics;
 use fricsens::model::Model;
 use fricsens::scene::{strip_pullout, MaterialSpec, StripSpec};
-use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
 
 fn materials() -> Vec<(&'static str, MaterialSpec, Vec<&'static str>)> {
     // the pull force over the strip's section peaks at 1.5 / (0.02 x 0.1) = 750: a yield stress
@@ -86,21 +85,7 @@ fn each_material_has_a_tangent_equal_to_the_dual_derivative_of_its_residual() {
 fn each_material_ddm_equals_central_fdm_along_loading_and_release() {
     for (name, material, params) in materials() {
         let m = model(&material);
-        let ps: Vec<Parameter> = params
-            .iter()
-            .map(|p| Parameter::by_name(&m, p).unwrap())
-            .collect();
-        let run = |method, beta| {
-            let settings = Settings {
-                method,
-                beta,
-                tangent: TangentChoice::Exact,
-                ..Settings::default()
-            };
-            run_sensitivity(&m, &ps, &settings).unwrap().1
-        };
-        let ddm = run(Method::Ddm, 0.0);
-        let fdm = run(Method::FdmCentral, 1e-6);
+        let (ps, ddm, fdm) = common::ddm_and_central_fdm(&m, &params);
         println!(
             "{name}: {} increments, primal {:.1} s, FDM {:.1} s",
             ddm.increments.len(),

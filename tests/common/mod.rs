@@ -192,3 +192,32 @@ pub fn tangent_check(model: &Model, amplitude: f64) -> TangentCheck {
         / scale;
     TangentCheck { mismatch, plastic }
 }
+
+/// DDM and central FDM (beta = 1e-6) of `model` for the named parameters, both solving with
+/// the tangent at the converged state.
+pub fn ddm_and_central_fdm(
+    model: &Model,
+    names: &[&str],
+) -> (
+    Vec<fricsens::sensitivity::Parameter>,
+    fricsens::sensitivity::SensitivityResults,
+    fricsens::sensitivity::SensitivityResults,
+) {
+    use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
+    let params: Vec<Parameter> = names
+        .iter()
+        .map(|p| Parameter::by_name(model, p).unwrap())
+        .collect();
+    let run = |method, beta| {
+        let settings = Settings {
+            method,
+            beta,
+            tangent: TangentChoice::Exact,
+            ..Settings::default()
+        };
+        run_sensitivity(model, &params, &settings).unwrap().1
+    };
+    let ddm = run(Method::Ddm, 0.0);
+    let fdm = run(Method::FdmCentral, 1e-6);
+    (params, ddm, fdm)
+}
