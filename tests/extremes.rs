@@ -1003,6 +1003,7 @@ fn closing_node() -> Scene {
             friction: None,
             tangential_stiffness: None,
             constraint_scale: Some(1.0),
+            activation: None,
             search_radius: None,
         }],
         steps: vec![StepSpec {

@@ -207,6 +207,7 @@ pub fn evaluate<S: Scalar>(
             friction_params: fparams,
             eps_t,
             k: pair.constraint_scale,
+            activation: pair.activation,
             area: 1.0,
         };
         for (i, &s) in pair.hitting.iter().enumerate() {
@@ -482,6 +483,7 @@ fn local_tangent<S: Scalar>(
         friction_params: &fparams,
         eps_t,
         k: pair.constraint_scale,
+        activation: pair.activation,
         area: pair.area[i],
     };
     let ko = node_kernel(

@@ -79,6 +79,11 @@ impl Default for LeafSpringSpec {
     }
 }
 
+/// Active-set gap weight of both leaf-spring pairs ([`crate::contact::ContactPair::activation`]):
+/// the leaf slides under the curved block nose, and with the default weight every slide of a
+/// few hundredths of a millimetre releases the loaded node under it.
+pub const LEAF_ACTIVATION: f64 = 1e-3;
+
 impl LeafSpringSpec {
     /// The paper-resolution mesh and load path (`validate --full`).
     pub fn full() -> Self {
@@ -207,6 +212,7 @@ pub fn leaf_spring(s: &LeafSpringSpec) -> Scene {
                 // faces within 10 mm along the leaf (the leaves slide about 1 mm on each
                 // other): the default, three face diagonals, is dominated by the width and
                 // couples every lower node with the whole upper leaf (a dense block in the LU)
+                activation: Some(LEAF_ACTIVATION),
                 search_radius: Some({
                     let half_face = 0.5 * s.width / s.elements_across.max(1) as f64;
                     (half_face * half_face + s.search_along * s.search_along).sqrt()
@@ -235,6 +241,7 @@ pub fn leaf_spring(s: &LeafSpringSpec) -> Scene {
                 friction,
                 tangential_stiffness: None,
                 constraint_scale: None,
+                activation: Some(LEAF_ACTIVATION),
                 search_radius: None,
             },
         ],
@@ -395,6 +402,7 @@ pub fn stacked_leaves(s: &StackedLeavesSpec) -> Scene {
             friction: Some(FrictionSpec::Coulomb { mu: s.mu }),
             tangential_stiffness: None,
             constraint_scale: None,
+            activation: None,
             search_radius: None,
         }],
         steps: vec![StepSpec {

@@ -406,6 +406,13 @@ pub struct ContactSpec {
     /// the largest spring stiffness for models without bodies.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub constraint_scale: Option<f64>,
+    /// Weight `c` of the gap in the active-set rule of Lagrange multipliers (a node is active
+    /// while `lambda - c k g >= 0`); default 1. Any `c > 0` gives the same solutions; a small
+    /// `c` keeps a loaded node active until its multiplier turns tensile, instead of releasing
+    /// it on the small positive gap a Newton step leaves on a curved target (see
+    /// [`crate::contact::ContactPair::activation`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub activation: Option<f64>,
     /// Candidate target faces lie within this distance of a hitting node (reference
     /// configuration); default 3 x the largest face diagonal.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -1482,6 +1489,13 @@ impl Scene {
                     }
                 }
             };
+            let activation = match c.activation {
+                Some(a) => {
+                    positive(a, &format!("{at}.activation"))?;
+                    a
+                }
+                None => 1.0,
+            };
             let eps_t = match c.tangential_stiffness {
                 Some(k) => {
                     positive(k, &format!("{at}.tangential_stiffness"))?;
@@ -1498,6 +1512,7 @@ impl Scene {
                 friction,
                 tangential_stiffness: eps_t,
                 constraint_scale: scale,
+                activation,
                 candidates,
             });
         }
@@ -1969,6 +1984,7 @@ pub fn klarbring_2dof(increments_per_unit: usize) -> Scene {
             // as eps_T |u| 1e-16.
             tangential_stiffness: Some(1e6),
             constraint_scale: Some(1.0),
+            activation: None,
             search_radius: None,
         }],
         steps: vec![StepSpec {
@@ -2065,6 +2081,7 @@ pub fn jenkins(increments_per_unit: usize) -> Scene {
             friction: Some(FrictionSpec::Coulomb { mu: 0.3 }),
             tangential_stiffness: Some(1e6),
             constraint_scale: Some(1.0),
+            activation: None,
             search_radius: None,
         }],
         steps: vec![StepSpec {
@@ -2192,6 +2209,7 @@ pub fn strip_pullout(s: &StripSpec) -> Scene {
             // the penalty (1e4 x EA/h made the slip front advance one node per iteration)
             tangential_stiffness: Some(10.0 * s.young * s.thickness * s.width * s.elements as f64 / s.length),
             constraint_scale: None,
+            activation: None,
             search_radius: None,
         }],
         steps: vec![StepSpec {
@@ -2316,6 +2334,7 @@ pub fn hertz(h: &HertzSpec) -> Scene {
             friction: None,
             tangential_stiffness: None,
             constraint_scale: None,
+            activation: None,
             search_radius: None,
         }],
         steps: vec![StepSpec {
@@ -2397,6 +2416,7 @@ pub fn contact_patch(friction: Option<f64>) -> Scene {
             friction: friction.map(|mu| FrictionSpec::Coulomb { mu }),
             tangential_stiffness: None,
             constraint_scale: None,
+            activation: None,
             search_radius: None,
         }],
         steps: vec![StepSpec {
@@ -2545,6 +2565,7 @@ fn indentation_mesh(press_increments: usize, slide_increments: usize, refinement
             friction: Some(FrictionSpec::Coulomb { mu: 0.5 }),
             tangential_stiffness: None,
             constraint_scale: None,
+            activation: None,
             search_radius: None,
         }],
         steps: vec![
@@ -2644,6 +2665,7 @@ pub fn sliding_block(friction: Option<f64>) -> Scene {
             tangential_stiffness: None,
             constraint_scale: None,
             // the slider travels 3 units: every face it may reach is a candidate
+            activation: None,
             search_radius: Some(6.0),
         }],
         steps: vec![
