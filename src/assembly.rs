@@ -47,6 +47,43 @@ pub struct Frozen<'a> {
     pub gauss: Option<&'a [Branch]>,
     /// Per hitting node (flat over pairs).
     pub contact: &'a [ContactChoice],
+    /// Per element: left out of the evaluation. A skipped element adds nothing to the
+    /// residual and carries its history over unchanged (`hist_new = hist_old`, derivative
+    /// parts included). For evaluations that want only the updated history and responses
+    /// that do not read its residual: an element whose Gauss points are all frozen elastic
+    /// keeps its history, so the sensitivity update of the history (DDM's second evaluation,
+    /// SDM's perturbed update) need not evaluate it ([`Frozen::history_unchanged`]).
+    pub skip: Option<&'a [bool]>,
+}
+
+impl Frozen<'_> {
+    /// The elements whose history an evaluation with Gauss-point branches `gauss` leaves
+    /// unchanged and whose residual no response reads: all eight points frozen elastic (no
+    /// history at all counts as elastic), and no node of a reaction response among its nodes.
+    pub fn history_unchanged(model: &Model, gauss: &[Branch]) -> Vec<bool> {
+        let mut reaction_node = vec![false; model.mesh.n_nodes()];
+        for r in &model.responses {
+            if let crate::response::ResponseKind::Reaction { nodes, .. } = &r.kind {
+                for &n in nodes {
+                    if let Some(f) = reaction_node.get_mut(n) {
+                        *f = true;
+                    }
+                }
+            }
+        }
+        model
+            .mesh
+            .elements
+            .iter()
+            .enumerate()
+            .map(|(e, conn)| {
+                gauss[8 * e..8 * e + 8]
+                    .iter()
+                    .all(|b| *b == Branch::Elastic)
+                    && !conn.iter().any(|&n| reaction_node[n])
+            })
+            .collect()
+    }
 }
 
 /// What failed during assembly, and where.
@@ -255,6 +292,9 @@ impl Assembler {
                 .into_par_iter()
                 .zip(slots.into_par_iter())
                 .map(|(e, k)| {
+                    if frozen.and_then(|f| f.skip).is_some_and(|skip| skip[e]) {
+                        return self.skipped_local(hist_old, frozen.and_then(|f| f.gauss), e);
+                    }
                     self.element_local(
                         model,
                         lifted,
@@ -364,6 +404,32 @@ impl Assembler {
             }
         }
         Ok(())
+    }
+
+    /// The [`Local`] of an element left out of the evaluation ([`Frozen::skip`]): no force,
+    /// history carried over, branches as frozen.
+    fn skipped_local<S: Scalar>(
+        &self,
+        hist_old: &[S],
+        frozen: Option<&[Branch]>,
+        e: usize,
+    ) -> Local<S> {
+        let mut loc = Local {
+            force: [S::zero(); MAX_DOF],
+            branches: [Branch::Elastic; 8],
+            yield_ratio: [-1.0; 8],
+            cauchy: Matrix3::zeros(),
+            min_det_f: f64::INFINITY,
+            failure: None,
+            hist: [S::zero(); MAX_HISTORY],
+        };
+        if let Some(f) = frozen {
+            loc.branches.copy_from_slice(&f[8 * e..8 * e + 8]);
+        }
+        let h0 = self.dofs.history_offset[e];
+        let nh8 = self.elem_hist[e];
+        loc.hist[..nh8].copy_from_slice(&hist_old[h0..h0 + nh8]);
+        loc
     }
 
     #[allow(clippy::too_many_arguments)]

@@ -696,15 +696,21 @@ impl<'a> Engine<'a> {
                 }
             }
         }
-        // total derivatives: evaluate with z carrying dz/db
+        // total derivatives: evaluate with z carrying dz/db; only the history and the
+        // responses are wanted, so elements frozen elastic (history unchanged) are skipped
         let z: Vec<S> = lift_with_parts(c.z, np, |j, i| rhs[j * n + i]);
+        let skip = frozen.gauss.map(|g| Frozen::history_unchanged(c.model, g));
+        let update = Frozen {
+            skip: skip.as_deref(),
+            ..*frozen
+        };
         c.assembler.evaluate(
             c.model,
             &lifted,
             &z,
             &hist,
             c.time,
-            Some(frozen),
+            Some(&update),
             None,
             &mut ev,
         )?;
@@ -800,6 +806,7 @@ impl<'a> Engine<'a> {
         let converged = Frozen {
             gauss: Some(&c.eval.branches),
             contact: &c.eval.contact.choice,
+            skip: None,
         };
         let frozen = if self.settings.freeze_branches {
             Some(&converged)
@@ -868,6 +875,16 @@ impl<'a> Engine<'a> {
         let mut dresp = vec![vec![0.0; np]; nr];
         let mut dhist = vec![0.0; nh * np];
         let mut dz_all = Vec::with_capacity(np);
+        // the updates below want only the history and the responses: elements frozen elastic
+        // keep their history and are skipped (free branches: nothing is skipped)
+        let skip = frozen
+            .and_then(|f| f.gauss)
+            .map(|g| Frozen::history_unchanged(c.model, g));
+        let update = frozen.map(|f| Frozen {
+            skip: skip.as_deref(),
+            ..*f
+        });
+        let frozen = update.as_ref();
         for k in 0..np {
             let dz: Vec<f64> = (0..n)
                 .map(|i| {
@@ -946,6 +963,7 @@ impl Observer for Engine<'_> {
                     &Frozen {
                         gauss: Some(&c.eval.branches),
                         contact: &c.eval.contact.choice,
+                        skip: None,
                     },
                 )?,
                 Method::Sdm => self.sdm(c, false)?,
@@ -989,6 +1007,7 @@ impl Observer for Engine<'_> {
                 let frozen = Frozen {
                     gauss: Some(&gauss),
                     contact: &contact,
+                    skip: None,
                 };
                 // the tangent of the forced branches, at the converged state
                 let mut k = c.tangent.clone();

@@ -759,6 +759,7 @@ impl<'m> Solver<'m> {
                 let frozen = Frozen {
                     gauss: None,
                     contact: &self.converged_choice,
+                    skip: None,
                 };
                 let t0 = Instant::now();
                 self.assembler

@@ -41,7 +41,8 @@ pub type Tangent<S> = SMatrix<S, 6, 6>;
 /// Which side of a transition a Gauss point (or a friction point) is on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Branch {
-    /// Inside the transition: the elastic (trial) state is kept.
+    /// Inside the transition: the elastic (trial) state is kept and the history is unchanged
+    /// (a contract of every law: sensitivity updates skip elements frozen elastic).
     Elastic,
     /// Beyond it: the state is returned (plastic flow).
     Plastic,
