@@ -165,6 +165,21 @@ struct Local<S: Scalar> {
     hist: [S; MAX_HISTORY],
 }
 
+impl<S: Scalar> Local<S> {
+    /// No force, elastic branches, no history: what an element without unknowns returns.
+    fn empty() -> Self {
+        Local {
+            force: [S::zero(); MAX_DOF],
+            branches: [Branch::Elastic; 8],
+            yield_ratio: [-1.0; 8],
+            cauchy: Matrix3::zeros(),
+            min_det_f: f64::INFINITY,
+            failure: None,
+            hist: [S::zero(); MAX_HISTORY],
+        }
+    }
+}
+
 /// Largest element history (8 Gauss points x 16 scalars).
 pub const MAX_HISTORY: usize = 8 * 16;
 
@@ -414,15 +429,7 @@ impl Assembler {
         frozen: Option<&[Branch]>,
         e: usize,
     ) -> Local<S> {
-        let mut loc = Local {
-            force: [S::zero(); MAX_DOF],
-            branches: [Branch::Elastic; 8],
-            yield_ratio: [-1.0; 8],
-            cauchy: Matrix3::zeros(),
-            min_det_f: f64::INFINITY,
-            failure: None,
-            hist: [S::zero(); MAX_HISTORY],
-        };
+        let mut loc = Local::empty();
         if let Some(f) = frozen {
             loc.branches.copy_from_slice(&f[8 * e..8 * e + 8]);
         }
@@ -443,15 +450,7 @@ impl Assembler {
         e: usize,
         k_out: Option<&mut [S]>,
     ) -> Local<S> {
-        let mut loc = Local {
-            force: [S::zero(); MAX_DOF],
-            branches: [Branch::Elastic; 8],
-            yield_ratio: [-1.0; 8],
-            cauchy: Matrix3::zeros(),
-            min_det_f: f64::INFINITY,
-            failure: None,
-            hist: [S::zero(); MAX_HISTORY],
-        };
+        let mut loc = Local::empty();
         let nd = self.elem_ndof[e];
         if nd == 0 {
             return loc;
