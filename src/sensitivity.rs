@@ -642,6 +642,7 @@ impl<'a> Engine<'a> {
         c: &Converged<'_>,
         ks: &[usize],
         frozen: &Frozen<'_>,
+        update: &Frozen<'_>,
     ) -> Result<Step, AnalysisError> {
         let n = c.z.len();
         let nh = c.hist_prev.len();
@@ -696,21 +697,16 @@ impl<'a> Engine<'a> {
                 }
             }
         }
-        // total derivatives: evaluate with z carrying dz/db; only the history and the
-        // responses are wanted, so elements frozen elastic (history unchanged) are skipped
+        // total derivatives: evaluate with z carrying dz/db (`update`: only the history and
+        // the responses are wanted)
         let z: Vec<S> = lift_with_parts(c.z, np, |j, i| rhs[j * n + i]);
-        let skip = frozen.gauss.map(|g| Frozen::history_unchanged(c.model, g));
-        let update = Frozen {
-            skip: skip.as_deref(),
-            ..*frozen
-        };
         c.assembler.evaluate(
             c.model,
             &lifted,
             &z,
             &hist,
             c.time,
-            Some(&update),
+            Some(update),
             None,
             &mut ev,
         )?;
@@ -743,12 +739,19 @@ impl<'a> Engine<'a> {
         let mut dhist = vec![0.0; nh * np];
         let mut dz_all = vec![Vec::new(); np];
         let all: Vec<usize> = (0..np).collect();
+        // the update after the solve wants only the history and the responses: elements frozen
+        // elastic keep their history and are skipped (once for all chunks)
+        let skip = frozen.gauss.map(|g| Frozen::history_unchanged(c.model, g));
+        let update = Frozen {
+            skip: skip.as_deref(),
+            ..*frozen
+        };
         for chunk in all.chunks(8) {
             let out = match chunk.len() {
-                1 => self.ddm_chunk::<Dual64>(c, chunk, frozen)?,
-                2 => self.ddm_chunk::<DualSVec64<2>>(c, chunk, frozen)?,
-                3 | 4 => self.ddm_chunk::<DualSVec64<4>>(c, chunk, frozen)?,
-                _ => self.ddm_chunk::<DualSVec64<8>>(c, chunk, frozen)?,
+                1 => self.ddm_chunk::<Dual64>(c, chunk, frozen, &update)?,
+                2 => self.ddm_chunk::<DualSVec64<2>>(c, chunk, frozen, &update)?,
+                3 | 4 => self.ddm_chunk::<DualSVec64<4>>(c, chunk, frozen, &update)?,
+                _ => self.ddm_chunk::<DualSVec64<8>>(c, chunk, frozen, &update)?,
             };
             for (j, &k) in chunk.iter().enumerate() {
                 for (row, src) in dresp.iter_mut().zip(&out.dresp) {

@@ -271,14 +271,8 @@ pub fn batched_cost(scene: &Scene, beta: f64) -> Result<BatchedCost, ValidateErr
         scene: scene.name.clone(),
         source,
     };
-    let model = scene
-        .build()
-        .map_err(|e| wrap(AnalysisError::Model(format!("building the scene: {e}"))))?;
-    let params: Vec<Parameter> = LEAF_BATCH
-        .iter()
-        .map(|n| Parameter::by_name(&model, n))
-        .collect::<Result<_, _>>()
-        .map_err(wrap)?;
+    let model = scene.build()?;
+    let params = parameters(&model, &scene.name, LEAF_BATCH)?;
     let methods = [
         ("SDM, last factor", Method::Sdm),
         ("DDM, last factor", Method::Ddm),
@@ -363,6 +357,22 @@ pub fn relative_error(
     worst
 }
 
+/// Resolve design parameter names on a scene's model ([`Parameter::by_name`]).
+fn parameters<N: AsRef<str>>(
+    model: &crate::model::Model,
+    scene: &str,
+    names: impl IntoIterator<Item = N>,
+) -> Result<Vec<Parameter>, ValidateError> {
+    names
+        .into_iter()
+        .map(|n| Parameter::by_name(model, n.as_ref()))
+        .collect::<Result<_, _>>()
+        .map_err(|source| ValidateError::Analysis {
+            scene: scene.to_string(),
+            source,
+        })
+}
+
 /// Run every method on one scene.
 pub fn validate_scene(
     scene: &Scene,
@@ -373,13 +383,7 @@ pub fn validate_scene(
         scene: scene.name.clone(),
         source,
     };
-    let params: Vec<Parameter> = scene
-        .study
-        .params
-        .iter()
-        .map(|n| Parameter::by_name(&model, n))
-        .collect::<Result<_, _>>()
-        .map_err(wrap)?;
+    let params = parameters(&model, &scene.name, scene.study.params.iter())?;
     // The reference and the swept in-line methods solve with the tangent at the converged
     // state (TangentChoice::Exact): the last Newton factorization is that tangent only to
     // within Newton's last correction, which leaves errors of the order of the Newton
