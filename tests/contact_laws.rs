@@ -71,3 +71,42 @@ fn lagrange_penalty_and_augmented_lagrangian_on_the_patch_test() {
     assert!(pen_a <= tol, "augmented penetration {pen_a}");
     assert!(augs >= 1, "no augmentation pass");
 }
+
+#[test]
+fn the_active_set_weight_changes_the_newton_path_not_the_solution() {
+    // any weight c > 0 of the gap in `lambda - c k g >= 0` has the same solutions; on the sliding
+    // block (frictional, sliding across faces) c = 1 and c = 1e-3 converge through the same
+    // increments, so every response must agree at every increment to Newton's tolerance (1e-9
+    // of the reference force; 1e-6 relative leaves room for the path-dependent friction history
+    // of two differently iterated but equally converged runs)
+    let run = |c: Option<f64>| {
+        let mut scene = fricsens::scene::builtin("sliding-block").unwrap();
+        for p in &mut scene.contacts {
+            p.activation = c;
+        }
+        let model = scene.build().unwrap();
+        let res = Solver::new(&model)
+            .unwrap()
+            .run(&RunOptions::default(), &mut NoObserver)
+            .unwrap();
+        let iterations: usize = res.records.iter().map(|r| r.iterations).sum();
+        let values: Vec<Vec<f64>> = (0..model.responses.len())
+            .map(|r| {
+                (1..res.times.len())
+                    .map(|k| res.response_value(&model, r, k))
+                    .collect()
+            })
+            .collect();
+        (res.times.clone(), values, iterations)
+    };
+    let (t1, v1, it1) = run(None);
+    let (t3, v3, it3) = run(Some(1e-3));
+    assert_eq!(t1, t3, "same increments");
+    assert_ne!(it1, it3, "the weight changes Newton's path");
+    for (a, b) in v1.iter().zip(&v3) {
+        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() <= 1e-6 * scale, "{x} vs {y}");
+        }
+    }
+}
