@@ -318,11 +318,13 @@ fn run(scene_name: &str, out: Option<PathBuf>) -> Result<(), String> {
     output::write_run(&dir, &model, &res).map_err(|e| e.to_string())?;
     let iters: usize = res.records.iter().map(|r| r.iterations).sum();
     out!(
-        "{}: {} increments, {} Newton iterations ({:.2} per increment), {} unknowns, {:.3} s",
+        "{}: {} increments, {} Newton iterations ({:.2} per increment; {} factorizations and {} residual evaluations with the failed attempts and line searches), {} unknowns, {:.3} s",
         scene.name,
         res.records.len(),
         iters,
         iters as f64 / res.records.len().max(1) as f64,
+        res.cost.factorizations,
+        res.cost.assemblies,
         solver.assembler.dofs.n_total,
         res.cost.wall_seconds
     );

@@ -35,9 +35,10 @@ pub struct IncrementRecord {
     pub index: usize,
     /// Pseudo-time at the end of the increment.
     pub time: f64,
-    /// Newton iterations (factorizations) used by the converged attempt.
+    /// Newton iterations (linear solves) used by the converged attempt.
     pub iterations: usize,
-    /// `|R_free|` at each iteration of the converged attempt.
+    /// `|R_free|` at each residual evaluation of the converged attempt (every Newton
+    /// iteration, and the line search's and penetration limiter's re-evaluations).
     pub residuals: Vec<f64>,
     /// `|dz . R|` at each iteration.
     pub energies: Vec<f64>,
@@ -249,6 +250,22 @@ const MAX_AUGMENTATIONS: usize = 50;
 /// Residual growth over one Newton step that triggers backtracking (contact models).
 const LINE_SEARCH_GROWTH: f64 = 4.0;
 
+/// The step limiter acts on penetrations deeper than this fraction of the model's size (the
+/// diagonal of its reference bounding box): well above round-off, far below any clearance a
+/// scene resolves (leaf spring: 1e-4 mm against a 0.02 mm clearance).
+const PENETRATION_LIMIT_SCALE: f64 = 1e-6;
+
+/// Diagonal of the bounding box of some points.
+fn bounding_diagonal(points: &[nalgebra::Vector3<f64>]) -> f64 {
+    let Some(first) = points.first() else {
+        return 0.0;
+    };
+    let (lo, hi) = points
+        .iter()
+        .fold((*first, *first), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+    (hi - lo).norm()
+}
+
 /// Why an attempt failed (recoverable by cutback).
 #[derive(Debug)]
 enum AttemptFailure {
@@ -271,6 +288,9 @@ pub struct Solver<'m> {
     converged_choice: Vec<ContactChoice>,
     /// Print every iteration and failed attempt to stderr (`FRICSENS_TRACE` set).
     trace: bool,
+    /// Smallest penetration the step limiter acts on: [`PENETRATION_LIMIT_SCALE`] times the
+    /// diagonal of the reference bounding box.
+    penetration_floor: f64,
     /// Contact choices and Gauss-point branches of the state the last factorization was
     /// assembled at (see [`Converged::factor_matches`]).
     factored_choice: Vec<ContactChoice>,
@@ -331,6 +351,7 @@ impl<'m> Solver<'m> {
         let matrix = SparseMatrix::new(assembler.pattern.clone());
         let linear = LinearSolver::new(assembler.pattern.clone())?;
         let lifted = model.lifted::<f64>(&[]);
+        let penetration_floor = PENETRATION_LIMIT_SCALE * bounding_diagonal(&lifted.coords);
         Ok(Solver {
             model,
             assembler,
@@ -342,6 +363,7 @@ impl<'m> Solver<'m> {
             factored_choice: Vec::new(),
             factored_branches: Vec::new(),
             trace: std::env::var_os("FRICSENS_TRACE").is_some(),
+            penetration_floor,
         })
     }
 
@@ -408,6 +430,8 @@ impl<'m> Solver<'m> {
         res.stresses.push(vec![nalgebra::Matrix3::zeros(); ne]);
         res.branches.push(vec![Branch::Elastic; 8 * ne]);
         let mut t_prev = 0.0;
+        // the converged state before `z` and its time: the extrapolating predictor's
+        let mut previous: Option<(Vec<f64>, f64)> = None;
         let mut index = 0;
         for &t_end in &model.times {
             let t_prev_nominal = t_prev;
@@ -456,9 +480,32 @@ impl<'m> Solver<'m> {
                     cutbacks,
                     augmentations: 0,
                 };
-                let predicted = self
-                    .predict(&z, &mut z_try, &hist, t, &mut eval, &mut res.cost)
-                    .map_err(|e| AnalysisError::Model(e.to_string()));
+                // Predictor. Where the load path goes straight on from the last converged
+                // increment, extrapolate its solution linearly (free, and second-order
+                // accurate on a smooth path, like Abaqus' default within a step); otherwise
+                // (first increment, a reversal or a kink of any amplitude) linearise about
+                // the converged state.
+                let extrapolate = match &previous {
+                    Some((z_old, t_old))
+                        if model.solver.extrapolate
+                            && model.load_path_straight(*t_old, t_prev, t) =>
+                    {
+                        let ratio = (t - t_prev) / (t_prev - t_old);
+                        for (d, zt) in z_try.iter_mut().enumerate() {
+                            if !self.constrained[d] {
+                                *zt = z[d] + ratio * (z[d] - z_old[d]);
+                            }
+                        }
+                        true
+                    }
+                    _ => false,
+                };
+                let predicted = if extrapolate {
+                    Ok(Some(false))
+                } else {
+                    self.predict(&z, &mut z_try, &hist, t, &mut eval, &mut res.cost)
+                        .map_err(|e| AnalysisError::Model(e.to_string()))
+                };
                 // the history the increment is solved with: h_{n-1}, with the multiplier
                 // estimates of augmented-Lagrangian pairs updated between passes
                 let mut hist_inc = hist.clone();
@@ -541,7 +588,7 @@ impl<'m> Solver<'m> {
                             record: &record,
                         };
                         observer.converged(&conv)?;
-                        z = z_try;
+                        previous = Some((std::mem::replace(&mut z, z_try), t_prev));
                         hist.copy_from_slice(&eval.hist_new);
                         self.keep_contact_states(&eval.contact.choice);
                         res.times.push(t);
@@ -725,6 +772,10 @@ impl<'m> Solver<'m> {
     }
 
     /// Newton iterations of one attempt. Returns whether a factorization was made.
+    ///
+    /// An iteration is one linear solve; the residual evaluations of the line search and of
+    /// the penetration limiter between two solves are not iterations (they are counted in
+    /// [`PrimalCost::assemblies`] and recorded in [`IncrementRecord::residuals`]).
     fn attempt(
         &mut self,
         z: &mut [f64],
@@ -739,12 +790,18 @@ impl<'m> Solver<'m> {
         let mut energy0 = f64::NAN;
         let mut last_energy = f64::INFINITY;
         let mut last_correction = f64::INFINITY;
-        // backtracking line search (contact models only: their residual is only piecewise
-        // smooth, and a full Newton step can flip many stick/slip states at once)
+        // backtracking line search and penetration limiter (contact models only: their
+        // residual is only piecewise smooth, and a full Newton step can flip many contact and
+        // stick/slip states at once)
         let line_search = !model.contacts.is_empty();
         let mut alpha = 1.0;
         let mut prev_r = f64::INFINITY;
         let mut last_dz: Vec<f64> = Vec::new();
+        // gaps and open states at the start of the last step, and whether the limiter has
+        // shortened it already
+        let mut base_gap: Vec<f64> = Vec::new();
+        let mut base_open: Vec<bool> = Vec::new();
+        let mut limited = false;
         let mut first_residual = f64::NAN;
         let mut factored = false;
         // Active-set predictor: the first iteration keeps the contact states (and faces) of
@@ -754,7 +811,9 @@ impl<'m> Solver<'m> {
         // load the first step with forces orders of magnitude too large (leaf spring: 40x,
         // inverted elements and cutbacks).
         let mut predict = !self.converged_choice.is_empty();
-        for k in 0..=s.max_iterations {
+        // Newton iterations (solves) made
+        let mut k = 0;
+        loop {
             let (r_free, f_ref) = loop {
                 let frozen = Frozen {
                     gauss: None,
@@ -817,7 +876,7 @@ impl<'m> Solver<'m> {
                     .map(|(i, (c, f))| format!("{i}:{:?}:{f:.3e}", c.state))
                     .collect();
                 eprintln!(
-                    "  t = {t:.4e} k = {k} r = {r_free:.3e} closed {}",
+                    "  t = {t:.4e} k = {k} alpha = {alpha:.3} r = {r_free:.3e} closed {}",
                     active.join(" ")
                 );
             }
@@ -826,6 +885,37 @@ impl<'m> Solver<'m> {
             }
             if k == 0 {
                 first_residual = r_free;
+            }
+            // Penetration limiter. A node the step found open at a positive gap and left
+            // deeper inside its target than it was outside overshot first contact (the
+            // linearised step knows nothing of the constraint it crosses). Shorten the step to
+            // just past the deepest such overshoot's first touch (linear in the step), so that
+            // node closes at the next solve with the bodies where they meet. Without it, the
+            // first contact of the leaf spring's leaves pressed the upper leaf 0.3 mm into the
+            // lower one along its whole length (0.02 mm clearance), and the primal-dual active
+            // set then released the spurious contacts one node per iteration (26 iterations;
+            // refined meshes ran out of iterations).
+            if line_search && k >= 1 && !limited {
+                let floor = self.penetration_floor;
+                let first_touch = base_gap
+                    .iter()
+                    .zip(&base_open)
+                    .zip(&eval.contact.gap)
+                    .filter(|((g0, open), g1)| {
+                        **open && g0.is_finite() && **g0 > floor && **g1 < -floor && -**g1 > **g0
+                    })
+                    .map(|((g0, _), g1)| g0 / (g0 - g1))
+                    .fold(1.0f64, f64::min);
+                if first_touch < 0.5 {
+                    limited = true;
+                    // a tenth of the node's gap past first touch
+                    let keep = 1.1 * first_touch;
+                    for (zi, d) in z.iter_mut().zip(&last_dz) {
+                        *zi -= alpha * (1.0 - keep) * d;
+                    }
+                    alpha *= keep;
+                    continue;
+                }
             }
             let force_ok = r_free <= s.force_tol * f_ref || r_free == 0.0;
             let energy_ok = k > 0 && last_energy <= s.energy_tol * energy0;
@@ -854,6 +944,7 @@ impl<'m> Solver<'m> {
                 continue;
             }
             alpha = 1.0;
+            limited = false;
             prev_r = r_free;
             if k == s.max_iterations {
                 return Err(AttemptFailure::Diverged("iteration limit"));
@@ -871,6 +962,7 @@ impl<'m> Solver<'m> {
             self.factored_branches.clone_from(&eval.branches);
             self.factor_and_solve(&mut dz, cost)?;
             factored = true;
+            k += 1;
             let energy: f64 = dz
                 .iter()
                 .zip(&eval.residual)
@@ -878,7 +970,7 @@ impl<'m> Solver<'m> {
                 .sum::<f64>()
                 .abs();
             record.energies.push(energy);
-            if k == 0 {
+            if k == 1 {
                 energy0 = energy;
             }
             last_energy = energy;
@@ -888,11 +980,20 @@ impl<'m> Solver<'m> {
             if !energy.is_finite() {
                 return Err(AttemptFailure::Diverged("non-finite correction"));
             }
+            if line_search {
+                base_gap.clone_from(&eval.contact.gap);
+                base_open.clear();
+                base_open.extend(
+                    eval.contact
+                        .choice
+                        .iter()
+                        .map(|c| c.state == crate::contact::ContactState::Open),
+                );
+            }
             for (zi, d) in z.iter_mut().zip(&dz) {
                 *zi += d;
             }
             last_dz = dz;
         }
-        Err(AttemptFailure::Diverged("iteration limit"))
     }
 }

@@ -156,8 +156,12 @@ fn tangent_options_agree() {
             // measures it per scene). It must still be a usable derivative:
             assert!(el < 1e-2, "last: {el}");
             // Refinement against the converged tangent contracts the error by about `el` per
-            // step, so two steps leave about el^3, down to the round-off of the solve.
-            assert!(er <= 10.0 * el.powi(3) + 1e-9, "refined: {er} vs last {el}");
+            // step, so two steps leave about el^3, down to the round-off of the solve: the
+            // difference of two LU solves of this slender (L/h = 50) system, measured 3e-10 to
+            // 1.0e-9 over the increments and moving with the converged state (the
+            // extrapolating predictor took it from just below to just above 1e-9); 1e-8 is
+            // that round-off with a decade of headroom, far below `el` where refinement acts.
+            assert!(er <= 10.0 * el.powi(3) + 1e-8, "refined: {er} vs last {el}");
         }
     }
 }

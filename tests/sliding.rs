@@ -112,19 +112,31 @@ fn newton_converges_quadratically_once_the_contact_states_are_settled() {
     let (_, res) = run(Some(0.3));
     let mut checked = 0;
     for rec in &res.records {
-        let r0 = rec.residuals[0].max(f64::MIN_POSITIVE);
+        // residuals relative to the increment's reference force (the force criterion's
+        // scale): the initial residual is no scale of the increment once the predictor
+        // extrapolates, and can be anything from 1e-4 to 30 times this one
+        let r0 = rec.reference_force.max(f64::MIN_POSITIVE);
         let r: Vec<f64> = rec.residuals.iter().map(|x| x / r0).collect();
         println!(
             "increment {}: {:?}",
             rec.index,
             r.iter().map(|x| format!("{x:.1e}")).collect::<Vec<_>>()
         );
-        // every pair in the asymptotic range, once the stick/slip pattern no longer changes:
-        // r_{k+1} <= C r_k^2 above the round-off floor (~1e-14 r0 here)
-        for w in r.windows(2) {
-            if w[0] < 1e-2 && w[1] > 1e-13 {
+        // every pair in the asymptotic range, once the stick/slip pattern no longer changes
+        // (after the last rise of the residual, the mark of a changed pattern): r_{k+1} <= C
+        // r_k^2 above the round-off floor (~1e-14 of the forces that cancel in the residual,
+        // which reach ~30 times the reference force while the block slides). With the
+        // extrapolating predictor most increments start at ~3e-2 and converge in two or three
+        // iterations, so the range reaches up to 0.1; C = 10 keeps the bound below the
+        // residual it starts from (measured C up to ~1e-3)
+        let settled = r
+            .windows(2)
+            .rposition(|w| w[1] > w[0] && w[1] > 1e-12)
+            .map_or(0, |i| i + 1);
+        for w in r[settled..].windows(2) {
+            if w[0] < 1e-1 && w[1] > 1e-12 {
                 assert!(
-                    w[1] <= 1e3 * w[0] * w[0],
+                    w[1] <= 10.0 * w[0] * w[0],
                     "increment {}: {:.2e} -> {:.2e}",
                     rec.index,
                     w[0],

@@ -2221,7 +2221,15 @@ pub fn strip_pullout(s: &StripSpec) -> Scene {
             set: "strip.xmax".into(),
             component: Component::X,
         }],
-        solver: SolverSettings::default(),
+        // unloading leaves most of the strip stuck with friction forces locked in at the
+        // forward slip limit; from an extrapolated start Newton spreads slip far beyond the
+        // reverse-slip zone and lifts nodes off until cut back (observed; the locked-in forces
+        // are the likely cause): 113 increments instead of 31 at 200 elements
+        // (SolverSettings::extrapolate)
+        solver: SolverSettings {
+            extrapolate: false,
+            ..SolverSettings::default()
+        },
         study: StudySpec::default(),
     }
 }
