@@ -52,7 +52,9 @@ pub struct Frozen<'a> {
     /// parts included). For evaluations that want only the updated history and responses
     /// that do not read its residual: an element whose Gauss points are all frozen elastic
     /// keeps its history, so the sensitivity update of the history (DDM's second evaluation,
-    /// SDM's perturbed update) need not evaluate it ([`Frozen::history_unchanged`]).
+    /// SDM's perturbed update) need not evaluate it ([`Frozen::history_unchanged`]). And
+    /// an element the design perturbation does not reach contributes the same residual to
+    /// both evaluations of SDM's unbalance, so both may leave it out.
     pub skip: Option<&'a [bool]>,
 }
 

@@ -248,11 +248,12 @@ fn sensitivity(
     );
     let c = &sens.cost;
     out!(
-        "cost: primal {:.3} s; sensitivity {:.3} s ({:.2} % of the primal per parameter): {} residual evaluations, {} factorizations, {} solve columns, {} reruns",
+        "cost: primal {:.3} s; sensitivity {:.3} s ({:.2} % of the primal per parameter): {} residual evaluations ({} over only the elements a parameter reaches), {} factorizations, {} solve columns, {} reruns",
         sens.primal_seconds,
         c.wall_seconds,
         100.0 * c.wall_seconds / sens.primal_seconds.max(1e-12) / params.len() as f64,
         c.residual_evaluations,
+        c.partial_evaluations,
         c.factorizations,
         c.solve_columns,
         c.primal_reruns

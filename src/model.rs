@@ -44,6 +44,11 @@ impl Material {
     pub fn param_names(&self) -> &'static [&'static str] {
         with_material!(self, m => m.param_names())
     }
+    /// Whether parameter `index` enters the stress of a point frozen elastic
+    /// ([`crate::material::MaterialLaw::enters_elastic_branch`]).
+    pub fn enters_elastic_branch(&self, index: usize) -> bool {
+        with_material!(self, m => m.enters_elastic_branch(index))
+    }
     /// History scalars per Gauss point.
     pub fn history_len(&self) -> usize {
         with_material!(self, m => m.history_len())

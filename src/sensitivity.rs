@@ -404,6 +404,9 @@ pub struct SensitivityCost {
     pub wall_seconds: f64,
     /// Residual evaluations (perturbed or dual) beyond the primal run's.
     pub residual_evaluations: usize,
+    /// Of those, evaluations over only the elements a parameter reaches (SDM's unbalance:
+    /// contact and the elements with a history derivative for a friction parameter, ...).
+    pub partial_evaluations: usize,
     /// Factorizations beyond Newton's (the converged tangent, forced branches).
     pub factorizations: usize,
     /// Right-hand-side columns solved (refinement steps included).
@@ -800,6 +803,61 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
+    /// The elements parameter `k`'s perturbation by `db` does not reach at the fixed state, or
+    /// `None` when they are fewer than half (leaving them out would not pay for the second
+    /// evaluation it takes). An element is reached when a node moves (shape), when its body's
+    /// material parameter changes (unless the law says the parameter acts only on the plastic
+    /// branch and all its points are frozen elastic), when a prescribed unknown of it moves,
+    /// or when its history carries a derivative. Contact and loads are always evaluated.
+    fn unreached(
+        &self,
+        c: &Converged<'_>,
+        k: usize,
+        db: f64,
+        dzc: &[f64],
+        gauss: &[Branch],
+    ) -> Option<Vec<bool>> {
+        let model = c.model;
+        let lifted = c
+            .model
+            .lifted::<f64>(&self.overrides(|j, v| if j == k { v + db } else { v }));
+        let moved: Vec<bool> = lifted
+            .coords
+            .iter()
+            .zip(&c.lifted.coords)
+            .map(|(a, b)| a != b)
+            .collect();
+        let nh = c.hist_prev.len();
+        let dhist = &self.dhist[k * nh..(k + 1) * nh];
+        let dofs = &c.assembler.dofs;
+        let mask: Vec<bool> = (0..model.mesh.elements.len())
+            .map(|e| {
+                let b = dofs.element_body[e];
+                let Some(body) = model.bodies.get(b) else {
+                    return false;
+                };
+                let elastic = gauss[8 * e..8 * e + 8]
+                    .iter()
+                    .all(|g| *g == Branch::Elastic);
+                let material_unchanged = lifted.material[b]
+                    .iter()
+                    .zip(&c.lifted.material[b])
+                    .enumerate()
+                    .all(|(i, (p, q))| {
+                        p == q || (elastic && !body.material.enters_elastic_branch(i))
+                    });
+                let h0 = dofs.history_offset[e];
+                let nh8 = 8 * body.material.history_len();
+                material_unchanged
+                    && !model.mesh.elements[e].iter().any(|&n| moved[n])
+                    && c.assembler.element_dofs(e).iter().all(|&d| dzc[d] == 0.0)
+                    && dhist[h0..h0 + nh8].iter().all(|v| *v == 0.0)
+            })
+            .collect();
+        let unreached = mask.iter().filter(|m| **m).count();
+        (2 * unreached > mask.len()).then_some(mask)
+    }
+
     /// SDM (forward or central) for all parameters.
     fn sdm(&mut self, c: &Converged<'_>, central: bool) -> Result<Step, AnalysisError> {
         let np = self.params.len();
@@ -818,6 +876,9 @@ impl<'a> Engine<'a> {
         };
         let mut ev_p = Evaluation::<f64>::new(c.assembler, ne);
         let mut ev_m = Evaluation::<f64>::new(c.assembler, ne);
+        // the nominal state evaluated over the elements a parameter reaches (forward SDM,
+        // where the others are left out)
+        let mut ev_0 = Evaluation::<f64>::new(c.assembler, ne);
         let mut rhs = vec![0.0; n * np];
         let mut dzc = vec![vec![0.0; n]; np];
         // round-off: the unbalance against the forces that cancel in it (the reference force
@@ -832,18 +893,52 @@ impl<'a> Engine<'a> {
         for k in 0..np {
             self.prescribed_derivative(c, k, &mut dzc[k]);
             let db = self.params[k].step(self.settings.beta);
-            self.perturbed(c, k, db, None, frozen, &mut ev_p)?;
+            // Leave out the elements the perturbation does not reach: their residual is the
+            // same in both evaluations of the difference, so it cancels exactly (and its
+            // round-off with it). Friction and contact-stiffness parameters then evaluate the
+            // contact and the elements with a history derivative; yield and hardening the
+            // elements with plastic points.
+            let mask = frozen
+                .and_then(|f| f.gauss)
+                .and_then(|g| self.unreached(c, k, db, &dzc[k], g));
+            let restricted = frozen.zip(mask.as_deref()).map(|(f, m)| Frozen {
+                skip: Some(m),
+                ..*f
+            });
+            let pseudo = restricted.as_ref().or(frozen);
+            self.perturbed(c, k, db, None, pseudo, &mut ev_p)?;
             self.results.cost.residual_evaluations += 1;
             if central {
-                self.perturbed(c, k, -db, None, frozen, &mut ev_m)?;
+                self.perturbed(c, k, -db, None, pseudo, &mut ev_m)?;
                 self.results.cost.residual_evaluations += 1;
+            }
+            // the residual at b: the converged one, or the nominal state over the same elements
+            let nominal = match &restricted {
+                Some(r) if !central => {
+                    c.assembler.evaluate(
+                        c.model,
+                        c.lifted,
+                        c.z,
+                        c.hist_prev,
+                        c.time,
+                        Some(r),
+                        None,
+                        &mut ev_0,
+                    )?;
+                    self.results.cost.residual_evaluations += 1;
+                    &ev_0
+                }
+                _ => c.eval,
+            };
+            if restricted.is_some() {
+                self.results.cost.partial_evaluations += 2;
             }
             for (r, resp) in c.model.responses.iter().enumerate() {
                 let vp = resp.value(&ev_p.response_input(c.z, c.assembler));
                 explicit[r][k] = if central {
                     (vp - resp.value(&ev_m.response_input(c.z, c.assembler))) / (2.0 * db)
                 } else {
-                    (vp - resp.value(&c.eval.response_input(c.z, c.assembler))) / db
+                    (vp - resp.value(&nominal.response_input(c.z, c.assembler))) / db
                 };
             }
             for i in 0..n {
@@ -854,7 +949,7 @@ impl<'a> Engine<'a> {
                 let d = if central {
                     (ev_p.residual[i] - ev_m.residual[i]) / (2.0 * db)
                 } else {
-                    (ev_p.residual[i] - c.eval.residual[i]) / db
+                    (ev_p.residual[i] - nominal.residual[i]) / db
                 };
                 rhs[k * n + i] = -d;
             }

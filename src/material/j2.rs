@@ -378,6 +378,11 @@ impl MaterialLaw for J2Plasticity {
         "j2"
     }
 
+    /// E and nu: the elastic branch is `C : (E - E_p)` with the history unchanged; the yield
+    /// stress and the hardening parameters act only on the plastic branch.
+    fn enters_elastic_branch(&self, index: usize) -> bool {
+        index < 2
+    }
     fn param_names(&self) -> &'static [&'static str] {
         if self.saturation {
             &["E", "nu", "sigma_y", "H", "sigma_inf", "delta"]

@@ -73,6 +73,14 @@ pub trait MaterialLaw: Send + Sync + std::fmt::Debug {
     fn params(&self) -> &[f64];
     /// Parameter values, mutable (reruns with a perturbed design).
     fn params_mut(&mut self) -> &mut [f64];
+    /// Whether parameter `index` enters the stress of a point frozen on the elastic branch
+    /// ([`Branch::Elastic`]). Elastic laws: every parameter (the default); a plastic law says
+    /// which act only on its plastic branch, so a design derivative with respect to them
+    /// need not evaluate elements frozen elastic.
+    fn enters_elastic_branch(&self, index: usize) -> bool {
+        let _ = index;
+        true
+    }
     /// Number of history scalars per Gauss point (0 for elastic laws: they pay for none).
     fn history_len(&self) -> usize {
         0
