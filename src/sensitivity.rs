@@ -772,38 +772,37 @@ impl<'a> Engine<'a> {
         })
     }
 
-    /// f64 evaluation at the design perturbed by `sign * db` along parameter `k`, with the
-    /// history perturbed consistently; `z_shift` moves the unknowns (for the total derivative).
+    /// The design perturbed by `db` along parameter `k`, lifted to f64.
+    fn lifted_at(&self, c: &Converged<'_>, k: usize, db: f64) -> Lifted<f64> {
+        c.model
+            .lifted(&self.overrides(|j, v| if j == k { v + db } else { v }))
+    }
+
+    /// f64 evaluation at the design `lifted` (perturbed by `db` along parameter `k`), with the
+    /// history perturbed consistently and the unknowns moved by `db * z_shift` (the prescribed
+    /// derivative for the pseudo-load, the total derivative for the update).
     #[allow(clippy::too_many_arguments)]
     fn perturbed(
         &self,
         c: &Converged<'_>,
         k: usize,
         db: f64,
-        z_shift: Option<&[f64]>,
+        lifted: &Lifted<f64>,
+        z_shift: &[f64],
         frozen: Option<&Frozen<'_>>,
         ev: &mut Evaluation<f64>,
     ) -> Result<(), AnalysisError> {
         let nh = c.hist_prev.len();
-        let overrides = self.overrides(|j, v| if j == k { v + db } else { v });
-        let lifted: Lifted<f64> = c.model.lifted(&overrides);
         let hist: Vec<f64> = (0..nh)
             .map(|i| c.hist_prev[i] + db * self.dhist[k * nh + i])
             .collect();
-        let mut dzc = vec![0.0; c.z.len()];
-        self.prescribed_derivative(c, k, &mut dzc);
-        let z: Vec<f64> = (0..c.z.len())
-            .map(|i| match z_shift {
-                Some(s) => c.z[i] + db * s[i],
-                None => c.z[i] + db * dzc[i],
-            })
-            .collect();
+        let z: Vec<f64> = c.z.iter().zip(z_shift).map(|(z, s)| z + db * s).collect();
         c.assembler
-            .evaluate(c.model, &lifted, &z, &hist, c.time, frozen, None, ev)?;
+            .evaluate(c.model, lifted, &z, &hist, c.time, frozen, None, ev)?;
         Ok(())
     }
 
-    /// The elements parameter `k`'s perturbation by `db` does not reach at the fixed state, or
+    /// The elements parameter `k`'s perturbation to the design `lifted` does not reach at the fixed state, or
     /// `None` when they are fewer than half (leaving them out would not pay for the second
     /// evaluation it takes). An element is reached when a node moves (shape), when its body's
     /// material parameter changes (unless the law says the parameter acts only on the plastic
@@ -813,14 +812,11 @@ impl<'a> Engine<'a> {
         &self,
         c: &Converged<'_>,
         k: usize,
-        db: f64,
+        lifted: &Lifted<f64>,
         dzc: &[f64],
         gauss: &[Branch],
     ) -> Option<Vec<bool>> {
         let model = c.model;
-        let lifted = c
-            .model
-            .lifted::<f64>(&self.overrides(|j, v| if j == k { v + db } else { v }));
         let moved: Vec<bool> = lifted
             .coords
             .iter()
@@ -890,9 +886,16 @@ impl<'a> Engine<'a> {
         // (design perturbed, state fixed): the noise reaches a response only through dz
         let mut unbalance_noise = vec![0.0; np];
         let mut explicit = vec![vec![0.0; np]; nr];
+        // the perturbed designs (+db, and -db for central), built once for both evaluations
+        let mut designs: Vec<(Lifted<f64>, Option<Lifted<f64>>)> = Vec::with_capacity(np);
         for k in 0..np {
             self.prescribed_derivative(c, k, &mut dzc[k]);
             let db = self.params[k].step(self.settings.beta);
+            designs.push((
+                self.lifted_at(c, k, db),
+                central.then(|| self.lifted_at(c, k, -db)),
+            ));
+            let (lifted_p, lifted_m) = &designs[k];
             // Leave out the elements the perturbation does not reach: their residual is the
             // same in both evaluations of the difference, so it cancels exactly (and its
             // round-off with it). Friction and contact-stiffness parameters then evaluate the
@@ -900,16 +903,16 @@ impl<'a> Engine<'a> {
             // elements with plastic points.
             let mask = frozen
                 .and_then(|f| f.gauss)
-                .and_then(|g| self.unreached(c, k, db, &dzc[k], g));
+                .and_then(|g| self.unreached(c, k, lifted_p, &dzc[k], g));
             let restricted = frozen.zip(mask.as_deref()).map(|(f, m)| Frozen {
                 skip: Some(m),
                 ..*f
             });
             let pseudo = restricted.as_ref().or(frozen);
-            self.perturbed(c, k, db, None, pseudo, &mut ev_p)?;
+            self.perturbed(c, k, db, lifted_p, &dzc[k], pseudo, &mut ev_p)?;
             self.results.cost.residual_evaluations += 1;
-            if central {
-                self.perturbed(c, k, -db, None, pseudo, &mut ev_m)?;
+            if let Some(lifted_m) = lifted_m {
+                self.perturbed(c, k, -db, lifted_m, &dzc[k], pseudo, &mut ev_m)?;
                 self.results.cost.residual_evaluations += 1;
             }
             // the residual at b: the converged one, or the nominal state over the same elements
@@ -994,11 +997,12 @@ impl<'a> Engine<'a> {
                 })
                 .collect();
             let db = self.params[k].step(self.settings.beta);
-            self.perturbed(c, k, db, Some(&dz), frozen, &mut ev_p)?;
+            let (lifted_p, lifted_m) = &designs[k];
+            self.perturbed(c, k, db, lifted_p, &dz, frozen, &mut ev_p)?;
             self.results.cost.residual_evaluations += 1;
             let zp: Vec<f64> = (0..n).map(|i| c.z[i] + db * dz[i]).collect();
-            if central {
-                self.perturbed(c, k, -db, Some(&dz), frozen, &mut ev_m)?;
+            if let Some(lifted_m) = lifted_m {
+                self.perturbed(c, k, -db, lifted_m, &dz, frozen, &mut ev_m)?;
                 self.results.cost.residual_evaluations += 1;
                 let zm: Vec<f64> = (0..n).map(|i| c.z[i] - db * dz[i]).collect();
                 for (r, resp) in c.model.responses.iter().enumerate() {

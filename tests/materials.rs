@@ -228,7 +228,7 @@ fn sdm_over_only_the_elements_a_parameter_reaches_matches_ddm() {
     // flagged, to 1e-5 of the largest derivative of each response and parameter: measured
     // 1.5e-7 (truncation beta^2 and round-off eps / beta, amplified by the tangent); leaving
     // out the elements with a history derivative as well errs by 1.8e-4 (checked by mutation).
-    use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
+    use fricsens::sensitivity::{Method, Parameter};
     let model = fricsens::scene::builtin("leaf-spring-coarse")
         .unwrap()
         .build()
@@ -238,17 +238,8 @@ fn sdm_over_only_the_elements_a_parameter_reaches_matches_ddm() {
         .iter()
         .map(|n| Parameter::by_name(&model, n).unwrap())
         .collect();
-    let run = |method, beta| {
-        let settings = Settings {
-            method,
-            beta,
-            tangent: TangentChoice::Exact,
-            ..Settings::default()
-        };
-        run_sensitivity(&model, &params, &settings).unwrap().1
-    };
-    let sdm = run(Method::SdmCentral, 1e-5);
-    let ddm = run(Method::Ddm, 0.0);
+    let sdm = common::sensitivities(&model, &params, Method::SdmCentral, 1e-5);
+    let ddm = common::sensitivities(&model, &params, Method::Ddm, 0.0);
     assert!(
         sdm.cost.partial_evaluations > 0,
         "no partial evaluation: the restriction was not exercised"

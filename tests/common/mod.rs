@@ -193,6 +193,24 @@ pub fn tangent_check(model: &Model, amplitude: f64) -> TangentCheck {
     TangentCheck { mismatch, plastic }
 }
 
+/// Sensitivities of `model` for the named parameters by `method` (at relative perturbation
+/// `beta`), solving with the tangent at the converged state.
+pub fn sensitivities(
+    model: &Model,
+    params: &[fricsens::sensitivity::Parameter],
+    method: fricsens::sensitivity::Method,
+    beta: f64,
+) -> fricsens::sensitivity::SensitivityResults {
+    use fricsens::sensitivity::{run_sensitivity, Settings, TangentChoice};
+    let settings = Settings {
+        method,
+        beta,
+        tangent: TangentChoice::Exact,
+        ..Settings::default()
+    };
+    run_sensitivity(model, params, &settings).unwrap().1
+}
+
 /// DDM and central FDM (beta = 1e-6) of `model` for the named parameters, both solving with
 /// the tangent at the converged state.
 pub fn ddm_and_central_fdm(
@@ -203,21 +221,12 @@ pub fn ddm_and_central_fdm(
     fricsens::sensitivity::SensitivityResults,
     fricsens::sensitivity::SensitivityResults,
 ) {
-    use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
+    use fricsens::sensitivity::{Method, Parameter};
     let params: Vec<Parameter> = names
         .iter()
         .map(|p| Parameter::by_name(model, p).unwrap())
         .collect();
-    let run = |method, beta| {
-        let settings = Settings {
-            method,
-            beta,
-            tangent: TangentChoice::Exact,
-            ..Settings::default()
-        };
-        run_sensitivity(model, &params, &settings).unwrap().1
-    };
-    let ddm = run(Method::Ddm, 0.0);
-    let fdm = run(Method::FdmCentral, 1e-6);
+    let ddm = sensitivities(model, &params, Method::Ddm, 0.0);
+    let fdm = sensitivities(model, &params, Method::FdmCentral, 1e-6);
     (params, ddm, fdm)
 }
