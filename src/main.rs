@@ -258,6 +258,16 @@ fn sensitivity(
         c.solve_columns,
         c.primal_reruns
     );
+    if settings.method.is_inline() {
+        let other = c.wall_seconds - c.evaluation_seconds - c.factor_seconds - c.solve_seconds;
+        out!(
+            "  where it went: evaluations {:.3} s, factorizations {:.3} s, solves {:.3} s, the rest {:.3} s",
+            c.evaluation_seconds,
+            c.factor_seconds,
+            c.solve_seconds,
+            other
+        );
+    }
     if let Some(last) = sens.increments.last() {
         for (r, name) in sens.responses.iter().enumerate().take(8) {
             outp!("  {name:<24} {:>14.6e}", last.values[r]);
@@ -328,6 +338,16 @@ fn run(scene_name: &str, out: Option<PathBuf>) -> Result<(), String> {
         res.cost.assemblies,
         solver.assembler.dofs.n_total,
         res.cost.wall_seconds
+    );
+    out!(
+        "  where it went: assembly {:.3} s, factorizations {:.3} s, solves {:.3} s, the rest {:.3} s",
+        res.cost.assembly_seconds,
+        res.cost.factor_seconds,
+        res.cost.solve_seconds,
+        res.cost.wall_seconds
+            - res.cost.assembly_seconds
+            - res.cost.factor_seconds
+            - res.cost.solve_seconds
     );
     let last = res.states.len() - 1;
     for (k, r) in model.responses.iter().enumerate() {

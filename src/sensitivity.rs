@@ -413,6 +413,21 @@ pub struct SensitivityCost {
     pub solve_columns: usize,
     /// Complete primal reruns (FDM).
     pub primal_reruns: usize,
+    /// Of the wall time: residual evaluations (perturbed, nominal, dual, the updates of the
+    /// history and the responses after the solve, forced tangents).
+    pub evaluation_seconds: f64,
+    /// Of the wall time: numeric factorizations.
+    pub factor_seconds: f64,
+    /// Of the wall time: triangular solves (refinement steps included).
+    pub solve_seconds: f64,
+}
+
+/// Add the wall time of `f` to `slot`.
+fn timed<T>(slot: &mut f64, f: impl FnOnce() -> T) -> T {
+    let t = Instant::now();
+    let out = f();
+    *slot += t.elapsed().as_secs_f64();
+    out
 }
 
 /// Everything a sensitivity run produces.
@@ -621,17 +636,25 @@ impl<'a> Engine<'a> {
                 self.exact = Some(LinearSolver::new(c.assembler.pattern.clone())?);
             }
             let s = self.exact.as_mut().expect("just created");
-            s.factor(&k)?;
-            self.results.cost.factorizations += 1;
-            s.solve_multi_in_place(rhs, ncols)?;
+            let cost = &mut self.results.cost;
+            timed(&mut cost.factor_seconds, || s.factor(&k))?;
+            cost.factorizations += 1;
+            timed(&mut cost.solve_seconds, || {
+                s.solve_multi_in_place(rhs, ncols)
+            })?;
         } else {
             let last = c.last_factor.expect("checked above");
             let b = rhs.to_vec();
-            last.solve_multi_in_place(rhs, ncols)?;
+            let cost = &mut self.results.cost;
+            timed(&mut cost.solve_seconds, || {
+                last.solve_multi_in_place(rhs, ncols)
+            })?;
             if self.settings.tangent == TangentChoice::Refined {
                 let k = converged_k();
-                last.refine_multi(&k, &b, rhs, ncols, self.settings.refine_steps)?;
-                self.results.cost.solve_columns += ncols * self.settings.refine_steps;
+                timed(&mut cost.solve_seconds, || {
+                    last.refine_multi(&k, &b, rhs, ncols, self.settings.refine_steps)
+                })?;
+                cost.solve_columns += ncols * self.settings.refine_steps;
             }
         }
         self.results.cost.solve_columns += ncols;
@@ -670,17 +693,7 @@ impl<'a> Engine<'a> {
         let hist: Vec<S> = lift_with_parts(c.hist_prev, np, |j, i| self.dhist[ks[j] * nh + i]);
         let z: Vec<S> = lift_with_parts(c.z, np, |j, i| dzc[j][i]);
         let mut ev = Evaluation::<S>::new(c.assembler, ne);
-        c.assembler.evaluate(
-            c.model,
-            &lifted,
-            &z,
-            &hist,
-            c.time,
-            Some(frozen),
-            None,
-            &mut ev,
-        )?;
-        self.results.cost.residual_evaluations += 1;
+        self.evaluate(c, &lifted, &z, &hist, Some(frozen), None, &mut ev)?;
         // pseudo-loads, column-major
         let mut rhs = vec![0.0; n * np];
         for j in 0..np {
@@ -703,17 +716,7 @@ impl<'a> Engine<'a> {
         // total derivatives: evaluate with z carrying dz/db (`update`: only the history and
         // the responses are wanted)
         let z: Vec<S> = lift_with_parts(c.z, np, |j, i| rhs[j * n + i]);
-        c.assembler.evaluate(
-            c.model,
-            &lifted,
-            &z,
-            &hist,
-            c.time,
-            Some(update),
-            None,
-            &mut ev,
-        )?;
-        self.results.cost.residual_evaluations += 1;
+        self.evaluate(c, &lifted, &z, &hist, Some(update), None, &mut ev)?;
         let mut dresp = vec![vec![0.0; np]; c.model.responses.len()];
         for (r, resp) in c.model.responses.iter().enumerate() {
             let v = resp.value(&ev.response_input(&z, c.assembler));
@@ -783,7 +786,7 @@ impl<'a> Engine<'a> {
     /// derivative for the pseudo-load, the total derivative for the update).
     #[allow(clippy::too_many_arguments)]
     fn perturbed(
-        &self,
+        &mut self,
         c: &Converged<'_>,
         k: usize,
         db: f64,
@@ -797,8 +800,28 @@ impl<'a> Engine<'a> {
             .map(|i| c.hist_prev[i] + db * self.dhist[k * nh + i])
             .collect();
         let z: Vec<f64> = c.z.iter().zip(z_shift).map(|(z, s)| z + db * s).collect();
-        c.assembler
-            .evaluate(c.model, lifted, &z, &hist, c.time, frozen, None, ev)?;
+        self.evaluate(c, lifted, &z, &hist, frozen, None, ev)
+    }
+
+    /// One residual evaluation of the engine's own, at the converged increment's time: timed
+    /// and counted in the cost ledger.
+    #[allow(clippy::too_many_arguments)]
+    fn evaluate<S: Scalar>(
+        &mut self,
+        c: &Converged<'_>,
+        lifted: &Lifted<S>,
+        z: &[S],
+        hist: &[S],
+        frozen: Option<&Frozen<'_>>,
+        tangent: Option<&mut crate::linalg::SparseMatrix>,
+        ev: &mut Evaluation<S>,
+    ) -> Result<(), AnalysisError> {
+        let cost = &mut self.results.cost;
+        timed(&mut cost.evaluation_seconds, || {
+            c.assembler
+                .evaluate(c.model, lifted, z, hist, c.time, frozen, tangent, ev)
+        })?;
+        cost.residual_evaluations += 1;
         Ok(())
     }
 
@@ -910,25 +933,13 @@ impl<'a> Engine<'a> {
             });
             let pseudo = restricted.as_ref().or(frozen);
             self.perturbed(c, k, db, lifted_p, &dzc[k], pseudo, &mut ev_p)?;
-            self.results.cost.residual_evaluations += 1;
             if let Some(lifted_m) = lifted_m {
                 self.perturbed(c, k, -db, lifted_m, &dzc[k], pseudo, &mut ev_m)?;
-                self.results.cost.residual_evaluations += 1;
             }
             // the residual at b: the converged one, or the nominal state over the same elements
             let nominal = match &restricted {
                 Some(r) if !central => {
-                    c.assembler.evaluate(
-                        c.model,
-                        c.lifted,
-                        c.z,
-                        c.hist_prev,
-                        c.time,
-                        Some(r),
-                        None,
-                        &mut ev_0,
-                    )?;
-                    self.results.cost.residual_evaluations += 1;
+                    self.evaluate(c, c.lifted, c.z, c.hist_prev, Some(r), None, &mut ev_0)?;
                     &ev_0
                 }
                 _ => c.eval,
@@ -999,11 +1010,9 @@ impl<'a> Engine<'a> {
             let db = self.params[k].step(self.settings.beta);
             let (lifted_p, lifted_m) = &designs[k];
             self.perturbed(c, k, db, lifted_p, &dz, frozen, &mut ev_p)?;
-            self.results.cost.residual_evaluations += 1;
             let zp: Vec<f64> = (0..n).map(|i| c.z[i] + db * dz[i]).collect();
             if let Some(lifted_m) = lifted_m {
                 self.perturbed(c, k, -db, lifted_m, &dz, frozen, &mut ev_m)?;
-                self.results.cost.residual_evaluations += 1;
                 let zm: Vec<f64> = (0..n).map(|i| c.z[i] - db * dz[i]).collect();
                 for (r, resp) in c.model.responses.iter().enumerate() {
                     let vp = resp.value(&ev_p.response_input(&zp, c.assembler));
@@ -1114,12 +1123,11 @@ impl Observer for Engine<'_> {
                 // the tangent of the forced branches, at the converged state
                 let mut k = c.tangent.clone();
                 let mut ev = Evaluation::<f64>::new(c.assembler, c.model.mesh.elements.len());
-                c.assembler.evaluate(
-                    c.model,
+                self.evaluate(
+                    c,
                     c.lifted,
                     c.z,
                     c.hist_prev,
-                    c.time,
                     Some(&frozen),
                     Some(&mut k),
                     &mut ev,
