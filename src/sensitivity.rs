@@ -316,6 +316,9 @@ pub struct Settings {
     pub freeze_branches: bool,
     /// |trial yield ratio| below which a Gauss point is taken to sit on a transition.
     pub kink_tol: f64,
+    /// Evaluate each pseudo-load (SDM's unbalance, DDM's derivative part) over only the
+    /// elements the parameter reaches, where they are fewer than half (off: over all).
+    pub restrict: bool,
 }
 
 impl Default for Settings {
@@ -327,6 +330,7 @@ impl Default for Settings {
             refine_steps: 2,
             freeze_branches: true,
             kink_tol: 1e-6,
+            restrict: true,
         }
     }
 }
@@ -693,7 +697,19 @@ impl<'a> Engine<'a> {
         let hist: Vec<S> = lift_with_parts(c.hist_prev, np, |j, i| self.dhist[ks[j] * nh + i]);
         let z: Vec<S> = lift_with_parts(c.z, np, |j, i| dzc[j][i]);
         let mut ev = Evaluation::<S>::new(c.assembler, ne);
-        self.evaluate(c, &lifted, &z, &hist, Some(frozen), None, &mut ev)?;
+        // the pseudo-load is the derivative part alone: the elements the seeded parameters do
+        // not reach contribute none and are left out
+        let mask = frozen
+            .gauss
+            .and_then(|g| self.unreached(c, ks, &Reach::seeded(&lifted, np), &dzc, g));
+        let pseudo = Frozen {
+            skip: mask.as_deref(),
+            ..*frozen
+        };
+        self.evaluate(c, &lifted, &z, &hist, Some(&pseudo), None, &mut ev)?;
+        if mask.is_some() {
+            self.results.cost.partial_evaluations += 1;
+        }
         // pseudo-loads, column-major
         let mut rhs = vec![0.0; n * np];
         for j in 0..np {
@@ -825,29 +841,26 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
-    /// The elements parameter `k`'s perturbation to the design `lifted` does not reach at the fixed state, or
+    /// The elements a perturbation of parameters `ks` does not reach at the fixed state, or
     /// `None` when they are fewer than half (leaving them out would not pay for the second
     /// evaluation it takes). An element is reached when a node moves (shape), when its body's
     /// material parameter changes (unless the law says the parameter acts only on the plastic
-    /// branch and all its points are frozen elastic), when a prescribed unknown of it moves,
-    /// or when its history carries a derivative. Contact and loads are always evaluated.
+    /// branch and all its points are `gauss`-frozen elastic), when a prescribed unknown of it
+    /// moves (`dzc`), or when its history carries a derivative. Contact and loads are always
+    /// evaluated.
     fn unreached(
         &self,
         c: &Converged<'_>,
-        k: usize,
-        lifted: &Lifted<f64>,
-        dzc: &[f64],
+        ks: &[usize],
+        reach: &Reach,
+        dzc: &[Vec<f64>],
         gauss: &[Branch],
     ) -> Option<Vec<bool>> {
+        if !self.settings.restrict {
+            return None;
+        }
         let model = c.model;
-        let moved: Vec<bool> = lifted
-            .coords
-            .iter()
-            .zip(&c.lifted.coords)
-            .map(|(a, b)| a != b)
-            .collect();
         let nh = c.hist_prev.len();
-        let dhist = &self.dhist[k * nh..(k + 1) * nh];
         let dofs = &c.assembler.dofs;
         let mask: Vec<bool> = (0..model.mesh.elements.len())
             .map(|e| {
@@ -858,19 +871,22 @@ impl<'a> Engine<'a> {
                 let elastic = gauss[8 * e..8 * e + 8]
                     .iter()
                     .all(|g| *g == Branch::Elastic);
-                let material_unchanged = lifted.material[b]
-                    .iter()
-                    .zip(&c.lifted.material[b])
-                    .enumerate()
-                    .all(|(i, (p, q))| {
-                        p == q || (elastic && !body.material.enters_elastic_branch(i))
+                let material_unchanged =
+                    reach.material[b].iter().enumerate().all(|(i, changed)| {
+                        !changed || (elastic && !body.material.enters_elastic_branch(i))
                     });
                 let h0 = dofs.history_offset[e];
                 let nh8 = 8 * body.material.history_len();
                 material_unchanged
-                    && !model.mesh.elements[e].iter().any(|&n| moved[n])
-                    && c.assembler.element_dofs(e).iter().all(|&d| dzc[d] == 0.0)
-                    && dhist[h0..h0 + nh8].iter().all(|v| *v == 0.0)
+                    && !model.mesh.elements[e].iter().any(|&n| reach.moved[n])
+                    && dzc
+                        .iter()
+                        .all(|d| c.assembler.element_dofs(e).iter().all(|&i| d[i] == 0.0))
+                    && ks.iter().all(|&k| {
+                        self.dhist[k * nh + h0..k * nh + h0 + nh8]
+                            .iter()
+                            .all(|v| *v == 0.0)
+                    })
             })
             .collect();
         let unreached = mask.iter().filter(|m| **m).count();
@@ -924,9 +940,10 @@ impl<'a> Engine<'a> {
             // round-off with it). Friction and contact-stiffness parameters then evaluate the
             // contact and the elements with a history derivative; yield and hardening the
             // elements with plastic points.
-            let mask = frozen
-                .and_then(|f| f.gauss)
-                .and_then(|g| self.unreached(c, k, lifted_p, &dzc[k], g));
+            let mask = frozen.and_then(|f| f.gauss).and_then(|g| {
+                let reach = Reach::between(lifted_p, c.lifted);
+                self.unreached(c, &[k], &reach, std::slice::from_ref(&dzc[k]), g)
+            });
             let restricted = frozen.zip(mask.as_deref()).map(|(f, m)| Frozen {
                 skip: Some(m),
                 ..*f
@@ -1115,6 +1132,12 @@ impl Observer for Engine<'_> {
                         }
                     }
                 }
+                if gauss == c.eval.branches && contact == c.eval.contact.choice {
+                    // the converged state is on this side of every flagged point: its
+                    // one-sided derivative is the derivative just computed
+                    sides.push(dresp.clone());
+                    continue;
+                }
                 let frozen = Frozen {
                     gauss: Some(&gauss),
                     contact: &contact,
@@ -1166,6 +1189,51 @@ impl Observer for Engine<'_> {
         });
         self.results.cost.wall_seconds += t0.elapsed().as_secs_f64();
         Ok(())
+    }
+}
+
+/// What a design perturbation changes in the model an element sees: which nodes move and
+/// which material parameters of each body change.
+struct Reach {
+    moved: Vec<bool>,
+    material: Vec<Vec<bool>>,
+}
+
+impl Reach {
+    /// The changes from design `base` to design `other` (SDM's finite perturbation).
+    fn between(other: &Lifted<f64>, base: &Lifted<f64>) -> Self {
+        Reach {
+            moved: other
+                .coords
+                .iter()
+                .zip(&base.coords)
+                .map(|(a, b)| a != b)
+                .collect(),
+            material: other
+                .material
+                .iter()
+                .zip(&base.material)
+                .map(|(p, q)| p.iter().zip(q).map(|(a, b)| a != b).collect())
+                .collect(),
+        }
+    }
+
+    /// The quantities of a seeded design with a nonzero derivative in one of its first `np`
+    /// parts (DDM).
+    fn seeded<S: Scalar>(lifted: &Lifted<S>, np: usize) -> Self {
+        let carries = |x: &S| (0..np).any(|j| x.part(j) != 0.0);
+        Reach {
+            moved: lifted
+                .coords
+                .iter()
+                .map(|x| x.iter().any(carries))
+                .collect(),
+            material: lifted
+                .material
+                .iter()
+                .map(|p| p.iter().map(carries).collect())
+                .collect(),
+        }
     }
 }
 

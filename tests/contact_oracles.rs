@@ -98,6 +98,14 @@ fn klarbring_first_slip_onset_is_flagged_with_one_sided_derivatives() {
         "slip side {}",
         slip[0][0]
     );
+    // the converged state is on one side of the onset: that side is the derivative itself, so
+    // only the other side's forced tangent is factored (one per increment for the exact
+    // tangent, plus one)
+    assert_eq!(
+        sens.cost.factorizations,
+        sens.increments.len() + 1,
+        "factorizations"
+    );
     // other increments are not flagged
     let flagged: Vec<f64> = sens
         .increments
