@@ -6,7 +6,7 @@
 //! * `uniaxial-j2`: the built-in one-element J2 stress cycle (30 increments, plastic).
 //!
 //! Methods: `primal` (Newton only), `sdm` and `sdm-central` (1 parameter), `ddm` (1 parameter),
-//! `ddm-4` and `sdm-4` (4 parameters; DDM batched through one `DualSVec64<4>` pass and one
+//! `ddm-4` and `sdm-4` (4 parameters; DDM: one `Dual64` pass per parameter, then one
 //! 4-column solve). Parameters: cantilever E (then E, nu, tip load, beam length); J2 sigma_y
 //! (then E, nu, sigma_y, H).
 //!

@@ -199,6 +199,7 @@ fn sensitivity(
             TangentArg::Refined => TangentChoice::Refined,
             TangentArg::Exact => TangentChoice::Exact,
         },
+        probe_floor: true,
         ..Settings::default()
     };
     let (res, sens) = run_sensitivity(&model, &params, &settings).map_err(|e| e.to_string())?;
@@ -261,11 +262,13 @@ fn sensitivity(
     if settings.method.is_inline() {
         let other = c.wall_seconds - c.evaluation_seconds - c.factor_seconds - c.solve_seconds;
         out!(
-            "  where it went: evaluations {:.3} s, factorizations {:.3} s, solves {:.3} s, the rest {:.3} s",
+            "  where it went: evaluations {:.3} s, factorizations {:.3} s, solves {:.3} s, the rest {:.3} s; the floor (one evaluation and one solve per parameter and increment) {:.3} s: {:.2} times the floor",
             c.evaluation_seconds,
             c.factor_seconds,
             c.solve_seconds,
-            other
+            other,
+            c.floor_seconds * params.len() as f64,
+            c.wall_seconds / (c.floor_seconds * params.len() as f64).max(1e-12)
         );
     }
     if let Some(last) = sens.increments.last() {

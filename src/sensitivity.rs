@@ -38,7 +38,7 @@ use crate::material::Branch;
 use crate::model::{DesignParam, Lifted, Model};
 use crate::scalar::Scalar;
 use crate::solver::{AnalysisError, Converged, NoObserver, Observer, Results, RunOptions, Solver};
-use num_dual::{Dual64, DualSVec64};
+use num_dual::Dual64;
 use std::time::Instant;
 
 /// A sensitivity method.
@@ -319,6 +319,9 @@ pub struct Settings {
     /// Evaluate each pseudo-load (SDM's unbalance, DDM's derivative part) over only the
     /// elements the parameter reaches, where they are fewer than half (off: over all).
     pub restrict: bool,
+    /// Measure the floor (`SensitivityCost::floor_seconds`) at every increment, outside the
+    /// method's own wall time.
+    pub probe_floor: bool,
 }
 
 impl Default for Settings {
@@ -331,6 +334,7 @@ impl Default for Settings {
             freeze_branches: true,
             kink_tol: 1e-6,
             restrict: true,
+            probe_floor: false,
         }
     }
 }
@@ -424,6 +428,10 @@ pub struct SensitivityCost {
     pub factor_seconds: f64,
     /// Of the wall time: triangular solves (refinement steps included).
     pub solve_seconds: f64,
+    /// The floor of one parameter (`Settings::probe_floor`), not part of the wall time: at
+    /// every increment, one f64 residual evaluation over all elements at the converged state
+    /// and one single-column solve with Newton's last factorization, timed together.
+    pub floor_seconds: f64,
 }
 
 /// Add the wall time of `f` to `slot`.
@@ -666,122 +674,93 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
-    /// DDM for parameters `ks` (at most `N`) with the vector dual `S`.
-    fn ddm_chunk<S: Scalar>(
-        &mut self,
-        c: &Converged<'_>,
-        ks: &[usize],
-        frozen: &Frozen<'_>,
-        update: &Frozen<'_>,
-    ) -> Result<Step, AnalysisError> {
+    /// DDM for all parameters. Each parameter is seeded alone in a `Dual64` (a vector dual of
+    /// N parameters costs N times as much per element, or more, and would evaluate the union
+    /// of the parameters' elements): its pseudo-load is evaluated over only the elements it
+    /// reaches; all pseudo-loads go through one multi-column solve; then one update per
+    /// parameter carries `dz/db` into the history and the responses.
+    fn ddm(&mut self, c: &Converged<'_>, frozen: &Frozen<'_>) -> Result<Step, AnalysisError> {
+        let np = self.params.len();
         let n = c.z.len();
         let nh = c.hist_prev.len();
         let ne = c.model.mesh.elements.len();
-        let np = ks.len();
-        // seeded design: parameter ks[j] in derivative slot j
-        let overrides: Vec<(DesignParam, S)> = {
-            let mut v = Vec::new();
-            for (j, &k) in ks.iter().enumerate() {
-                let p = &self.params[k];
-                for t in &p.targets {
-                    v.push((*t, S::seeded(p.value, j)));
-                }
-            }
-            v
-        };
-        let lifted: Lifted<S> = c.model.lifted(&overrides);
+        let nr = c.model.responses.len();
+        let mut ev = Evaluation::<Dual64>::new(c.assembler, ne);
         let mut dzc = vec![vec![0.0; n]; np];
-        for (j, &k) in ks.iter().enumerate() {
-            self.prescribed_derivative(c, k, &mut dzc[j]);
-        }
-        let hist: Vec<S> = lift_with_parts(c.hist_prev, np, |j, i| self.dhist[ks[j] * nh + i]);
-        let z: Vec<S> = lift_with_parts(c.z, np, |j, i| dzc[j][i]);
-        let mut ev = Evaluation::<S>::new(c.assembler, ne);
-        // the pseudo-load is the derivative part alone: the elements the seeded parameters do
-        // not reach contribute none and are left out
-        let mask = frozen
-            .gauss
-            .and_then(|g| self.unreached(c, ks, &Reach::seeded(&lifted, np), &dzc, g));
-        let pseudo = Frozen {
-            skip: mask.as_deref(),
-            ..*frozen
-        };
-        self.evaluate(c, &lifted, &z, &hist, Some(&pseudo), None, &mut ev)?;
-        if mask.is_some() {
-            self.results.cost.partial_evaluations += 1;
-        }
+        let mut designs: Vec<Lifted<Dual64>> = Vec::with_capacity(np);
+        let mut hists: Vec<Vec<Dual64>> = Vec::with_capacity(np);
         // pseudo-loads, column-major
         let mut rhs = vec![0.0; n * np];
-        for j in 0..np {
+        for k in 0..np {
+            self.prescribed_derivative(c, k, &mut dzc[k]);
+            let p = &self.params[k];
+            let overrides: Vec<(DesignParam, Dual64)> = p
+                .targets
+                .iter()
+                .map(|t| (*t, Dual64::seeded(p.value, 0)))
+                .collect();
+            let lifted: Lifted<Dual64> = c.model.lifted(&overrides);
+            let hist: Vec<Dual64> = lift_with_parts(c.hist_prev, 1, |_, i| self.dhist[k * nh + i]);
+            let z: Vec<Dual64> = lift_with_parts(c.z, 1, |_, i| dzc[k][i]);
+            // the pseudo-load is the derivative part alone: the elements the parameter does
+            // not reach contribute none and are left out
+            let mask = frozen.gauss.and_then(|g| {
+                self.unreached(
+                    c,
+                    &[k],
+                    &Reach::seeded(&lifted, 1),
+                    std::slice::from_ref(&dzc[k]),
+                    g,
+                )
+            });
+            let pseudo = Frozen {
+                skip: mask.as_deref(),
+                ..*frozen
+            };
+            self.evaluate(c, &lifted, &z, &hist, Some(&pseudo), None, &mut ev)?;
+            if mask.is_some() {
+                self.results.cost.partial_evaluations += 1;
+            }
             for i in 0..n {
-                rhs[j * n + i] = if c.constrained[i] {
+                rhs[k * n + i] = if c.constrained[i] {
                     0.0
                 } else {
-                    -ev.residual[i].part(j)
+                    -ev.residual[i].eps
                 };
             }
+            designs.push(lifted);
+            hists.push(hist);
         }
         self.solve(c, &mut rhs, np)?;
-        for j in 0..np {
-            for i in 0..n {
-                if c.constrained[i] {
-                    rhs[j * n + i] = dzc[j][i];
-                }
-            }
-        }
-        // total derivatives: evaluate with z carrying dz/db (`update`: only the history and
-        // the responses are wanted)
-        let z: Vec<S> = lift_with_parts(c.z, np, |j, i| rhs[j * n + i]);
-        self.evaluate(c, &lifted, &z, &hist, Some(update), None, &mut ev)?;
-        let mut dresp = vec![vec![0.0; np]; c.model.responses.len()];
-        for (r, resp) in c.model.responses.iter().enumerate() {
-            let v = resp.value(&ev.response_input(&z, c.assembler));
-            for (j, d) in dresp[r].iter_mut().enumerate() {
-                *d = v.part(j);
-            }
-        }
-        let dhist: Vec<f64> = (0..np)
-            .flat_map(|j| ev.hist_new.iter().map(move |h| h.part(j)))
-            .collect();
-        let dz: Vec<Vec<f64>> = (0..np).map(|j| rhs[j * n..(j + 1) * n].to_vec()).collect();
-        Ok(Step {
-            dresp,
-            dhist,
-            dz,
-            roundoff: Vec::new(),
-        })
-    }
-
-    /// DDM for all parameters, in chunks of up to 8 through vector duals.
-    fn ddm(&mut self, c: &Converged<'_>, frozen: &Frozen<'_>) -> Result<Step, AnalysisError> {
-        let np = self.params.len();
-        let nr = c.model.responses.len();
-        let nh = c.hist_prev.len();
-        let mut dresp = vec![vec![0.0; np]; nr];
-        let mut dhist = vec![0.0; nh * np];
-        let mut dz_all = vec![Vec::new(); np];
-        let all: Vec<usize> = (0..np).collect();
-        // the update after the solve wants only the history and the responses: elements frozen
-        // elastic keep their history and are skipped (once for all chunks)
+        // total derivatives: evaluate with z carrying dz/db. The update wants only the history
+        // and the responses: elements frozen elastic keep their history and are skipped.
         let skip = frozen.gauss.map(|g| Frozen::history_unchanged(c.model, g));
         let update = Frozen {
             skip: skip.as_deref(),
             ..*frozen
         };
-        for chunk in all.chunks(8) {
-            let out = match chunk.len() {
-                1 => self.ddm_chunk::<Dual64>(c, chunk, frozen, &update)?,
-                2 => self.ddm_chunk::<DualSVec64<2>>(c, chunk, frozen, &update)?,
-                3 | 4 => self.ddm_chunk::<DualSVec64<4>>(c, chunk, frozen, &update)?,
-                _ => self.ddm_chunk::<DualSVec64<8>>(c, chunk, frozen, &update)?,
-            };
-            for (j, &k) in chunk.iter().enumerate() {
-                for (row, src) in dresp.iter_mut().zip(&out.dresp) {
-                    row[k] = src[j];
-                }
-                dhist[k * nh..(k + 1) * nh].copy_from_slice(&out.dhist[j * nh..(j + 1) * nh]);
-                dz_all[k] = out.dz[j].clone();
+        let mut dresp = vec![vec![0.0; np]; nr];
+        let mut dhist = vec![0.0; nh * np];
+        let mut dz_all = Vec::with_capacity(np);
+        for (k, (lifted, hist)) in designs.iter().zip(&hists).enumerate() {
+            let dz: Vec<f64> = (0..n)
+                .map(|i| {
+                    if c.constrained[i] {
+                        dzc[k][i]
+                    } else {
+                        rhs[k * n + i]
+                    }
+                })
+                .collect();
+            let z: Vec<Dual64> = lift_with_parts(c.z, 1, |_, i| dz[i]);
+            self.evaluate(c, lifted, &z, hist, Some(&update), None, &mut ev)?;
+            for (r, resp) in c.model.responses.iter().enumerate() {
+                dresp[r][k] = resp.value(&ev.response_input(&z, c.assembler)).eps;
             }
+            for (d, h) in dhist[k * nh..(k + 1) * nh].iter_mut().zip(&ev.hist_new) {
+                *d = h.eps;
+            }
+            dz_all.push(dz);
         }
         Ok(Step {
             dresp,
@@ -891,6 +870,34 @@ impl<'a> Engine<'a> {
             .collect();
         let unreached = mask.iter().filter(|m| **m).count();
         (2 * unreached > mask.len()).then_some(mask)
+    }
+
+    /// Time the floor of one parameter at this increment: one f64 residual evaluation over all
+    /// elements at the converged state, with its branches frozen, and one single-column solve
+    /// with Newton's last factorization (none where Newton did not factor).
+    fn probe_floor(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        let t = Instant::now();
+        let frozen = Frozen {
+            gauss: Some(&c.eval.branches),
+            contact: &c.eval.contact.choice,
+            skip: None,
+        };
+        let mut ev = Evaluation::<f64>::new(c.assembler, c.model.mesh.elements.len());
+        c.assembler.evaluate(
+            c.model,
+            c.lifted,
+            c.z,
+            c.hist_prev,
+            c.time,
+            Some(&frozen),
+            None,
+            &mut ev,
+        )?;
+        if let Some(f) = c.last_factor {
+            f.solve_in_place(&mut ev.residual)?;
+        }
+        self.results.cost.floor_seconds += t.elapsed().as_secs_f64();
+        Ok(())
     }
 
     /// SDM (forward or central) for all parameters.
@@ -1074,6 +1081,9 @@ impl<'a> Engine<'a> {
 
 impl Observer for Engine<'_> {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        if self.settings.probe_floor {
+            self.probe_floor(c)?;
+        }
         let t0 = Instant::now();
         if self.results.increments.is_empty() && !c.model.contacts.is_empty() {
             self.initial_history_derivative(c)?;
