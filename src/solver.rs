@@ -762,12 +762,26 @@ impl<'m> Solver<'m> {
         }
         cost.factorizations += 1;
         cost.factor_seconds += t1.elapsed().as_secs_f64();
+        let b = self.trace.then(|| rhs.to_vec());
         let t2 = Instant::now();
         if self.linear.solve_in_place(rhs).is_err() {
             return Err(AttemptFailure::Diverged("solve failed"));
         }
         cost.solves += 1;
         cost.solve_seconds += t2.elapsed().as_secs_f64();
+        if let Some(b) = b {
+            // the linear solve's own accuracy: |K x - b| / |b|
+            let mut kx = vec![0.0; b.len()];
+            if self.matrix.mul_vec(rhs, &mut kx).is_ok() {
+                let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
+                let r = norm(&mut kx.iter().zip(&b).map(|(a, b)| a - b));
+                let bn = norm(&mut b.iter().copied());
+                eprintln!(
+                    "  solve: |K x - b| / |b| = {:.2e}",
+                    r / bn.max(f64::MIN_POSITIVE)
+                );
+            }
+        }
         Ok(())
     }
 
