@@ -260,7 +260,7 @@ fn sensitivity(
         c.primal_reruns
     );
     if settings.method.is_inline() {
-        let other = c.wall_seconds - c.evaluation_seconds - c.factor_seconds - c.solve_seconds;
+        let other = c.rest_seconds();
         out!(
             "  where it went: evaluations {:.3} s, factorizations {:.3} s, solves {:.3} s, the rest {:.3} s; the floor (one evaluation and one solve per parameter and increment) {:.3} s: {:.2} times the floor",
             c.evaluation_seconds,
@@ -347,10 +347,7 @@ fn run(scene_name: &str, out: Option<PathBuf>) -> Result<(), String> {
         res.cost.assembly_seconds,
         res.cost.factor_seconds,
         res.cost.solve_seconds,
-        res.cost.wall_seconds
-            - res.cost.assembly_seconds
-            - res.cost.factor_seconds
-            - res.cost.solve_seconds
+        res.cost.rest_seconds(res.cost.wall_seconds)
     );
     let last = res.states.len() - 1;
     for (k, r) in model.responses.iter().enumerate() {

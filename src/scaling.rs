@@ -447,6 +447,19 @@ pub fn measure_child(scene: &str, refinement: f64) -> Result<String, ScalingErro
     })
 }
 
+/// The largest exponent the study extrapolates a scene's time and memory with, from its last
+/// two sizes to the next: a sparse LU of a 3D mesh costs about n^2 (nested dissection).
+pub const MAX_EXTRAPOLATION_EXPONENT: f64 = 2.0;
+
+/// `y` at `x` from the power law through the last two `(x, y)` points, its exponent capped at
+/// [`MAX_EXTRAPOLATION_EXPONENT`] (`None` with fewer than two usable points).
+pub fn extrapolate(points: &[(f64, f64)], x: f64) -> Option<f64> {
+    let last2 = &points[points.len().saturating_sub(2)..];
+    let law = fit_power_law(last2)?;
+    let &(x0, y0) = last2.last()?;
+    Some(y0 * (x / x0).powf(law.exponent.min(MAX_EXTRAPOLATION_EXPONENT)))
+}
+
 /// A child running longer than this many times [`StudyOptions::time_budget_seconds`] is
 /// stopped (the extrapolation that let it start was wrong by that much).
 pub const CHILD_TIMEOUT_FACTOR: f64 = 3.0;
@@ -762,15 +775,17 @@ pub fn run_study(opts: &StudyOptions) -> Result<Study, ScalingError> {
                 skipped.push(skip("a smaller size of this scene failed".into()));
                 continue;
             }
-            // extrapolate memory and time from the last two sizes of this scene
+            // extrapolate memory and time from the last two sizes of this scene, with the
+            // exponent at most MAX_EXTRAPOLATION_EXPONENT: two sizes whose load paths took
+            // different cutbacks give any exponent (leaf spring, 1,942 to 2,626 unknowns: 1 and
+            // 3 increments, wall time exponent 8.1, which skipped every larger size)
             let predict = |get: &dyn Fn(&Measurement) -> Option<f64>| {
                 let before: Vec<(f64, f64)> = rows
                     .iter()
                     .filter(|m| m.scene == scene)
                     .filter_map(|m| get(m).map(|y| (m.dofs as f64, y)))
                     .collect();
-                let last2 = &before[before.len().saturating_sub(2)..];
-                fit_power_law(last2).map(|law| law.at(size.dofs as f64))
+                extrapolate(&before, size.dofs as f64)
             };
             if let Some(mib) = predict(&|m| m.peak_mib) {
                 if mib > opts.memory_budget_mib {
@@ -1418,6 +1433,22 @@ fn limit_paragraph(study: &Study) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn extrapolation_follows_the_last_two_sizes_with_the_exponent_capped() {
+        // below the cap: the law through the points, y = 2 x^1.5
+        let law = |x: f64| 2.0 * x.powf(1.5);
+        let pts = [(10.0, 1e9), (100.0, law(100.0)), (400.0, law(400.0))];
+        let y = extrapolate(&pts, 1600.0).unwrap();
+        assert!((y / law(1600.0) - 1.0).abs() < 1e-12, "{y}");
+        // above it: the leaf spring's 1,942 -> 2,626 unknowns, 0.15 -> 1.72 s (exponent 8.1)
+        // goes on with exponent 2 from the last size
+        let pts = [(1942.0, 0.15), (2626.0, 1.72)];
+        let y = extrapolate(&pts, 5463.0).unwrap();
+        let want = 1.72 * (5463.0f64 / 2626.0).powi(2);
+        assert!((y / want - 1.0).abs() < 1e-12, "{y} vs {want}");
+        assert!(extrapolate(&pts[..1], 5463.0).is_none());
+    }
 
     #[test]
     fn power_law_fit_recovers_a_synthetic_law() {

@@ -12,7 +12,8 @@
 //! * **DDM**: `R` evaluated with `z_n` real, `h_{n-1}` carrying its derivative and `b` seeded
 //!   (dual numbers): the derivative part is exactly `r`. After the solve, the same evaluation with
 //!   `z_n` carrying `dz_n/db` gives `dh_n/db` and the total derivative of every response.
-//!   Several parameters go at once through a vector dual and one multi-column solve.
+//!   Each parameter is seeded alone in a `Dual64`; the pseudo-loads of all of them go through
+//!   one multi-column solve.
 //! * **SDM**: `r ~ [R(z_n, h_{n-1} + db dh_{n-1}/db, b + db) - R(z_n, h_{n-1}, b)] / db` with the
 //!   `f64` kernels, branches frozen at the converged state; central SDM uses `b +- db`.
 //!   `db = beta b_0` (the paper's relative perturbation; `db = beta` where `b_0 = 0`).
@@ -410,10 +411,13 @@ pub struct SensitivityCost {
     /// Wall time of the method's own work, seconds: the in-line engine's time after each
     /// increment (SDM, DDM), or the sum of the reruns' times (FDM; they may run in parallel).
     pub wall_seconds: f64,
-    /// Residual evaluations (perturbed or dual) beyond the primal run's.
+    /// Residual evaluations beyond the primal run's: SDM's perturbed and nominal ones, DDM's
+    /// dual ones (two per parameter and increment), the updates after the solve, and the
+    /// assemblies of forced tangents (one-sided derivatives).
     pub residual_evaluations: usize,
-    /// Of those, evaluations over only the elements a parameter reaches (SDM's unbalance:
-    /// contact and the elements with a history derivative for a friction parameter, ...).
+    /// Of those, the pseudo-loads evaluated over only the elements a parameter reaches (SDM's
+    /// unbalance and its nominal, DDM's derivative part: contact and the elements with a
+    /// history derivative for a friction parameter, ...).
     pub partial_evaluations: usize,
     /// Factorizations beyond Newton's (the converged tangent, forced branches).
     pub factorizations: usize,
@@ -430,8 +434,42 @@ pub struct SensitivityCost {
     pub solve_seconds: f64,
     /// The floor of one parameter (`Settings::probe_floor`), not part of the wall time: at
     /// every increment, one f64 residual evaluation over all elements at the converged state
-    /// and one single-column solve with Newton's last factorization, timed together.
+    /// and one single-column solve with Newton's last factorization (none at an increment
+    /// Newton did not factor), timed together. The in-line sweep takes it out of the primal
+    /// run's time as well.
     pub floor_seconds: f64,
+}
+
+impl SensitivityCost {
+    /// The wall time outside evaluations, factorizations and solves (building designs and
+    /// masks, copies, kink detection, forced tangents' copies, the first symbolic analysis).
+    pub fn rest_seconds(&self) -> f64 {
+        self.wall_seconds - self.evaluation_seconds - self.factor_seconds - self.solve_seconds
+    }
+}
+
+/// The branches of the converged state, frozen, over all elements.
+fn converged_frozen<'c>(c: &'c Converged<'_>) -> Frozen<'c> {
+    Frozen {
+        gauss: Some(&c.eval.branches),
+        contact: &c.eval.contact.choice,
+        skip: None,
+    }
+}
+
+/// The total derivative of the unknowns for parameter `k`: the solved column of `rhs` on the
+/// free unknowns, the prescribed derivative `dzc` on the constrained ones.
+fn total_dz(c: &Converged<'_>, rhs: &[f64], dzc: &[f64], k: usize) -> Vec<f64> {
+    let n = c.z.len();
+    (0..n)
+        .map(|i| {
+            if c.constrained[i] {
+                dzc[i]
+            } else {
+                rhs[k * n + i]
+            }
+        })
+        .collect()
 }
 
 /// Add the wall time of `f` to `slot`.
@@ -711,6 +749,7 @@ impl<'a> Engine<'a> {
                     &Reach::seeded(&lifted, 1),
                     std::slice::from_ref(&dzc[k]),
                     g,
+                    false,
                 )
             });
             let pseudo = Frozen {
@@ -743,15 +782,7 @@ impl<'a> Engine<'a> {
         let mut dhist = vec![0.0; nh * np];
         let mut dz_all = Vec::with_capacity(np);
         for (k, (lifted, hist)) in designs.iter().zip(&hists).enumerate() {
-            let dz: Vec<f64> = (0..n)
-                .map(|i| {
-                    if c.constrained[i] {
-                        dzc[k][i]
-                    } else {
-                        rhs[k * n + i]
-                    }
-                })
-                .collect();
+            let dz = total_dz(c, &rhs, &dzc[k], k);
             let z: Vec<Dual64> = lift_with_parts(c.z, 1, |_, i| dz[i]);
             self.evaluate(c, lifted, &z, hist, Some(&update), None, &mut ev)?;
             for (r, resp) in c.model.responses.iter().enumerate() {
@@ -821,8 +852,9 @@ impl<'a> Engine<'a> {
     }
 
     /// The elements a perturbation of parameters `ks` does not reach at the fixed state, or
-    /// `None` when they are fewer than half (leaving them out would not pay for the second
-    /// evaluation it takes). An element is reached when a node moves (shape), when its body's
+    /// `None` when there are none, or when `nominal` (forward SDM, which then evaluates the
+    /// nominal state over the same elements) and they are fewer than half (leaving them out
+    /// would not pay for that second evaluation). An element is reached when a node moves (shape), when its body's
     /// material parameter changes (unless the law says the parameter acts only on the plastic
     /// branch and all its points are `gauss`-frozen elastic), when a prescribed unknown of it
     /// moves (`dzc`), or when its history carries a derivative. Contact and loads are always
@@ -834,6 +866,7 @@ impl<'a> Engine<'a> {
         reach: &Reach,
         dzc: &[Vec<f64>],
         gauss: &[Branch],
+        nominal: bool,
     ) -> Option<Vec<bool>> {
         if !self.settings.restrict {
             return None;
@@ -869,7 +902,12 @@ impl<'a> Engine<'a> {
             })
             .collect();
         let unreached = mask.iter().filter(|m| **m).count();
-        (2 * unreached > mask.len()).then_some(mask)
+        let pays = if nominal {
+            2 * unreached > mask.len()
+        } else {
+            unreached > 0
+        };
+        pays.then_some(mask)
     }
 
     /// Time the floor of one parameter at this increment: one f64 residual evaluation over all
@@ -877,11 +915,7 @@ impl<'a> Engine<'a> {
     /// with Newton's last factorization (none where Newton did not factor).
     fn probe_floor(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
         let t = Instant::now();
-        let frozen = Frozen {
-            gauss: Some(&c.eval.branches),
-            contact: &c.eval.contact.choice,
-            skip: None,
-        };
+        let frozen = converged_frozen(c);
         let mut ev = Evaluation::<f64>::new(c.assembler, c.model.mesh.elements.len());
         c.assembler.evaluate(
             c.model,
@@ -906,11 +940,7 @@ impl<'a> Engine<'a> {
         let n = c.z.len();
         let nh = c.hist_prev.len();
         let ne = c.model.mesh.elements.len();
-        let converged = Frozen {
-            gauss: Some(&c.eval.branches),
-            contact: &c.eval.contact.choice,
-            skip: None,
-        };
+        let converged = converged_frozen(c);
         let frozen = if self.settings.freeze_branches {
             Some(&converged)
         } else {
@@ -949,7 +979,7 @@ impl<'a> Engine<'a> {
             // elements with plastic points.
             let mask = frozen.and_then(|f| f.gauss).and_then(|g| {
                 let reach = Reach::between(lifted_p, c.lifted);
-                self.unreached(c, &[k], &reach, std::slice::from_ref(&dzc[k]), g)
+                self.unreached(c, &[k], &reach, std::slice::from_ref(&dzc[k]), g, !central)
             });
             let restricted = frozen.zip(mask.as_deref()).map(|(f, m)| Frozen {
                 skip: Some(m),
@@ -1022,15 +1052,7 @@ impl<'a> Engine<'a> {
         });
         let frozen = update.as_ref();
         for k in 0..np {
-            let dz: Vec<f64> = (0..n)
-                .map(|i| {
-                    if c.constrained[i] {
-                        dzc[k][i]
-                    } else {
-                        rhs[k * n + i]
-                    }
-                })
-                .collect();
+            let dz = total_dz(c, &rhs, &dzc[k], k);
             let db = self.params[k].step(self.settings.beta);
             let (lifted_p, lifted_m) = &designs[k];
             self.perturbed(c, k, db, lifted_p, &dz, frozen, &mut ev_p)?;
@@ -1096,14 +1118,7 @@ impl Observer for Engine<'_> {
             roundoff,
         } =
             match self.settings.method {
-                Method::Ddm => self.ddm(
-                    c,
-                    &Frozen {
-                        gauss: Some(&c.eval.branches),
-                        contact: &c.eval.contact.choice,
-                        skip: None,
-                    },
-                )?,
+                Method::Ddm => self.ddm(c, &converged_frozen(c))?,
                 Method::Sdm => self.sdm(c, false)?,
                 Method::SdmCentral => self.sdm(c, true)?,
                 Method::Fdm | Method::FdmCentral => return Err(AnalysisError::Sensitivity(
@@ -1113,7 +1128,11 @@ impl Observer for Engine<'_> {
             };
         // one-sided derivatives at flagged points (DDM): force the flagged points on each branch
         let one_sided = if !kinks.is_empty() && self.settings.method == Method::Ddm {
-            let saved = self.dhist.clone();
+            // whether the derivative just computed solved with the converged tangent (the
+            // forced tangent of the side the converged state is on)
+            let exact_solve = self.settings.tangent == TangentChoice::Exact
+                || c.last_factor.is_none()
+                || !c.factor_matches;
             let mut sides = Vec::new();
             for side in [0, 1] {
                 let mut gauss = c.eval.branches.clone();
@@ -1142,9 +1161,10 @@ impl Observer for Engine<'_> {
                         }
                     }
                 }
-                if gauss == c.eval.branches && contact == c.eval.contact.choice {
-                    // the converged state is on this side of every flagged point: its
-                    // one-sided derivative is the derivative just computed
+                if exact_solve && gauss == c.eval.branches && contact == c.eval.contact.choice {
+                    // the converged state is on this side of every flagged point, and the
+                    // derivative just computed solved with its tangent: that derivative is
+                    // this side's
                     sides.push(dresp.clone());
                     continue;
                 }
@@ -1167,7 +1187,6 @@ impl Observer for Engine<'_> {
                 )?;
                 self.forced_tangent = Some(k);
                 sides.push(self.ddm(c, &frozen)?.dresp);
-                self.dhist.clone_from(&saved);
             }
             let upper = sides.pop().expect("two sides");
             let lower = sides.pop().expect("two sides");
@@ -1377,10 +1396,11 @@ fn inline_sweep(
     };
     let mut solver = Solver::new(model)?;
     let res = solver.run(&RunOptions::default(), &mut engines)?;
+    // the engines' own work and their floor probes are not the primal run's
     let inline: f64 = engines
         .engines
         .iter()
-        .map(|e| e.results.cost.wall_seconds)
+        .map(|e| e.results.cost.wall_seconds + e.results.cost.floor_seconds)
         .sum();
     let out = engines
         .engines

@@ -151,6 +151,13 @@ pub struct PrimalCost {
     pub solve_seconds: f64,
 }
 
+impl PrimalCost {
+    /// Of `total` seconds of a run, those outside assembly, factorization and solves.
+    pub fn rest_seconds(&self, total: f64) -> f64 {
+        total - self.assembly_seconds - self.factor_seconds - self.solve_seconds
+    }
+}
+
 /// Why an analysis stopped.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

@@ -356,10 +356,10 @@ fn write_time_ledger(s: &mut String, val: &Validation) {
             share(c.assembly_seconds),
             share(c.factor_seconds),
             share(c.solve_seconds),
-            share(v.primal_seconds - c.assembly_seconds - c.factor_seconds - c.solve_seconds)
+            share(c.rest_seconds(v.primal_seconds))
         );
     }
-    let _ = writeln!(s, "\nThe in-line methods, in milliseconds per parameter and increment. The floor is measured in the same run: at every increment one f64 residual evaluation over all elements at the converged state and one single-column solve with Newton's last factorization, timed together (outside the methods' own time). \"x floor\" is the method's total over it. Evaluations: the pseudo-loads (over only the elements a parameter reaches, where they are fewer than half), the nominal state over the same elements (forward SDM), the update of the history and the responses after the solve, the forced tangents of one-sided derivatives (DDM at flagged increments). The rest: building the perturbed or seeded designs, the masks, copying vectors.\n");
+    let _ = writeln!(s, "\nThe in-line methods, in milliseconds per parameter and increment. The floor is measured in the same run: at every increment one f64 residual evaluation over all elements at the converged state and one single-column solve with Newton's last factorization, timed together (outside the methods' own time). \"x floor\" is the method's total over it. Evaluations: the pseudo-loads (over only the elements a parameter reaches, where they are fewer than half), the nominal state over the same elements (forward SDM), the update of the history and the responses after the solve, the forced tangents of one-sided derivatives (DDM at flagged increments). The rest: building the perturbed or seeded designs and the masks, copying vectors, kink detection, copying the tangent for forced branches, the first symbolic analysis of the sensitivity's own factorization (at an increment where Newton did not factor, the floor has no solve).\n");
     let _ = writeln!(
         s,
         "| scene | method | % of primal / param. | evaluations | factorizations | solves | the rest | total | floor | x floor |"
@@ -374,7 +374,7 @@ fn write_time_ledger(s: &mut String, val: &Validation) {
                primal: f64,
                floor: f64| {
         let per = 1e3 / (np.max(1) * n_inc.max(1)) as f64;
-        let rest = c.wall_seconds - c.evaluation_seconds - c.factor_seconds - c.solve_seconds;
+        let rest = c.rest_seconds();
         let floor_ms = floor * 1e3 / n_inc.max(1) as f64;
         let total = c.wall_seconds * per;
         let _ = writeln!(
@@ -1430,17 +1430,25 @@ fn report(
                 .unwrap_or_else(|| "-".into())
         };
         // SDM's own error at this beta (converged tangent): the last factor's error adds to it
-        let sdm_error = v
+        let sdm_errors: Vec<f64> = v
             .errors
             .iter()
             .filter(|e| {
                 e.method == Method::Sdm.name() && (e.beta / opts.figure_beta - 1.0).abs() < 1e-9
             })
             .map(|e| e.error)
-            .fold(0.0f64, f64::max);
+            .collect();
+        // a failed parameter (NaN) shows as NaN, no row at this beta as "-"
+        let sdm_error = if sdm_errors.is_empty() {
+            "-".to_string()
+        } else if sdm_errors.iter().any(|e| e.is_nan()) {
+            "NaN".to_string()
+        } else {
+            format!("{:.1e}", sdm_errors.iter().copied().fold(0.0f64, f64::max))
+        };
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3} | {:.3} ({:.1e}) | {} ({:.1e}) | {:.3} ({:.1e}) | {} | {} | {} |",
+            "| {} | {} | {:.3} | {:.3} ({:.1e}) | {} ({}) | {:.3} ({:.1e}) | {} | {} | {} |",
             v.scene,
             v.params.len(),
             v.ddm_cost_ratio,
