@@ -219,10 +219,11 @@ pub struct ContactPair {
     /// the block, and the line search halves its way back, five iterations per episode. A small
     /// `c` keeps such a node until its multiplier turns tensile; an inactive node (`lambda =
     /// 0`) is activated when it penetrates, whatever `c`. Measured (`fricsens run`, increments
-    /// / Newton iterations, `c` = 1 -> 1e-3 on every pair): leaf spring 56 / 589 -> 38 / 369,
-    /// frictionless 52 / 623 -> 38 / 344, coarse 20 / 281 -> 17 / 222, sliding block 32 / 157
-    /// -> 32 / 142; indentation, Hertz, stacked leaves, Klarbring, Jenkins, contact patch
-    /// unchanged. Not the default: on the 200-element strip pull-out the changed Newton path
+    /// / Newton iterations, `c` = 1 -> 1e-3 on every pair, measured before the extrapolating
+    /// predictor and the penetration limiter, which since roughly halved the iterations):
+    /// leaf spring 56 / 589 -> 38 / 369, frictionless 52 / 623 -> 38 / 344, coarse 20 / 281
+    /// -> 17 / 222, sliding block 32 / 157 -> 32 / 142; indentation, Hertz, stacked leaves,
+    /// Klarbring, Jenkins, contact patch unchanged. Not the default: on the 200-element strip pull-out the changed Newton path
     /// takes other cutbacks in unloading (58 against 31 increments), and the slip front, held
     /// at a node by the discrete derivative, then misses du0/dmu = -u0/mu by up to 7.7 %
     /// instead of 1.6 % (`tests/contact_oracles.rs`).
