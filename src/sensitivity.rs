@@ -318,7 +318,8 @@ pub struct Settings {
     /// |trial yield ratio| below which a Gauss point is taken to sit on a transition.
     pub kink_tol: f64,
     /// Evaluate each pseudo-load (SDM's unbalance, DDM's derivative part) over only the
-    /// elements the parameter reaches, where they are fewer than half (off: over all).
+    /// elements the parameter reaches (forward SDM: only where they are fewer than half, as
+    /// it then evaluates the nominal state over them too); off: over all.
     pub restrict: bool,
     /// Measure the floor (`SensitivityCost::floor_seconds`) at every increment, outside the
     /// method's own wall time.
@@ -738,20 +739,13 @@ impl<'a> Engine<'a> {
                 .map(|t| (*t, Dual64::seeded(p.value, 0)))
                 .collect();
             let lifted: Lifted<Dual64> = c.model.lifted(&overrides);
-            let hist: Vec<Dual64> = lift_with_parts(c.hist_prev, 1, |_, i| self.dhist[k * nh + i]);
-            let z: Vec<Dual64> = lift_with_parts(c.z, 1, |_, i| dzc[k][i]);
+            let hist = duals(c.hist_prev, &self.dhist[k * nh..(k + 1) * nh]);
+            let z = duals(c.z, &dzc[k]);
             // the pseudo-load is the derivative part alone: the elements the parameter does
             // not reach contribute none and are left out
-            let mask = frozen.gauss.and_then(|g| {
-                self.unreached(
-                    c,
-                    &[k],
-                    &Reach::seeded(&lifted, 1),
-                    std::slice::from_ref(&dzc[k]),
-                    g,
-                    false,
-                )
-            });
+            let mask = frozen
+                .gauss
+                .and_then(|g| self.unreached(c, k, &Reach::seeded(&lifted), &dzc[k], g, false));
             let pseudo = Frozen {
                 skip: mask.as_deref(),
                 ..*frozen
@@ -783,7 +777,7 @@ impl<'a> Engine<'a> {
         let mut dz_all = Vec::with_capacity(np);
         for (k, (lifted, hist)) in designs.iter().zip(&hists).enumerate() {
             let dz = total_dz(c, &rhs, &dzc[k], k);
-            let z: Vec<Dual64> = lift_with_parts(c.z, 1, |_, i| dz[i]);
+            let z = duals(c.z, &dz);
             self.evaluate(c, lifted, &z, hist, Some(&update), None, &mut ev)?;
             for (r, resp) in c.model.responses.iter().enumerate() {
                 dresp[r][k] = resp.value(&ev.response_input(&z, c.assembler)).eps;
@@ -851,20 +845,21 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
-    /// The elements a perturbation of parameters `ks` does not reach at the fixed state, or
+    /// The elements a perturbation of parameter `k` does not reach at the fixed state, or
     /// `None` when there are none, or when `nominal` (forward SDM, which then evaluates the
     /// nominal state over the same elements) and they are fewer than half (leaving them out
-    /// would not pay for that second evaluation). An element is reached when a node moves (shape), when its body's
-    /// material parameter changes (unless the law says the parameter acts only on the plastic
-    /// branch and all its points are `gauss`-frozen elastic), when a prescribed unknown of it
-    /// moves (`dzc`), or when its history carries a derivative. Contact and loads are always
-    /// evaluated.
+    /// would not pay for that second evaluation).
+    ///
+    /// An element is reached when a node moves (shape), when its body's material parameter
+    /// changes (unless the law says the parameter acts only on the plastic branch and all its
+    /// points are `gauss`-frozen elastic), when a prescribed unknown of it moves (`dzc`), or
+    /// when its history carries a derivative. Contact and loads are always evaluated.
     fn unreached(
         &self,
         c: &Converged<'_>,
-        ks: &[usize],
+        k: usize,
         reach: &Reach,
-        dzc: &[Vec<f64>],
+        dzc: &[f64],
         gauss: &[Branch],
         nominal: bool,
     ) -> Option<Vec<bool>> {
@@ -891,14 +886,10 @@ impl<'a> Engine<'a> {
                 let nh8 = 8 * body.material.history_len();
                 material_unchanged
                     && !model.mesh.elements[e].iter().any(|&n| reach.moved[n])
-                    && dzc
+                    && c.assembler.element_dofs(e).iter().all(|&i| dzc[i] == 0.0)
+                    && self.dhist[k * nh + h0..k * nh + h0 + nh8]
                         .iter()
-                        .all(|d| c.assembler.element_dofs(e).iter().all(|&i| d[i] == 0.0))
-                    && ks.iter().all(|&k| {
-                        self.dhist[k * nh + h0..k * nh + h0 + nh8]
-                            .iter()
-                            .all(|v| *v == 0.0)
-                    })
+                        .all(|v| *v == 0.0)
             })
             .collect();
         let unreached = mask.iter().filter(|m| **m).count();
@@ -979,7 +970,7 @@ impl<'a> Engine<'a> {
             // elements with plastic points.
             let mask = frozen.and_then(|f| f.gauss).and_then(|g| {
                 let reach = Reach::between(lifted_p, c.lifted);
-                self.unreached(c, &[k], &reach, std::slice::from_ref(&dzc[k]), g, !central)
+                self.unreached(c, k, &reach, &dzc[k], g, !central)
             });
             let restricted = frozen.zip(mask.as_deref()).map(|(f, m)| Frozen {
                 skip: Some(m),
@@ -1247,10 +1238,9 @@ impl Reach {
         }
     }
 
-    /// The quantities of a seeded design with a nonzero derivative in one of its first `np`
-    /// parts (DDM).
-    fn seeded<S: Scalar>(lifted: &Lifted<S>, np: usize) -> Self {
-        let carries = |x: &S| (0..np).any(|j| x.part(j) != 0.0);
+    /// The quantities of a seeded design with a nonzero derivative (DDM).
+    fn seeded(lifted: &Lifted<Dual64>) -> Self {
+        let carries = |x: &Dual64| x.eps != 0.0;
         Reach {
             moved: lifted
                 .coords
@@ -1266,22 +1256,11 @@ impl Reach {
     }
 }
 
-/// Lift `values` to `S` with derivative part `j` of entry `i` equal to `part(j, i)`.
-fn lift_with_parts<S: Scalar>(
-    values: &[f64],
-    np: usize,
-    part: impl Fn(usize, usize) -> f64,
-) -> Vec<S> {
-    let mut parts = vec![0.0; np];
-    values
-        .iter()
-        .enumerate()
-        .map(|(i, v)| {
-            for (j, p) in parts.iter_mut().enumerate() {
-                *p = part(j, i);
-            }
-            S::with_parts(*v, &parts)
-        })
+/// Dual numbers with real parts `re` and derivative parts `eps`.
+fn duals(re: &[f64], eps: &[f64]) -> Vec<Dual64> {
+    re.iter()
+        .zip(eps)
+        .map(|(r, e)| Dual64::new(*r, *e))
         .collect()
 }
 

@@ -780,12 +780,11 @@ impl<'m> Solver<'m> {
             // the linear solve's own accuracy: |K x - b| / |b|
             let mut kx = vec![0.0; b.len()];
             if self.matrix.mul_vec(rhs, &mut kx).is_ok() {
-                let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
-                let r = norm(&mut kx.iter().zip(&b).map(|(a, b)| a - b));
-                let bn = norm(&mut b.iter().copied());
+                let r = kx.iter().zip(&b).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+                let bn = b.iter().map(|v| v * v).sum::<f64>();
                 eprintln!(
                     "  solve: |K x - b| / |b| = {:.2e}",
-                    r / bn.max(f64::MIN_POSITIVE)
+                    (r / bn.max(f64::MIN_POSITIVE)).sqrt()
                 );
             }
         }

@@ -72,80 +72,34 @@ fn lagrange_penalty_and_augmented_lagrangian_on_the_patch_test() {
     assert!(augs >= 1, "no augmentation pass");
 }
 
-#[test]
-fn the_active_set_weight_changes_the_newton_path_not_the_solution() {
-    // any weight c > 0 of the gap in `lambda - c k g >= 0` has the same solutions; on the coarse
-    // leaf spring (frictional, elastoplastic, the block's nose sliding across faces) c = 1 and
-    // c = 1e-3 converge through the same increments, so every response must agree at every
-    // increment to Newton's tolerance (1e-9 of the reference force; 1e-6 relative leaves room
-    // for the path-dependent friction and plastic history of two differently iterated but
-    // equally converged runs). The sliding block served until the extrapolating predictor made
-    // both weights take identical iterates there.
-    let run = |c: Option<f64>| {
-        let mut scene = fricsens::scene::builtin("leaf-spring-coarse").unwrap();
-        for p in &mut scene.contacts {
-            p.activation = c;
-        }
-        let model = scene.build().unwrap();
-        let res = Solver::new(&model)
-            .unwrap()
-            .run(&RunOptions::default(), &mut NoObserver)
-            .unwrap();
-        let residuals: Vec<Vec<f64>> = res.records.iter().map(|r| r.residuals.clone()).collect();
-        let values: Vec<Vec<f64>> = (0..model.responses.len())
-            .map(|r| {
-                (1..res.times.len())
-                    .map(|k| res.response_value(&model, r, k))
-                    .collect()
-            })
-            .collect();
-        (res.times.clone(), values, residuals)
-    };
-    let (t1, v1, r1) = run(None);
-    let (t3, v3, r3) = run(Some(1e-3));
-    assert_eq!(t1, t3, "same increments");
-    // not vacuous: the weight changes the iterates (the residual histories), whether or not
-    // it changes the number of iterations
-    assert_ne!(r1, r3, "the weight changes Newton's path");
-    for (a, b) in v1.iter().zip(&v3) {
-        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for (x, y) in a.iter().zip(b) {
-            assert!((x - y).abs() <= 1e-6 * scale, "{x} vs {y}");
-        }
-    }
+/// The coarse leaf spring (frictional, elastoplastic, the block's nose sliding across faces,
+/// leaf-leaf first contact), its scene changed by `change`, run to the end.
+fn coarse_leaf_spring(
+    change: impl FnOnce(&mut fricsens::scene::Scene),
+) -> (fricsens::model::Model, Results) {
+    let mut scene = fricsens::scene::builtin("leaf-spring-coarse").unwrap();
+    change(&mut scene);
+    let model = scene.build().unwrap();
+    let res = Solver::new(&model)
+        .unwrap()
+        .run(&RunOptions::default(), &mut NoObserver)
+        .unwrap();
+    (model, res)
 }
 
-#[test]
-fn the_extrapolating_predictor_and_the_penetration_limiter_change_the_path_not_the_solution() {
-    // The predictor only chooses where Newton starts, and the limiter only shortens steps on
-    // the way: on the coarse leaf spring (frictional, elastoplastic, leaf-leaf first contact
-    // that the limiter acts on) the runs with and without extrapolation must agree at every
-    // time both converged at, to 1e-6 of each response's largest value (the tolerance of the
-    // activation test above, for the same reason: path-dependent friction and plastic history
-    // of two differently iterated, equally converged runs), and the extrapolated run must
-    // take fewer Newton iterations.
-    let run = |extrapolate: bool| {
-        let mut scene = fricsens::scene::builtin("leaf-spring-coarse").unwrap();
-        scene.solver.extrapolate = extrapolate;
-        let model = scene.build().unwrap();
-        let res = Solver::new(&model)
-            .unwrap()
-            .run(&RunOptions::default(), &mut NoObserver)
-            .unwrap();
-        let iterations: usize = res.records.iter().map(|r| r.iterations).sum();
-        (model, res, iterations)
-    };
-    let (model, on, it_on) = run(true);
-    let (_, off, it_off) = run(false);
-    assert!(it_on < it_off, "{it_on} vs {it_off} iterations");
+/// Assert that two runs of `model` agree, response by response, at every time both converged
+/// at, to 1e-6 of the response's largest value: Newton's tolerance is 1e-9 of the reference
+/// force, and 1e-6 leaves room for the path-dependent friction and plastic history of two
+/// differently iterated but equally converged runs. Returns the number of values compared.
+fn assert_same_responses(model: &fricsens::model::Model, a: &Results, b: &Results) -> usize {
     let mut compared = 0;
     for r in 0..model.responses.len() {
         let values = |res: &Results| -> Vec<(f64, f64)> {
             (1..res.times.len())
-                .map(|k| (res.times[k], res.response_value(&model, r, k)))
+                .map(|k| (res.times[k], res.response_value(model, r, k)))
                 .collect()
         };
-        let (a, b) = (values(&on), values(&off));
+        let (a, b) = (values(a), values(b));
         let scale = a.iter().fold(0.0f64, |m, (_, v)| m.max(v.abs()));
         for (t, x) in &a {
             if let Some((_, y)) = b.iter().find(|(s, _)| (s - t).abs() <= 1e-12) {
@@ -154,6 +108,51 @@ fn the_extrapolating_predictor_and_the_penetration_limiter_change_the_path_not_t
             }
         }
     }
+    compared
+}
+
+#[test]
+fn the_active_set_weight_changes_the_newton_path_not_the_solution() {
+    // any weight c > 0 of the gap in `lambda - c k g >= 0` has the same solutions; on the coarse
+    // leaf spring c = 1 and c = 1e-3 converge through the same increments, so every response
+    // must agree at every increment. The sliding block served until the extrapolating
+    // predictor made both weights take identical iterates there.
+    let with = |c: Option<f64>| {
+        coarse_leaf_spring(|scene| {
+            for p in &mut scene.contacts {
+                p.activation = c;
+            }
+        })
+    };
+    let (model, a) = with(None);
+    let (_, b) = with(Some(1e-3));
+    assert_eq!(a.times, b.times, "same increments");
+    // not vacuous: the weight changes the iterates (the residual histories), whether or not
+    // it changes the number of iterations
+    let residuals = |res: &Results| -> Vec<Vec<f64>> {
+        res.records.iter().map(|r| r.residuals.clone()).collect()
+    };
+    assert_ne!(
+        residuals(&a),
+        residuals(&b),
+        "the weight changes Newton's path"
+    );
+    let compared = assert_same_responses(&model, &a, &b);
+    assert_eq!(compared, model.responses.len() * (a.times.len() - 1));
+}
+
+#[test]
+fn the_extrapolating_predictor_and_the_penetration_limiter_change_the_path_not_the_solution() {
+    // The predictor only chooses where Newton starts, and the limiter only shortens steps on
+    // the way: on the coarse leaf spring (whose leaf-leaf first contact the limiter acts on)
+    // the runs with and without extrapolation must agree at every time both converged at, and
+    // the extrapolated run must take fewer Newton iterations.
+    let (model, on) = coarse_leaf_spring(|scene| scene.solver.extrapolate = true);
+    let (_, off) = coarse_leaf_spring(|scene| scene.solver.extrapolate = false);
+    let iterations = |res: &Results| -> usize { res.records.iter().map(|r| r.iterations).sum() };
+    let (it_on, it_off) = (iterations(&on), iterations(&off));
+    assert!(it_on < it_off, "{it_on} vs {it_off} iterations");
+    let compared = assert_same_responses(&model, &on, &off);
     assert!(
         compared >= 10 * model.responses.len(),
         "only {compared} values compared"
