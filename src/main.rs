@@ -65,6 +65,11 @@ enum Command {
         /// Tangent of the sensitivity solve: last, refined or exact.
         #[arg(long, default_value = "last")]
         tangent: TangentArg,
+        /// Factor the converged tangent (exact, or where Newton's last factor is on other
+        /// branches) and DDM's forced tangents, instead of solving with GMRES preconditioned
+        /// with the factor at hand.
+        #[arg(long)]
+        no_krylov: bool,
         /// Output directory (default: out/SCENE).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -173,6 +178,7 @@ fn sensitivity(
     method: MethodArg,
     beta: f64,
     tangent: TangentArg,
+    krylov: bool,
     out: Option<PathBuf>,
 ) -> Result<(), String> {
     use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
@@ -200,6 +206,7 @@ fn sensitivity(
             TangentArg::Exact => TangentChoice::Exact,
         },
         probe_floor: true,
+        krylov,
         ..Settings::default()
     };
     let (res, sens) = run_sensitivity(&model, &params, &settings).map_err(|e| e.to_string())?;
@@ -249,13 +256,15 @@ fn sensitivity(
     );
     let c = &sens.cost;
     out!(
-        "cost: primal {:.3} s; sensitivity {:.3} s ({:.2} % of the primal per parameter): {} residual evaluations ({} over only the elements a parameter reaches), {} factorizations, {} solve columns, {} reruns",
+        "cost: primal {:.3} s; sensitivity {:.3} s ({:.2} % of the primal per parameter): {} residual evaluations ({} over only the elements a parameter reaches), {} factorizations, {} GMRES solves ({} steps) instead of factorizations, {} solve columns, {} reruns",
         sens.primal_seconds,
         c.wall_seconds,
         100.0 * c.wall_seconds / sens.primal_seconds.max(1e-12) / params.len() as f64,
         c.residual_evaluations,
         c.partial_evaluations,
         c.factorizations,
+        c.krylov_solves,
+        c.krylov_iterations,
         c.solve_columns,
         c.primal_reruns
     );
@@ -568,8 +577,9 @@ fn main() -> ExitCode {
             method,
             beta,
             tangent,
+            no_krylov,
             out,
-        } => sensitivity(&scene, &params, method, beta, tangent, out),
+        } => sensitivity(&scene, &params, method, beta, tangent, !no_krylov, out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -25,7 +25,13 @@
 //! ## Tangent of the sensitivity solve
 //! * `last`: the last Newton factorization, of the iterate before convergence (the paper);
 //! * `refined`: the same, plus iterative refinement against the converged tangent;
-//! * `exact`: the converged tangent, factored afresh.
+//! * `exact`: the converged tangent, to a relative residual of [`KRYLOV_TOL`]: by GMRES
+//!   preconditioned with Newton's last factorization (a few solves: the two matrices differ by
+//!   Newton's last correction and any branches it switched), factored afresh where GMRES
+//!   does not converge in [`KRYLOV_MAX_ITER`] steps or `Settings::krylov` is off.
+//!
+//! DDM's one-sided derivatives solve with forced tangents the same way (preconditioned with
+//! the converged tangent's factorization where one was made at that increment).
 //!
 //! ## Non-differentiable points
 //! A Gauss point whose trial yield ratio lies within `kink_tol` of zero sits on the
@@ -103,7 +109,8 @@ pub enum TangentChoice {
     /// The last factorization plus `Settings::refine_steps` steps of iterative refinement
     /// against the converged tangent.
     Refined,
-    /// The tangent at the converged state, factored afresh (one factorization per increment).
+    /// The tangent at the converged state: by GMRES preconditioned with Newton's last
+    /// factorization, or factored afresh (see `Settings::krylov`).
     Exact,
 }
 
@@ -324,7 +331,26 @@ pub struct Settings {
     /// Measure the floor (`SensitivityCost::floor_seconds`) at every increment, outside the
     /// method's own wall time.
     pub probe_floor: bool,
+    /// Solve with the converged tangent (`TangentChoice::Exact`, or Newton's last factor on
+    /// other branches) or a forced one (DDM's one-sided derivatives: the flagged points forced
+    /// onto one branch) by GMRES preconditioned with a factorization at hand instead of
+    /// factoring it: Newton's last factor differs from the converged tangent by Newton's last
+    /// correction and a few switched branches, the forced tangent from the converged one by a
+    /// few rows, so GMRES converges in a few solves. A factorization is the fallback when
+    /// GMRES does not reach [`KRYLOV_TOL`] in [`KRYLOV_MAX_ITER`] steps, and the only way
+    /// when this is off.
+    pub krylov: bool,
 }
+
+/// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
+/// iterate): about what the direct solves reach on the paper's scenes (`FRICSENS_TRACE`
+/// prints theirs).
+pub const KRYLOV_TOL: f64 = 1e-11;
+
+/// GMRES steps before the tangent is factored instead (each step is one solve with the
+/// factor at hand and one product; a factorization of the leaf spring's tangent costs about
+/// 50 solves).
+pub const KRYLOV_MAX_ITER: usize = 30;
 
 impl Default for Settings {
     fn default() -> Self {
@@ -337,6 +363,7 @@ impl Default for Settings {
             kink_tol: 1e-6,
             restrict: true,
             probe_floor: false,
+            krylov: true,
         }
     }
 }
@@ -422,6 +449,11 @@ pub struct SensitivityCost {
     pub partial_evaluations: usize,
     /// Factorizations beyond Newton's (the converged tangent, forced branches).
     pub factorizations: usize,
+    /// Solves with the converged or a forced tangent done by GMRES instead of a
+    /// factorization (`Settings::krylov`); their solve columns are in `solve_columns`.
+    pub krylov_solves: usize,
+    /// GMRES steps over all `krylov_solves`.
+    pub krylov_iterations: usize,
     /// Right-hand-side columns solved (refinement steps included).
     pub solve_columns: usize,
     /// Complete primal reruns (FDM).
@@ -511,6 +543,9 @@ pub struct Engine<'a> {
     /// `dh/db`, parameter-major: `dhist[p * n_history + i]`.
     dhist: Vec<f64>,
     exact: Option<LinearSolver>,
+    /// Increment whose converged tangent `exact` holds factored (`None`: a forced tangent,
+    /// or nothing yet).
+    exact_holds: Option<usize>,
     /// Tangent to solve with instead of the Newton one (one-sided derivatives: the tangent of
     /// the forced branches).
     forced_tangent: Option<crate::linalg::SparseMatrix>,
@@ -528,6 +563,7 @@ impl<'a> Engine<'a> {
             keep_state_derivative: false,
             dhist: vec![0.0; nh * params.len()],
             exact: None,
+            exact_holds: None,
             forced_tangent: None,
             results: SensitivityResults {
                 method: Some(settings.method),
@@ -672,6 +708,7 @@ impl<'a> Engine<'a> {
             || !c.factor_matches
             || self.forced_tangent.is_some();
         if use_exact {
+            let forced = self.forced_tangent.is_some();
             let k = match self.forced_tangent.take() {
                 Some(mut k) => {
                     for (d, fixed) in c.constrained.iter().enumerate() {
@@ -683,13 +720,64 @@ impl<'a> Engine<'a> {
                 }
                 None => converged_k(),
             };
+            let cost = &mut self.results.cost;
+            let holds_converged = self.exact_holds == Some(c.index);
+            if holds_converged && !forced {
+                let s = self.exact.as_ref().expect("holds the converged tangent");
+                timed(&mut cost.solve_seconds, || {
+                    s.solve_multi_in_place(rhs, ncols)
+                })?;
+                cost.solve_columns += ncols;
+                return Ok(());
+            }
+            // the factor closest to `k` at hand: the converged tangent's (for a forced one),
+            // else Newton's last
+            let at_hand = if holds_converged {
+                self.exact.as_ref()
+            } else {
+                c.last_factor
+            };
+            if let (true, Some(m)) = (self.settings.krylov, at_hand) {
+                let b = rhs.to_vec();
+                let report = timed(&mut cost.solve_seconds, || {
+                    m.gmres_multi(&k, rhs, ncols, KRYLOV_TOL, KRYLOV_MAX_ITER)
+                })?;
+                if std::env::var_os("FRICSENS_TRACE").is_some() {
+                    eprintln!(
+                        "  sensitivity GMRES ({}): {} steps, |K x - b| / |b| = {:.2e}{}",
+                        if forced {
+                            "forced tangent"
+                        } else {
+                            "converged tangent"
+                        },
+                        report.iterations,
+                        report.relative_residual,
+                        if report.converged {
+                            ""
+                        } else {
+                            ": not converged, factoring"
+                        }
+                    );
+                }
+                // the start, one column per step, the final combination
+                cost.solve_columns += ncols * (report.iterations + 2);
+                if report.converged {
+                    cost.krylov_solves += 1;
+                    cost.krylov_iterations += report.iterations;
+                    return Ok(());
+                }
+                rhs.copy_from_slice(&b);
+            }
             if self.exact.is_none() {
                 self.exact = Some(LinearSolver::new(c.assembler.pattern.clone())?);
             }
             let s = self.exact.as_mut().expect("just created");
-            let cost = &mut self.results.cost;
+            self.exact_holds = None;
             timed(&mut cost.factor_seconds, || s.factor(&k))?;
             cost.factorizations += 1;
+            if !forced {
+                self.exact_holds = Some(c.index);
+            }
             timed(&mut cost.solve_seconds, || {
                 s.solve_multi_in_place(rhs, ncols)
             })?;

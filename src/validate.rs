@@ -359,12 +359,12 @@ fn write_time_ledger(s: &mut String, val: &Validation) {
             share(c.rest_seconds(v.primal_seconds))
         );
     }
-    let _ = writeln!(s, "\nThe in-line methods, in milliseconds per parameter and increment. The floor is measured in the same run: at every increment one f64 residual evaluation over all elements at the converged state and one single-column solve with Newton's last factorization, timed together (outside the methods' own time). \"x floor\" is the method's total over it. Evaluations: the pseudo-loads (over only the elements a parameter reaches; forward SDM only where they are fewer than half of all), the nominal state over the same elements (forward SDM), the update of the history and the responses after the solve, the forced tangents of one-sided derivatives (DDM at flagged increments). The rest: building the perturbed or seeded designs and the masks, copying vectors, kink detection, copying the tangent for forced branches, the first symbolic analysis of the sensitivity's own factorization (at an increment where Newton did not factor, the floor has no solve).\n");
+    let _ = writeln!(s, "\nThe in-line methods, in milliseconds per parameter and increment. The floor is measured in the same run: at every increment one f64 residual evaluation over all elements at the converged state and one single-column solve with Newton's last factorization, timed together (outside the methods' own time). \"x floor\" is the method's total over it. Evaluations: the pseudo-loads (over only the elements a parameter reaches; forward SDM only where they are fewer than half of all), the nominal state over the same elements (forward SDM), the update of the history and the responses after the solve, the forced tangents of one-sided derivatives (DDM at flagged increments). The rest: building the perturbed or seeded designs and the masks, copying vectors, kink detection, copying the tangent for forced branches, the first symbolic analysis of the sensitivity's own factorization (at an increment where Newton did not factor, the floor has no solve). Solves: with Newton's last factorization, and the GMRES steps (one solve and one product each) where a method solves with the converged tangent or a forced one; \"own tangents\" counts those tangents, solved by GMRES (with its steps) / factored.\n");
     let _ = writeln!(
         s,
-        "| scene | method | % of primal / param. | evaluations | factorizations | solves | the rest | total | floor | x floor |"
+        "| scene | method | % of primal / param. | own tangents: GMRES (steps) / factored | evaluations | factorizations | solves | the rest | total | floor | x floor |"
     );
-    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let row = |s: &mut String,
                scene: &str,
                method: &str,
@@ -379,8 +379,11 @@ fn write_time_ledger(s: &mut String, val: &Validation) {
         let total = c.wall_seconds * per;
         let _ = writeln!(
             s,
-            "| {scene} | {method} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} |",
+            "| {scene} | {method} | {:.2} | {} ({}) / {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} |",
             100.0 * c.wall_seconds / primal.max(1e-12) / np.max(1) as f64,
+            c.krylov_solves,
+            c.krylov_iterations,
+            c.factorizations,
             c.evaluation_seconds * per,
             c.factor_seconds * per,
             c.solve_seconds * per,
@@ -1415,7 +1418,7 @@ fn report(
         }
     }
     let _ = writeln!(s, "\n## Cost\n");
-    let _ = writeln!(s, "Sensitivity wall time for all of a scene's parameters over the primal analysis, at beta = {:.0e} (SDM and DDM share the primal run; FDM is reruns). DDM, SDM and SDM central solve with the tangent at the converged state (one extra factorization per increment); \"last factor\" reuses Newton's last factorization instead (the paper's choice: no factorization at all), and its error against the reference is the price. SDM's errors include its own forward-difference error at this beta, shown beside SDM with the converged tangent; the largest error over a scene's parameters is shown. The floor is one residual evaluation and one triangular solve per parameter and increment; the updates of the history after the solve skip the elements whose Gauss points are all elastic.\n", opts.figure_beta);
+    let _ = writeln!(s, "Sensitivity wall time for all of a scene's parameters over the primal analysis, at beta = {:.0e} (SDM and DDM share the primal run; FDM is reruns). DDM, SDM and SDM central solve with the tangent at the converged state, to a relative residual of {:.0e}: by GMRES preconditioned with Newton's last factorization (a few solves per increment), with a factorization of their own only where GMRES does not get there in {} steps; \"last factor\" solves with Newton's last factorization alone (the paper's choice), and its error against the reference is the price. SDM's errors include its own forward-difference error at this beta, shown beside SDM with the converged tangent; the largest error over a scene's parameters is shown. The floor is one residual evaluation and one triangular solve per parameter and increment; the updates of the history after the solve skip the elements whose Gauss points are all elastic.\n", opts.figure_beta, crate::sensitivity::KRYLOV_TOL, crate::sensitivity::KRYLOV_MAX_ITER);
     let _ = writeln!(
         s,
         "| scene | parameters | DDM | DDM, last factor (error) | SDM (error) | SDM, last factor (error) | SDM central | FDM | FDM central |"

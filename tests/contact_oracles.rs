@@ -99,12 +99,15 @@ fn klarbring_first_slip_onset_is_flagged_with_one_sided_derivatives() {
         slip[0][0]
     );
     // the converged state is on one side of the onset: that side is the derivative itself, so
-    // only the other side's forced tangent is factored (one per increment for the exact
-    // tangent, plus one)
+    // only the other side's forced tangent is solved with (one solve with a tangent of its own
+    // per increment for the exact tangent, plus one; each is a factorization or a GMRES solve
+    // preconditioned with Newton's factor, `Settings::krylov`)
     assert_eq!(
-        sens.cost.factorizations,
+        sens.cost.factorizations + sens.cost.krylov_solves,
         sens.increments.len() + 1,
-        "factorizations"
+        "factorizations {} + GMRES solves {}",
+        sens.cost.factorizations,
+        sens.cost.krylov_solves
     );
     // other increments are not flagged
     let flagged: Vec<f64> = sens

@@ -289,3 +289,84 @@ fn pseudo_loads_over_only_the_elements_a_parameter_reaches_match_ddm_over_all() 
         assert!(compared >= 20, "only {compared} comparisons");
     }
 }
+
+#[test]
+fn gmres_with_newtons_factor_solves_the_converged_and_forced_tangents_as_their_factorizations_do() {
+    // With `Settings::krylov` the engine solves with the converged tangent (and DDM's forced
+    // tangents at flagged points) by GMRES preconditioned with Newton's last factor, instead of
+    // factoring them. The reference is the same run with every such tangent factored. On the
+    // coarse leaf spring (yielding clamp, friction, load reversal, flagged increments) DDM
+    // with the converged tangent must agree, derivatives and one-sided derivatives, at every
+    // increment: both solve to a relative residual of 1e-11 or better (GMRES by its
+    // tolerance, the LU to its round-off), and the difference of two such solves is carried
+    // through the history derivatives of later increments; 1e-8 of each derivative's largest
+    // value over the run is that residual amplified a thousandfold (measured: 1.0e-10).
+    use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
+    let model = fricsens::scene::builtin("leaf-spring-coarse")
+        .unwrap()
+        .build()
+        .unwrap();
+    let names = ["mu", "E", "sigma_y"];
+    let params: Vec<Parameter> = names
+        .iter()
+        .map(|n| Parameter::by_name(&model, n).unwrap())
+        .collect();
+    let settings = |krylov| Settings {
+        method: Method::Ddm,
+        tangent: TangentChoice::Exact,
+        krylov,
+        ..Settings::default()
+    };
+    let gmres = run_sensitivity(&model, &params, &settings(true)).unwrap().1;
+    let factored = run_sensitivity(&model, &params, &settings(false))
+        .unwrap()
+        .1;
+    assert!(gmres.cost.krylov_solves > 0 && factored.cost.krylov_solves == 0);
+    assert!(
+        gmres.cost.factorizations < factored.cost.factorizations,
+        "{} vs {}",
+        gmres.cost.factorizations,
+        factored.cost.factorizations
+    );
+    assert_eq!(gmres.increments.len(), factored.increments.len());
+    let mut compared = 0;
+    let mut one_sided = 0;
+    let mut worst = 0.0f64;
+    for r in 0..model.responses.len() {
+        for (p, name) in names.iter().enumerate() {
+            let scale = factored
+                .increments
+                .iter()
+                .fold(0.0f64, |m, i| m.max(i.derivatives[r][p].abs()));
+            if scale == 0.0 {
+                continue;
+            }
+            for (a, b) in gmres.increments.iter().zip(&factored.increments) {
+                let mut pairs = vec![(a.derivatives[r][p], b.derivatives[r][p])];
+                if let (Some(sa), Some(sb)) = (&a.one_sided, &b.one_sided) {
+                    pairs.push((sa.lower[r][p], sb.lower[r][p]));
+                    pairs.push((sa.upper[r][p], sb.upper[r][p]));
+                    one_sided += 2;
+                }
+                for (x, y) in pairs {
+                    worst = worst.max((x - y).abs() / scale);
+                    assert!(
+                        (x - y).abs() <= 1e-8 * scale,
+                        "{} / {name} at t = {}: GMRES {x} vs factored {y}",
+                        model.responses[r].name,
+                        a.time
+                    );
+                    compared += 1;
+                }
+            }
+        }
+    }
+    println!(
+        "{compared} comparisons ({one_sided} one-sided), largest difference {worst:.2e} of the scale; factorizations {} vs {}, {} GMRES solves in {} steps",
+        gmres.cost.factorizations,
+        factored.cost.factorizations,
+        gmres.cost.krylov_solves,
+        gmres.cost.krylov_iterations
+    );
+    assert!(compared >= 100 && one_sided > 0, "{compared} / {one_sided}");
+}
