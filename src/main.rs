@@ -135,6 +135,10 @@ enum Command {
         /// Only rewrite the CSV, SVG and markdown from DIR/scaling.json (no measuring).
         #[arg(long)]
         rewrite: bool,
+        /// Add sizes measured on their own (files of `fricsens scaling-one` JSON lines) to
+        /// DIR/scaling.json, replacing their entries, and rewrite the outputs (no measuring).
+        #[arg(long, conflicts_with = "rewrite")]
+        merge: Vec<PathBuf>,
     },
     /// One size of the scaling study, measured in this process; prints one JSON line.
     #[command(hide = true)]
@@ -291,6 +295,31 @@ fn sensitivity(
     }
     let _ = res;
     out!("written to {}", dir.display());
+    Ok(())
+}
+
+/// `fricsens scaling --merge`: read the measurements and merge them into the study in `out`.
+fn merge_scaling(out: &std::path::Path, files: &[PathBuf]) -> Result<(), String> {
+    let mut added = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(f).map_err(|e| format!("{}: {e}", f.display()))?;
+        for (i, line) in text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty())
+        {
+            added.push(
+                serde_json::from_str(line)
+                    .map_err(|e| format!("{}, line {}: {e}", f.display(), i + 1))?,
+            );
+        }
+    }
+    let n = added.len();
+    fricsens::scaling::merge_measurements(out, added).map_err(|e| e.to_string())?;
+    out!(
+        "{n} measurement(s) merged into {}",
+        out.join("scaling.json").display()
+    );
     Ok(())
 }
 
@@ -553,7 +582,14 @@ fn main() -> ExitCode {
             memory_budget_mib,
             time_budget_s,
             rewrite: false,
-        } => scaling(out, max_dofs, quick, memory_budget_mib, time_budget_s),
+            merge,
+        } if merge.is_empty() => scaling(out, max_dofs, quick, memory_budget_mib, time_budget_s),
+        Command::Scaling {
+            out,
+            merge,
+            rewrite: false,
+            ..
+        } => merge_scaling(&out, &merge),
         Command::Scaling {
             out, rewrite: true, ..
         } => fricsens::scaling::rewrite_outputs(&out)

@@ -316,6 +316,13 @@ pub struct Measurement {
     pub sdm_factorizations: usize,
     /// Peak resident memory of the child process (MiB); `None` off Linux or in-process.
     pub peak_mib: Option<f64>,
+    /// Threads of the rayon pool the size ran with (`None`: not recorded).
+    #[serde(default)]
+    pub threads: Option<usize>,
+    /// Measured on its own (`fricsens scaling-one`) and added with [`merge_measurements`],
+    /// not by the study's loop (e.g. beyond its per-size time budget).
+    #[serde(default)]
+    pub separate: bool,
 }
 
 impl Measurement {
@@ -431,6 +438,8 @@ pub fn measure(scene: ScalingScene, refinement: f64) -> Result<Measurement, Scal
         sdm_seconds: sdm.cost.wall_seconds,
         sdm_factorizations: sdm.cost.factorizations,
         peak_mib: None,
+        threads: Some(rayon::current_num_threads()),
+        separate: false,
     })
 }
 
@@ -897,6 +906,33 @@ pub fn rewrite_outputs(dir: &Path) -> Result<Study, ScalingError> {
     Ok(study)
 }
 
+/// Add sizes measured on their own (`fricsens scaling-one` JSON lines, e.g. beyond the
+/// study's per-size time budget) to the study in `dir`: each replaces the measurement or the
+/// "not measured" entry of its scene and refinement, and the outputs are rewritten.
+pub fn merge_measurements(dir: &Path, added: Vec<Measurement>) -> Result<Study, ScalingError> {
+    let path = dir.join("scaling.json");
+    let text = std::fs::read_to_string(&path).map_err(|source| ScalingError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    let mut study: Study = serde_json::from_str(&text).map_err(|e| ScalingError::Io {
+        path,
+        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+    })?;
+    for mut m in added {
+        m.separate = true;
+        let same = |scene: ScalingScene, r: f64| scene == m.scene && r == m.refinement;
+        study.rows.retain(|o| !same(o.scene, o.refinement));
+        study.skipped.retain(|k| !same(k.scene, k.refinement));
+        study.rows.push(m);
+    }
+    let order = |sc: ScalingScene| ScalingScene::ALL.iter().position(|a| *a == sc);
+    study.rows.sort_by_key(|m| (order(m.scene), m.dofs));
+    let study = study.fitted();
+    write_outputs(&study, dir)?;
+    Ok(study)
+}
+
 /// Write `scaling.csv`, `scaling.svg`, `scaling.md` and `scaling.json` (the measurements,
 /// for [`rewrite_outputs`]) of a study into `dir`.
 pub fn write_outputs(study: &Study, dir: &Path) -> Result<(), ScalingError> {
@@ -1117,8 +1153,9 @@ pub fn markdown(study: &Study) -> String {
     for m in &study.rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.0} % | {} ({}) | {} ({}) | {} |",
+            "| {}{} | {} | {} | {} | {} | {} | {} | {} | {} | {:.0} % | {} ({}) | {} ({}) | {} |",
             m.scene.name(),
+            if m.separate { " (*)" } else { "" },
             m.dofs,
             m.elements,
             m.increments,
@@ -1144,6 +1181,21 @@ pub fn markdown(study: &Study) -> String {
         s,
         "\n\"ratio\" is the sensitivity cost per parameter over the primal run's. LU share: numeric factorization over the primal run. Sensitivity factorizations of their own (where the last Newton factorization was assembled on other branches than the converged state): {extra} over all sizes.\n"
     );
+    for m in study.rows.iter().filter(|m| m.separate) {
+        let _ = writeln!(
+            s,
+            "(*) `{}` refinement {} was measured on its own, not by the study's loop and its per-size time budget: `fricsens scaling-one --scene {} --refinement {}` ({}), added with `fricsens scaling --merge FILE`.\n",
+            m.scene.name(),
+            m.refinement,
+            m.scene.name(),
+            m.refinement,
+            match m.threads {
+                Some(1) => "on one thread, the other CPU left to other work".to_string(),
+                Some(t) => format!("on {t} threads"),
+                None => "threads not recorded".to_string(),
+            }
+        );
+    }
     if !study.skipped.is_empty() {
         let _ = writeln!(s, "Not measured:\n");
         for k in &study.skipped {

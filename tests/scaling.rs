@@ -102,7 +102,63 @@ fn synthetic(scene: ScalingScene, dofs: usize) -> Measurement {
         sdm_seconds: 4e-7 * n.powf(1.05),
         sdm_factorizations: 0,
         peak_mib: Some(0.02 * n.powf(4.0 / 3.0)),
+        threads: Some(2),
+        separate: false,
     }
+}
+
+#[test]
+fn a_size_measured_on_its_own_replaces_its_not_measured_entry() {
+    use fricsens::scaling::{merge_measurements, write_outputs, Skipped};
+    let dir = std::env::temp_dir().join(format!("fricsens-merge-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let rows: Vec<Measurement> = [1_000usize, 4_000, 16_000]
+        .iter()
+        .map(|&n| synthetic(ScalingScene::LeafSpring, n))
+        .collect();
+    let study = Study {
+        rows,
+        skipped: vec![Skipped {
+            scene: ScalingScene::LeafSpring,
+            refinement: 10.4,
+            dofs: 64_000,
+            reason: "wall time extrapolated above the budget".into(),
+        }],
+        fits: Vec::new(),
+        machine_mib: 24_000.0,
+        cpus: 2,
+        wall_seconds: 1.0,
+        quick: false,
+        time_budget_seconds: Some(300.0),
+    }
+    .fitted();
+    write_outputs(&study, &dir).unwrap();
+    let mut big = synthetic(ScalingScene::LeafSpring, 64_000);
+    big.refinement = 10.4;
+    big.threads = Some(1);
+    let merged = merge_measurements(&dir, vec![big]).unwrap();
+    assert!(merged.skipped.is_empty());
+    assert_eq!(merged.rows.len(), 4);
+    let last = merged.rows.last().unwrap();
+    assert!(
+        last.separate && last.dofs == 64_000,
+        "sorted by DOFs, marked"
+    );
+    // the fits now reach the merged size: the synthetic law's exponent is exact
+    let fit = merged
+        .fit(ScalingScene::LeafSpring, QUANTITIES[0].0)
+        .unwrap();
+    assert_eq!(fit.x_range.1, 64_000.0, "{fit:?}");
+    let md = std::fs::read_to_string(dir.join("scaling.md")).unwrap();
+    assert!(md.contains("| leaf-spring (*) | 64000 |"), "{md}");
+    assert!(
+        md.contains("on one thread") && !md.contains("Not measured"),
+        "{md}"
+    );
+    // a second merge of the same size replaces it rather than adding a row
+    let again = merge_measurements(&dir, vec![merged.rows[3].clone()]).unwrap();
+    assert_eq!(again.rows.len(), 4);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
