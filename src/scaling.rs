@@ -291,8 +291,12 @@ pub struct Measurement {
     pub dofs: usize,
     /// Converged increments (sub-increments after cutbacks included).
     pub increments: usize,
-    /// Newton iterations (numeric factorizations) of the primal run.
+    /// Newton iterations of the converged attempts of the primal run.
     pub newton_iterations: usize,
+    /// Numeric factorizations of the primal run: every Newton iteration, those of the failed
+    /// attempts before cutbacks included (`None`: not recorded, sizes measured before it was).
+    #[serde(default)]
+    pub factorizations: Option<usize>,
     /// Building the model, the sparsity pattern and the symbolic LU (seconds).
     pub setup_seconds: f64,
     /// Primal run, the in-line sensitivity work excluded (seconds).
@@ -336,14 +340,21 @@ impl Measurement {
         self.primal_seconds / self.increments.max(1) as f64
     }
 
-    /// Primal seconds per Newton iteration.
-    pub fn seconds_per_iteration(&self) -> f64 {
-        self.primal_seconds / self.newton_iterations.max(1) as f64
+    /// Newton iterations the primal time is divided by: every one, failed attempts included
+    /// (the factorizations), or those of the converged attempts where that was not recorded.
+    pub fn all_iterations(&self) -> usize {
+        self.factorizations.unwrap_or(self.newton_iterations).max(1)
     }
 
-    /// Numeric factorization seconds per Newton iteration.
+    /// Primal seconds per Newton iteration (failed attempts included where recorded).
+    pub fn seconds_per_iteration(&self) -> f64 {
+        self.primal_seconds / self.all_iterations() as f64
+    }
+
+    /// Numeric factorization seconds per factorization (per converged Newton iteration where
+    /// the factorizations were not recorded: too high by the failed attempts' share).
     pub fn factor_seconds_per_iteration(&self) -> f64 {
-        self.factor_seconds / self.newton_iterations.max(1) as f64
+        self.factor_seconds / self.all_iterations() as f64
     }
 
     /// Share of the primal run spent in numeric factorization.
@@ -427,6 +438,7 @@ pub fn measure(scene: ScalingScene, refinement: f64) -> Result<Measurement, Scal
         dofs: size.dofs,
         increments: res.records.len(),
         newton_iterations: res.records.iter().map(|r| r.iterations).sum(),
+        factorizations: Some(res.cost.factorizations),
         setup_seconds: total - res.cost.wall_seconds,
         primal_seconds: ddm.primal_seconds,
         assembly_seconds: res.cost.assembly_seconds,
@@ -643,14 +655,16 @@ pub const QUANTITIES: [(&str, &str, &str, fn(&Measurement) -> Option<f64>); 6] =
     ("primal-increment", "primal time per increment", "s", |m| {
         Some(m.seconds_per_increment())
     }),
+    // per iteration, failed attempts included: sizes without the count are left out of these
+    // fits (dividing by the converged iterations only charges the cutbacks to the LU)
     (
         "primal-iteration",
         "primal time per Newton iteration",
         "s",
-        |m| Some(m.seconds_per_iteration()),
+        |m| m.factorizations.map(|_| m.seconds_per_iteration()),
     ),
     ("factorization", "numeric LU factorization", "s", |m| {
-        Some(m.factor_seconds_per_iteration())
+        m.factorizations.map(|_| m.factor_seconds_per_iteration())
     }),
     ("ddm", "DDM per parameter per increment", "s", |m| {
         Some(m.ddm_per_parameter_increment())
@@ -661,8 +675,8 @@ pub const QUANTITIES: [(&str, &str, &str, fn(&Measurement) -> Option<f64>); 6] =
     ("memory", "peak resident memory", "MiB", |m| m.peak_mib),
 ];
 
-/// Fit every quantity of [`QUANTITIES`] for each scene over the largest half of its sizes
-/// (at least two, when it has two).
+/// Fit every quantity of [`QUANTITIES`] for each scene over the largest half of the sizes
+/// that have it (at least two, when there are two).
 pub fn fit_all(rows: &[Measurement]) -> Vec<Fit> {
     let mut fits = Vec::new();
     for scene in ScalingScene::ALL {
@@ -671,13 +685,13 @@ pub fn fit_all(rows: &[Measurement]) -> Vec<Fit> {
             continue;
         }
         mine.sort_by_key(|m| m.dofs);
-        let keep = mine.len().div_ceil(2).max(2).min(mine.len());
-        let top = &mine[mine.len() - keep..];
         for (key, _, _, get) in QUANTITIES {
-            let pts: Vec<(f64, f64)> = top
+            let all: Vec<(f64, f64)> = mine
                 .iter()
                 .filter_map(|m| get(m).map(|y| (m.dofs as f64, y)))
                 .collect();
+            let keep = all.len().div_ceil(2).max(2).min(all.len());
+            let pts = all[all.len() - keep..].to_vec();
             fits.push(Fit {
                 scene,
                 quantity: key,
@@ -954,12 +968,12 @@ pub fn write_outputs(study: &Study, dir: &Path) -> Result<(), ScalingError> {
 /// The CSV table: one line per measured size.
 pub fn csv(study: &Study) -> String {
     let mut s = String::from(
-        "scene,refinement,dofs,unknowns,elements,increments,newton_iterations,setup_s,primal_s,s_per_increment,s_per_iteration,factor_s_per_iteration,factor_share,assembly_share,ddm_s,ddm_s_per_param_increment,ddm_ratio,ddm_factorizations,sdm_s,sdm_s_per_param_increment,sdm_ratio,sdm_factorizations,peak_mib\n",
+        "scene,refinement,dofs,unknowns,elements,increments,newton_iterations,factorizations,setup_s,primal_s,s_per_increment,s_per_iteration,factor_s_per_iteration,factor_share,assembly_share,ddm_s,ddm_s_per_param_increment,ddm_ratio,ddm_factorizations,sdm_s,sdm_s_per_param_increment,sdm_ratio,sdm_factorizations,peak_mib\n",
     );
     for m in &study.rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{:.4},{:.4},{:.5},{:.5},{:.5},{:.4},{:.4},{:.4},{:.5},{:.4},{},{:.4},{:.5},{:.4},{},{}",
+            "{},{},{},{},{},{},{},{},{:.4},{:.4},{:.5},{:.5},{:.5},{:.4},{:.4},{:.4},{:.5},{:.4},{},{:.4},{:.5},{:.4},{},{}",
             m.scene.name(),
             m.refinement,
             m.dofs,
@@ -967,6 +981,7 @@ pub fn csv(study: &Study) -> String {
             m.elements,
             m.increments,
             m.newton_iterations,
+            m.factorizations.map_or(String::new(), |f| f.to_string()),
             m.setup_seconds,
             m.primal_seconds,
             m.seconds_per_increment(),
@@ -1144,7 +1159,7 @@ pub fn markdown(study: &Study) -> String {
     );
     let _ = writeln!(
         s,
-        "| scene | DOFs | elements | incr. | Newton it. | set-up s | primal s | s / incr. | s / Newton it. | LU share | DDM s / param / incr. (ratio) | SDM s / param / incr. (ratio) | peak MiB |"
+        "| scene | DOFs | elements | incr. | Newton it. (with failed attempts) | set-up s | primal s | s / incr. | s / Newton it. | LU share | DDM s / param / incr. (ratio) | SDM s / param / incr. (ratio) | peak MiB |"
     );
     let _ = writeln!(
         s,
@@ -1153,13 +1168,14 @@ pub fn markdown(study: &Study) -> String {
     for m in &study.rows {
         let _ = writeln!(
             s,
-            "| {}{} | {} | {} | {} | {} | {} | {} | {} | {} | {:.0} % | {} ({}) | {} ({}) | {} |",
+            "| {}{} | {} | {} | {} | {} ({}) | {} | {} | {} | {} | {:.0} % | {} ({}) | {} ({}) | {} |",
             m.scene.name(),
             if m.separate { " (*)" } else { "" },
             m.dofs,
             m.elements,
             m.increments,
             m.newton_iterations,
+            m.factorizations.map_or("-".to_string(), |f| f.to_string()),
             sci(m.setup_seconds),
             sci(m.primal_seconds),
             sci(m.seconds_per_increment()),
@@ -1179,7 +1195,7 @@ pub fn markdown(study: &Study) -> String {
         .sum();
     let _ = writeln!(
         s,
-        "\n\"ratio\" is the sensitivity cost per parameter over the primal run's. LU share: numeric factorization over the primal run. Sensitivity factorizations of their own (where the last Newton factorization was assembled on other branches than the converged state): {extra} over all sizes.\n"
+        "\n\"ratio\" is the sensitivity cost per parameter over the primal run's. LU share: numeric factorization over the primal run. Newton iterations: those of the converged attempts, and in brackets all of them, the failed attempts before cutbacks included (one factorization each; \"-\": not recorded); \"s / Newton it.\" and the fits per iteration divide by all of them (sizes without the count are left out of those fits). Sensitivity factorizations of their own (where the last Newton factorization was assembled on other branches than the converged state): {extra} over all sizes.\n"
     );
     for m in study.rows.iter().filter(|m| m.separate) {
         let _ = writeln!(
@@ -1318,10 +1334,10 @@ fn limit_paragraph(study: &Study) -> String {
         };
         let (mem_th, time_th, mem_e, time_e, graph) = theory(scene);
         let mut p = format!(
-            "**{}** ({graph} graph; largest size {} DOFs: {} Newton iterations, {} s each, {:.0} % of it in the LU factorization, peak {}).",
+            "**{}** ({graph} graph; largest size {} DOFs: {} Newton iterations (failed attempts included), {} s each, {:.0} % of it in the LU factorization, peak {}).",
             scene.name(),
             largest.dofs,
-            largest.newton_iterations,
+            largest.all_iterations(),
             sci(largest.seconds_per_iteration()),
             100.0 * largest.factor_share(),
             largest
@@ -1366,8 +1382,8 @@ fn limit_paragraph(study: &Study) -> String {
                     " Extrapolated to {} DOFs: {} s per Newton iteration, {} s for this run's {} iterations, {:.1} GiB.",
                     sci(TARGET_DOFS),
                     sci(t.at(TARGET_DOFS)),
-                    sci(t.at(TARGET_DOFS) * largest.newton_iterations as f64),
-                    largest.newton_iterations,
+                    sci(t.at(TARGET_DOFS) * largest.all_iterations() as f64),
+                    largest.all_iterations(),
                     m.at(TARGET_DOFS) / 1024.0
                 );
             }

@@ -91,6 +91,7 @@ fn synthetic(scene: ScalingScene, dofs: usize) -> Measurement {
         dofs,
         increments: 2,
         newton_iterations: 4,
+        factorizations: Some(4),
         setup_seconds: 1e-6 * n,
         primal_seconds: 3e-8 * n.powf(1.5),
         assembly_seconds: 1e-7 * n,
@@ -136,6 +137,8 @@ fn a_size_measured_on_its_own_replaces_its_not_measured_entry() {
     let mut big = synthetic(ScalingScene::LeafSpring, 64_000);
     big.refinement = 10.4;
     big.threads = Some(1);
+    // measured before the factorizations were recorded
+    big.factorizations = None;
     let merged = merge_measurements(&dir, vec![big]).unwrap();
     assert!(merged.skipped.is_empty());
     assert_eq!(merged.rows.len(), 4);
@@ -149,6 +152,12 @@ fn a_size_measured_on_its_own_replaces_its_not_measured_entry() {
         .fit(ScalingScene::LeafSpring, QUANTITIES[0].0)
         .unwrap();
     assert_eq!(fit.x_range.1, 64_000.0, "{fit:?}");
+    // ... except those per Newton iteration, which need every iteration counted
+    let lu = merged
+        .fit(ScalingScene::LeafSpring, "factorization")
+        .unwrap();
+    assert_eq!(lu.x_range.1, 16_000.0, "{lu:?}");
+    assert!((lu.exponent - 1.8).abs() < 1e-9, "{lu:?}");
     let md = std::fs::read_to_string(dir.join("scaling.md")).unwrap();
     assert!(md.contains("| leaf-spring (*) | 64000 |"), "{md}");
     assert!(
