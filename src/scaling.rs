@@ -1195,20 +1195,26 @@ pub fn markdown(study: &Study) -> String {
         .sum();
     let _ = writeln!(
         s,
-        "\n\"ratio\" is the sensitivity cost per parameter over the primal run's. LU share: numeric factorization over the primal run. Newton iterations: those of the converged attempts, and in brackets all of them, the failed attempts before cutbacks included (one factorization each; \"-\": not recorded); \"s / Newton it.\" and the fits per iteration divide by all of them (sizes without the count are left out of those fits). Sensitivity factorizations of their own (where the last Newton factorization was assembled on other branches than the converged state): {extra} over all sizes.\n"
+        "\n\"ratio\" is the sensitivity cost per parameter over the primal run's. LU share: numeric factorization over the primal run. Newton iterations: those of the converged attempts, and in brackets all of them, the failed attempts before cutbacks included (one factorization each; \"-\": not recorded); \"s / Newton it.\" and the fits per iteration divide by all of them (sizes without the count are left out of those fits). Sensitivity factorizations of their own (where the last Newton factorization was assembled on other branches than the converged state and GMRES preconditioned with it did not converge, or, in sizes measured before the sensitivity solved by GMRES, every such case): {extra} over all sizes.\n"
     );
     for m in study.rows.iter().filter(|m| m.separate) {
         let _ = writeln!(
             s,
-            "(*) `{}` refinement {} was measured on its own, not by the study's loop and its per-size time budget: `fricsens scaling-one --scene {} --refinement {}` ({}), added with `fricsens scaling --merge FILE`.\n",
+            "(*) `{}` refinement {} was measured on its own, not by the study's loop and its per-size time budget: `fricsens scaling-one --scene {} --refinement {}` ({} of the {} logical CPUs), added with `fricsens scaling --merge FILE`; it enters the fits like the others{}.\n",
             m.scene.name(),
             m.refinement,
             m.scene.name(),
             m.refinement,
             match m.threads {
-                Some(1) => "on one thread, the other CPU left to other work".to_string(),
+                Some(1) => "on one thread".to_string(),
                 Some(t) => format!("on {t} threads"),
                 None => "threads not recorded".to_string(),
+            },
+            study.cpus,
+            if m.factorizations.is_none() {
+                ", except those per Newton iteration (its failed attempts were not counted)"
+            } else {
+                ""
             }
         );
     }
@@ -1334,10 +1340,15 @@ fn limit_paragraph(study: &Study) -> String {
         };
         let (mem_th, time_th, mem_e, time_e, graph) = theory(scene);
         let mut p = format!(
-            "**{}** ({graph} graph; largest size {} DOFs: {} Newton iterations (failed attempts included), {} s each, {:.0} % of it in the LU factorization, peak {}).",
+            "**{}** ({graph} graph; largest size {} DOFs: {} Newton iterations ({}), {} s each, {:.0} % of it in the LU factorization, peak {}).",
             scene.name(),
             largest.dofs,
             largest.all_iterations(),
+            if largest.factorizations.is_some() {
+                "failed attempts included"
+            } else {
+                "of the converged attempts; the failed ones were not counted"
+            },
             sci(largest.seconds_per_iteration()),
             100.0 * largest.factor_share(),
             largest

@@ -342,6 +342,12 @@ fn gmres_with_newtons_factor_solves_the_converged_and_forced_tangents_as_their_f
                 continue;
             }
             for (a, b) in gmres.increments.iter().zip(&factored.increments) {
+                assert_eq!(
+                    a.one_sided.is_some(),
+                    b.one_sided.is_some(),
+                    "t = {}",
+                    a.time
+                );
                 let mut pairs = vec![(a.derivatives[r][p], b.derivatives[r][p])];
                 if let (Some(sa), Some(sb)) = (&a.one_sided, &b.one_sided) {
                     pairs.push((sa.lower[r][p], sb.lower[r][p]));
