@@ -1148,37 +1148,13 @@ impl LinearSolver {
         check_len(n * ncols, b.len())?;
         check_len(n * ncols, x.len())?;
         let mut r = vec![0.0; n * ncols];
-        let residual = |x: &[f64], r: &mut [f64]| -> Result<f64> {
-            let mut worst = 0.0f64;
-            for c in 0..ncols {
-                let (xc, bc) = (&x[c * n..(c + 1) * n], &b[c * n..(c + 1) * n]);
-                let rc = &mut r[c * n..(c + 1) * n];
-                a.mul_vec(xc, rc)?;
-                let (mut rr, mut bb) = (0.0, 0.0);
-                for (ri, &bi) in rc.iter_mut().zip(bc) {
-                    *ri = bi - *ri;
-                    rr += *ri * *ri;
-                    bb += bi * bi;
-                }
-                let rel = if bb > 0.0 {
-                    (rr / bb).sqrt()
-                } else {
-                    rr.sqrt()
-                };
-                // a NaN column must show (f64::max would drop it)
-                if rel.is_nan() || rel > worst {
-                    worst = rel;
-                }
-            }
-            Ok(worst)
-        };
-        let mut res = residual(x, &mut r)?;
+        let mut res = residuals(a, b, x, &mut r, ncols)?;
         for _ in 0..steps {
             self.solve_multi_in_place(&mut r, ncols)?;
             for (xi, ri) in x.iter_mut().zip(&r) {
                 *xi += ri;
             }
-            res = residual(x, &mut r)?;
+            res = residuals(a, b, x, &mut r, ncols)?;
         }
         Ok(res)
     }
@@ -1215,20 +1191,20 @@ impl LinearSolver {
         self.solve_multi_in_place(rhs, ncols)?;
         // the first solve and the final combination; each step adds its active columns
         let mut solve_columns = 2 * ncols;
+        let mut r = vec![0.0; n * ncols];
+        residuals(a, &b, rhs, &mut r, ncols)?;
         let mut cols: Vec<Arnoldi> = Vec::with_capacity(ncols);
-        let mut w = vec![0.0; n];
         for c in 0..ncols {
-            let (xc, bc) = (&rhs[c * n..(c + 1) * n], &b[c * n..(c + 1) * n]);
-            a.mul_vec(xc, &mut w)?;
-            let r: Vec<f64> = bc.iter().zip(&w).map(|(bi, ai)| bi - ai).collect();
-            let beta = dot(&r, &r).sqrt();
+            let rc = &r[c * n..(c + 1) * n];
+            let beta = dot(rc, rc).sqrt();
             let mut col = Arnoldi::new(beta, max_iter);
             col.done = beta <= tol * b_norm[c];
             if !col.done {
-                col.basis.push(r.into_iter().map(|v| v / beta).collect());
+                col.basis.push(rc.iter().map(|v| v / beta).collect());
             }
             cols.push(col);
         }
+        let mut w = vec![0.0; n];
         let mut iterations = 0;
         let mut z = Vec::new();
         while iterations < max_iter && cols.iter().any(|c| !c.done) {
@@ -1255,24 +1231,8 @@ impl LinearSolver {
         for (xi, ui) in rhs.iter_mut().zip(&u) {
             *xi += ui;
         }
-        let mut worst = 0.0f64;
-        for c in 0..ncols {
-            a.mul_vec(&rhs[c * n..(c + 1) * n], &mut w)?;
-            let rr: f64 = b[c * n..(c + 1) * n]
-                .iter()
-                .zip(&w)
-                .map(|(bi, ai)| (bi - ai) * (bi - ai))
-                .sum();
-            let rel = if b_norm[c] > 0.0 {
-                rr.sqrt() / b_norm[c]
-            } else {
-                rr.sqrt()
-            };
-            // a NaN column must show (f64::max would drop it) and fail `converged`
-            if rel.is_nan() || rel > worst {
-                worst = rel;
-            }
-        }
+        // a NaN column shows and fails `converged`
+        let worst = residuals(a, &b, rhs, &mut r, ncols)?;
         Ok(KrylovReport {
             iterations,
             solve_columns,
@@ -1387,6 +1347,34 @@ impl Arnoldi {
             }
         }
     }
+}
+
+/// `r = b - a x` for `ncols` column-major columns; the largest relative residual `|r| / |b|`
+/// over the columns (`|r|` where `b = 0`), a NaN column showing as NaN.
+fn residuals(a: &SparseMatrix, b: &[f64], x: &[f64], r: &mut [f64], ncols: usize) -> Result<f64> {
+    let n = a.n();
+    let mut worst = 0.0f64;
+    for c in 0..ncols {
+        let (xc, bc) = (&x[c * n..(c + 1) * n], &b[c * n..(c + 1) * n]);
+        let rc = &mut r[c * n..(c + 1) * n];
+        a.mul_vec(xc, rc)?;
+        let (mut rr, mut bb) = (0.0, 0.0);
+        for (ri, &bi) in rc.iter_mut().zip(bc) {
+            *ri = bi - *ri;
+            rr += *ri * *ri;
+            bb += bi * bi;
+        }
+        let rel = if bb > 0.0 {
+            (rr / bb).sqrt()
+        } else {
+            rr.sqrt()
+        };
+        // f64::max would drop a NaN
+        if rel.is_nan() || rel > worst {
+            worst = rel;
+        }
+    }
+    Ok(worst)
 }
 
 fn reuse_mem(mem: Option<MemBuffer>, req: faer::dyn_stack::StackReq) -> Result<MemBuffer> {

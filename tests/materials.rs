@@ -219,6 +219,24 @@ fn skipping_elements_frozen_elastic_leaves_the_history_update_and_the_responses_
     );
 }
 
+/// The coarse leaf spring (yielding clamp, friction, load reversal) and the named parameters.
+fn coarse_leaf_spring(
+    names: &[&str],
+) -> (
+    fricsens::model::Model,
+    Vec<fricsens::sensitivity::Parameter>,
+) {
+    let model = fricsens::scene::builtin("leaf-spring-coarse")
+        .unwrap()
+        .build()
+        .unwrap();
+    let params = names
+        .iter()
+        .map(|n| fricsens::sensitivity::Parameter::by_name(&model, n).unwrap())
+        .collect();
+    (model, params)
+}
+
 #[test]
 fn pseudo_loads_over_only_the_elements_a_parameter_reaches_match_ddm_over_all() {
     // SDM and DDM leave out of their pseudo-loads the elements a parameter does not reach: for
@@ -230,16 +248,9 @@ fn pseudo_loads_over_only_the_elements_a_parameter_reaches_match_ddm_over_all() 
     // * Restricted central SDM, wherever no branch is flagged: 1e-5 of that scale; measured
     //   1.5e-7 (truncation beta^2 and round-off eps / beta, amplified by the tangent). Leaving
     //   out the elements with a history derivative as well errs by 1.8e-4 (checked by mutation).
-    use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
-    let model = fricsens::scene::builtin("leaf-spring-coarse")
-        .unwrap()
-        .build()
-        .unwrap();
+    use fricsens::sensitivity::{run_sensitivity, Method, Settings, TangentChoice};
     let names = ["mu", "sigma_y", "H"];
-    let params: Vec<Parameter> = names
-        .iter()
-        .map(|n| Parameter::by_name(&model, n).unwrap())
-        .collect();
+    let (model, params) = coarse_leaf_spring(&names);
     let sdm = common::sensitivities(&model, &params, Method::SdmCentral, 1e-5);
     let ddm = common::sensitivities(&model, &params, Method::Ddm, 0.0);
     let full = Settings {
@@ -301,16 +312,9 @@ fn gmres_with_newtons_factor_solves_the_converged_and_forced_tangents_as_their_f
     // tolerance, the LU to its round-off), and the difference of two such solves is carried
     // through the history derivatives of later increments; 1e-8 of each derivative's largest
     // value over the run is that residual amplified a thousandfold (measured: 1.0e-10).
-    use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
-    let model = fricsens::scene::builtin("leaf-spring-coarse")
-        .unwrap()
-        .build()
-        .unwrap();
+    use fricsens::sensitivity::{run_sensitivity, Method, Settings, TangentChoice};
     let names = ["mu", "E", "sigma_y"];
-    let params: Vec<Parameter> = names
-        .iter()
-        .map(|n| Parameter::by_name(&model, n).unwrap())
-        .collect();
+    let (model, params) = coarse_leaf_spring(&names);
     let settings = |krylov| Settings {
         method: Method::Ddm,
         tangent: TangentChoice::Exact,
