@@ -691,9 +691,8 @@ impl<'a> Engine<'a> {
         rhs: &mut [f64],
         ncols: usize,
     ) -> Result<(), AnalysisError> {
-        let n = c.z.len();
-        let converged_k = || {
-            let mut k = c.tangent.clone();
+        // the prescribed unknowns' identity rows, as in Newton's factored tangent
+        let prescribed = |mut k: crate::linalg::SparseMatrix| {
             for (d, fixed) in c.constrained.iter().enumerate() {
                 if *fixed {
                     k.set_identity_row_col(d).expect("in range");
@@ -701,6 +700,7 @@ impl<'a> Engine<'a> {
             }
             k
         };
+        let converged_k = || prescribed(c.tangent.clone());
         // the last Newton factorization is the converged tangent only if it was assembled on
         // the converged branches (see `Converged::factor_matches`)
         let use_exact = self.settings.tangent == TangentChoice::Exact
@@ -710,14 +710,7 @@ impl<'a> Engine<'a> {
         if use_exact {
             let forced = self.forced_tangent.is_some();
             let k = match self.forced_tangent.take() {
-                Some(mut k) => {
-                    for (d, fixed) in c.constrained.iter().enumerate() {
-                        if *fixed {
-                            k.set_identity_row_col(d).expect("in range");
-                        }
-                    }
-                    k
-                }
+                Some(k) => prescribed(k),
                 None => converged_k(),
             };
             let cost = &mut self.results.cost;
@@ -796,7 +789,6 @@ impl<'a> Engine<'a> {
             }
         }
         self.results.cost.solve_columns += ncols;
-        let _ = n;
         Ok(())
     }
 
