@@ -49,3 +49,51 @@ fn displacement_controlled_plastic_cantilever_needs_no_cutback() {
     // plasticity did develop (the test is about a plastic path)
     assert!(res.history.iter().skip(6).step_by(7).any(|a| *a > 0.0));
 }
+
+/// A force tolerance below the residual's round-off floor. The leaf spring's free residual does
+/// not fall below about 1e-8 N at any refinement (gaps and slips are computed from coordinates
+/// of 100 mm), so at `force_tol` 1e-15 the force criterion can never be met. Newton must stop
+/// at the floor by the round-off criterion (the positions' correction below 64 eps |X + u|)
+/// instead of cutting the increment back until the analysis fails, and stop at the state the
+/// default tolerance reaches.
+#[test]
+fn a_force_tolerance_below_the_round_off_floor_converges_at_the_floor() {
+    use fricsens::scaling::ScalingScene;
+    let model = ScalingScene::LeafSpring
+        .scene(1.0)
+        .unwrap()
+        .build()
+        .unwrap();
+    let mut tight = model.clone();
+    tight.solver.force_tol = 1e-15;
+    tight.solver.energy_tol = 1e-40;
+    let run = |m: &fricsens::model::Model| {
+        Solver::new(m)
+            .unwrap()
+            .run(&RunOptions::default(), &mut NoObserver)
+            .unwrap()
+    };
+    let (nominal, floor) = (run(&model), run(&tight));
+    assert_eq!(floor.times, nominal.times, "the tight run cut back");
+    let n_nodal = 3 * model.mesh.n_nodes();
+    for (inc, (a, b)) in nominal.states.iter().zip(&floor.states).enumerate().skip(1) {
+        let scale = a[..n_nodal].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let diff = a[..n_nodal]
+            .iter()
+            .zip(&b[..n_nodal])
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        println!("increment {inc}: max |u| {scale:.3e}, max difference {diff:.3e}");
+        // the nominal run's force residual is 1e-9 of the reference force: its displacements
+        // are that accurate relative to their scale, times the tangent's conditioning between
+        // the force and displacement norms (1e3 allowed)
+        assert!(
+            diff <= 1e-6 * scale,
+            "increment {inc}: {diff:e} against {scale:e}"
+        );
+    }
+    for r in &floor.records {
+        let last = *r.residuals.last().unwrap();
+        // the floor, not the nominal tolerance, is where the tight run stopped
+        assert!(last > 1e-15 * r.reference_force, "{last:e}");
+    }
+}
