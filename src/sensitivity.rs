@@ -25,7 +25,9 @@
 //! ## Tangent of the sensitivity solve
 //! * `last`: the last Newton factorization, of the iterate before convergence (the paper);
 //! * `refined`: the same, plus iterative refinement against the converged tangent;
-//! * `exact`: the converged tangent, to a relative residual of [`KRYLOV_TOL`]: by GMRES
+//! * `exact`: the converged tangent, to a relative residual of [`KRYLOV_TOL`] (or, where
+//!   `|K||x|` is far above `|b|` and no solve reaches that, to the backward error of a
+//!   backward-stable direct solve): by GMRES
 //!   preconditioned with Newton's last factorization (a few solves: the two matrices differ by
 //!   Newton's last correction and any branches it switched), factored afresh where GMRES
 //!   does not converge in [`KRYLOV_MAX_ITER`] steps or `Settings::krylov` is off.
@@ -337,7 +339,8 @@ pub struct Settings {
     /// factoring it: Newton's last factor differs from the converged tangent by Newton's last
     /// correction and a few switched branches, the forced tangent from the converged one by a
     /// few rows, so GMRES converges in a few solves. A factorization is the fallback when
-    /// GMRES does not reach [`KRYLOV_TOL`] in [`KRYLOV_MAX_ITER`] steps, and the only way
+    /// GMRES does not reach [`KRYLOV_TOL`] (or a direct solve's backward error) in
+    /// [`KRYLOV_MAX_ITER`] steps, and the only way
     /// when this is off.
     pub krylov: bool,
 }
@@ -733,11 +736,12 @@ impl<'a> Engine<'a> {
                     iterations: 0,
                     solve_columns: 0,
                     relative_residual: f64::NAN,
+                    backward_error: f64::NAN,
                     converged: false,
                 });
                 if std::env::var_os("FRICSENS_TRACE").is_some() {
                     eprintln!(
-                        "  sensitivity GMRES ({}): {} steps, |K x - b| / |b| = {:.2e}{}",
+                        "  sensitivity GMRES ({}): {} steps, |K x - b| / |b| = {:.2e}, backward error {:.2} eps{}",
                         if forced {
                             "forced tangent"
                         } else {
@@ -745,6 +749,7 @@ impl<'a> Engine<'a> {
                         },
                         report.iterations,
                         report.relative_residual,
+                        report.backward_error / f64::EPSILON,
                         if report.converged {
                             ""
                         } else {
