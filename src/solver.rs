@@ -11,8 +11,9 @@
 //!    `|dz_{k-1}| <= 64 eps |z|`, or its positions part at the positions' round-off,
 //!    `|dz_{k-1, nodal}| <= 64 eps |X + u|` with the other unknowns' part below
 //!    `sqrt(eps)` of them (the residual left is the noise of its own evaluation, e.g. of a
-//!    stiff penalty or of gaps computed from coordinates, which does not shrink with the load). Otherwise `K` (with identity rows and columns at the prescribed
-//!    unknowns) is factored on the symbolic analysis done once per run, and `z -= K^-1 R`.
+//!    stiff penalty or of gaps computed from coordinates, which does not shrink with the
+//!    load). Otherwise `K` (with identity rows and columns at the prescribed unknowns) is
+//!    factored on the symbolic analysis done once per run, and `z -= K^-1 R`.
 //! 3. On convergence the history is committed and the [`Observer`] is called with the
 //!    converged state and the *last* factorization (that of the iterate before convergence —
 //!    the tangent the paper's semi-analytical method reuses).
