@@ -590,25 +590,16 @@ impl SparseMatrix {
 
     /// `y = A x`.
     pub fn mul_vec(&self, x: &[f64], y: &mut [f64]) -> Result<()> {
-        let n = self.pattern.n;
-        check_len(n, x.len())?;
-        check_len(n, y.len())?;
-        let cp = self.pattern.symbolic.col_ptr();
-        let ri = self.pattern.symbolic.row_idx();
-        y.fill(0.0);
-        for j in 0..n {
-            let xj = x[j];
-            if xj != 0.0 {
-                for k in cp[j]..cp[j + 1] {
-                    y[ri[k]] += self.values[k] * xj;
-                }
-            }
-        }
-        Ok(())
+        self.mul_vec_mapped(x, y, |v| v)
     }
 
-    /// `y = |A| x`, entrywise absolute values (round-off bounds such as `eps |A| |x|`).
+    /// `y = |A| |x|`, entrywise absolute values (round-off bounds such as `eps |A| |x|`).
     pub fn abs_mul_vec(&self, x: &[f64], y: &mut [f64]) -> Result<()> {
+        self.mul_vec_mapped(x, y, f64::abs)
+    }
+
+    /// `y = f(A) f(x)`, `f` applied to every entry of both.
+    fn mul_vec_mapped(&self, x: &[f64], y: &mut [f64], f: impl Fn(f64) -> f64) -> Result<()> {
         let n = self.pattern.n;
         check_len(n, x.len())?;
         check_len(n, y.len())?;
@@ -616,10 +607,10 @@ impl SparseMatrix {
         let ri = self.pattern.symbolic.row_idx();
         y.fill(0.0);
         for j in 0..n {
-            let xj = x[j].abs();
+            let xj = f(x[j]);
             if xj != 0.0 {
                 for k in cp[j]..cp[j + 1] {
-                    y[ri[k]] += self.values[k].abs() * xj;
+                    y[ri[k]] += f(self.values[k]) * xj;
                 }
             }
         }
