@@ -161,12 +161,7 @@ pub struct SolverSettings {
     pub force_tol: f64,
     /// Relative energy norm: `|du . R| <= energy_tol * |du_0 . R_0|`.
     pub energy_tol: f64,
-    /// Newton iterations per attempt before the increment is cut back. Attempts that fail
-    /// run to the limit, so it prices every cutback: limit 30 -> 20 leaves the histories of
-    /// the built-in scenes' runs as they were and saves factorizations (`fricsens run`:
-    /// strip pull-out 716 -> 556, leaf spring 242 -> 222). The converged attempts need up
-    /// to 10 iterations there, but up to 17 on the coarse leaf spring without extrapolation;
-    /// a limit of 15 cut those back, and the run took another (path-dependent) path.
+    /// Newton iterations per attempt.
     pub max_iterations: usize,
     /// Successive halvings of an increment before giving up.
     pub max_cutbacks: usize,
@@ -188,7 +183,7 @@ impl Default for SolverSettings {
         SolverSettings {
             force_tol: 1e-9,
             energy_tol: 1e-20,
-            max_iterations: 20,
+            max_iterations: 30,
             max_cutbacks: 10,
             extrapolate: true,
         }

@@ -107,8 +107,8 @@ fn unknown_keys_are_named_by_their_path() {
             "contacts[0].bogus",
         ),
         (
-            "max_iterations = 20",
-            "max_iterations = 20\ntolerance = 1.0",
+            "max_iterations = 30",
+            "max_iterations = 30\ntolerance = 1.0",
             "solver.tolerance",
         ),
         ("[study]", "[study]\nbetas = [0.1]", "study.betas"),
@@ -829,7 +829,7 @@ fn lengths_fractions_and_ratios_must_be_positive() {
 
 #[test]
 fn solver_settings_must_be_usable() {
-    let text = replaced("contact-patch", "max_iterations = 20", "max_iterations = 0");
+    let text = replaced("contact-patch", "max_iterations = 30", "max_iterations = 0");
     rejects(&text, &["field `solver.max_iterations`:", "at least 1"]);
     let text = replaced(
         "contact-patch",
