@@ -1158,13 +1158,13 @@ impl LinearSolver {
         check_len(n * ncols, b.len())?;
         check_len(n * ncols, x.len())?;
         let mut r = vec![0.0; n * ncols];
-        let mut res = residuals(a, b, x, &mut r, ncols)?;
+        let mut res = worst(&residuals(a, b, x, &mut r, ncols)?);
         for _ in 0..steps {
             self.solve_multi_in_place(&mut r, ncols)?;
             for (xi, ri) in x.iter_mut().zip(&r) {
                 *xi += ri;
             }
-            res = residuals(a, b, x, &mut r, ncols)?;
+            res = worst(&residuals(a, b, x, &mut r, ncols)?);
         }
         Ok(res)
     }
@@ -1244,7 +1244,7 @@ impl LinearSolver {
             *xi += ui;
         }
         // a NaN column shows and fails `converged`
-        let worst = residuals(a, &b, rhs, &mut r, ncols)?;
+        let relative = residuals(a, &b, rhs, &mut r, ncols)?;
         // a column whose relative residual is above `tol` is still solved when its backward
         // error is that of a stable direct solve (`|K||x|` far above `|b|`: the relative
         // residual a factorization of `a` would reach is no better)
@@ -1252,11 +1252,7 @@ impl LinearSolver {
         let mut each_ok = true;
         let mut scale = vec![0.0; n];
         for c in 0..ncols {
-            let (rc, bc, xc) = (
-                &r[c * n..(c + 1) * n],
-                &b[c * n..(c + 1) * n],
-                &rhs[c * n..(c + 1) * n],
-            );
+            let (bc, xc) = (&b[c * n..(c + 1) * n], &rhs[c * n..(c + 1) * n]);
             a.abs_mul_vec(xc, &mut scale)?;
             let den = scale
                 .iter()
@@ -1264,19 +1260,19 @@ impl LinearSolver {
                 .map(|(s, b)| (s + b.abs()).powi(2))
                 .sum::<f64>()
                 .sqrt();
-            let rn = dot(rc, rc).sqrt();
+            // |b - a x|, from the relative residual `residuals` measured
+            let rn = relative[c] * if b_norm[c] > 0.0 { b_norm[c] } else { 1.0 };
             let omega = if rn == 0.0 { 0.0 } else { rn / den };
             if omega.is_nan() || omega > backward_error {
                 backward_error = omega;
             }
-            let relative = if b_norm[c] > 0.0 { rn / b_norm[c] } else { rn };
             // (NaN fails both)
-            each_ok &= relative <= tol || omega <= BACKWARD_STABLE_ULPS * f64::EPSILON;
+            each_ok &= relative[c] <= tol || omega <= BACKWARD_STABLE_ULPS * f64::EPSILON;
         }
         Ok(KrylovReport {
             iterations,
             solve_columns,
-            relative_residual: worst,
+            relative_residual: worst(&relative),
             backward_error,
             converged: cols.iter().all(|c| c.done) && each_ok,
         })
@@ -1400,32 +1396,40 @@ impl Arnoldi {
     }
 }
 
-/// `r = b - a x` for `ncols` column-major columns; the largest relative residual `|r| / |b|`
-/// over the columns (`|r|` where `b = 0`), a NaN column showing as NaN.
-fn residuals(a: &SparseMatrix, b: &[f64], x: &[f64], r: &mut [f64], ncols: usize) -> Result<f64> {
+/// `r = b - a x` for `ncols` column-major columns, and each column's relative residual
+/// `|r| / |b|` (`|r|` where `b = 0`; NaN for a NaN column).
+fn residuals(
+    a: &SparseMatrix,
+    b: &[f64],
+    x: &[f64],
+    r: &mut [f64],
+    ncols: usize,
+) -> Result<Vec<f64>> {
     let n = a.n();
-    let mut worst = 0.0f64;
-    for c in 0..ncols {
-        let (xc, bc) = (&x[c * n..(c + 1) * n], &b[c * n..(c + 1) * n]);
-        let rc = &mut r[c * n..(c + 1) * n];
-        a.mul_vec(xc, rc)?;
-        let (mut rr, mut bb) = (0.0, 0.0);
-        for (ri, &bi) in rc.iter_mut().zip(bc) {
-            *ri = bi - *ri;
-            rr += *ri * *ri;
-            bb += bi * bi;
-        }
-        let rel = if bb > 0.0 {
-            (rr / bb).sqrt()
-        } else {
-            rr.sqrt()
-        };
-        // f64::max would drop a NaN
-        if rel.is_nan() || rel > worst {
-            worst = rel;
-        }
-    }
-    Ok(worst)
+    (0..ncols)
+        .map(|c| {
+            let (xc, bc) = (&x[c * n..(c + 1) * n], &b[c * n..(c + 1) * n]);
+            let rc = &mut r[c * n..(c + 1) * n];
+            a.mul_vec(xc, rc)?;
+            let (mut rr, mut bb) = (0.0, 0.0);
+            for (ri, &bi) in rc.iter_mut().zip(bc) {
+                *ri = bi - *ri;
+                rr += *ri * *ri;
+                bb += bi * bi;
+            }
+            Ok(if bb > 0.0 {
+                (rr / bb).sqrt()
+            } else {
+                rr.sqrt()
+            })
+        })
+        .collect()
+}
+
+/// The largest of `v` (0 when empty), a NaN showing (`f64::max` would drop it).
+fn worst(v: &[f64]) -> f64 {
+    v.iter()
+        .fold(0.0f64, |w, &x| if x.is_nan() || x > w { x } else { w })
 }
 
 fn reuse_mem(mem: Option<MemBuffer>, req: faer::dyn_stack::StackReq) -> Result<MemBuffer> {
