@@ -158,3 +158,100 @@ fn the_extrapolating_predictor_and_the_penetration_limiter_change_the_path_not_t
         "only {compared} values compared"
     );
 }
+
+/// The built-in leaf spring cut to its first loading increment (the block 2 mm down) taken in
+/// `n` increments, its solver settings changed by `change`.
+fn leaf_spring_first_increment(
+    n: usize,
+    change: impl FnOnce(&mut fricsens::model::SolverSettings),
+) -> (fricsens::model::Model, Results) {
+    let mut scene = fricsens::scene::builtin("leaf-spring").unwrap();
+    let end = scene.steps[0].end / scene.steps[0].increments as f64;
+    scene.steps = vec![fricsens::scene::StepSpec { end, increments: n }];
+    change(&mut scene.solver);
+    let model = scene.build().unwrap();
+    let res = Solver::new(&model)
+        .unwrap()
+        .run(&RunOptions::default(), &mut NoObserver)
+        .unwrap();
+    (model, res)
+}
+
+#[test]
+fn the_active_set_predictor_settles_the_leaf_springs_first_contacts_where_beam_theory_puts_them() {
+    // Beam theory for the first 2 mm of the block's stroke (rotations below 2 degrees): the
+    // upper leaf, pushed down at x = 90 mm, rests on the lower one. Wherever the leaves touch,
+    // both carry point loads only, so the difference of their bending moments is linear in x
+    // and positive at the lower leaf's tip (it is P (90 - 71.5) there); the difference of the
+    // deflections, zero with zero slope at the clamp, is then below its tip value along the
+    // whole lower leaf. The leaves touch at the lower leaf's tip only. The block's
+    // cylindrical nose (r = 5 mm) touches the upper leaf's top at the node row under its axis
+    // (x = 90 mm): the rows 2.5 mm either side lie 0.67 mm below the nose's surface.
+    let (model, res) = leaf_spring_first_increment(1, |_| {});
+    let rec = &res.records[0];
+    assert_eq!(
+        rec.cutbacks, 0,
+        "the 2 mm increment converged without cutback"
+    );
+    assert!(rec.active_set_solves > 0, "the predictor acted");
+    let coords = model.lifted::<f64>(&[]).coords;
+    let last = res.contact.len() - 1;
+    for (p, pair) in model.contacts.iter().enumerate() {
+        let closed: Vec<f64> = pair
+            .hitting
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| {
+                res.contact[last].choice[res.contact_flat[p] + i].state
+                    != fricsens::contact::ContactState::Open
+            })
+            .map(|(_, &n)| coords[n].x)
+            .collect();
+        let at = match pair.name.as_str() {
+            "leaves" => 71.5,
+            "block" => 90.0,
+            other => panic!("unexpected pair {other}"),
+        };
+        // one node row: both nodes across the one-element width, at x = `at`
+        assert_eq!(
+            closed.len(),
+            2,
+            "pair {}: closed at x = {closed:?}",
+            pair.name
+        );
+        for xc in closed {
+            assert!(
+                (xc - at).abs() < 1e-9,
+                "pair {}: closed at x = {xc}",
+                pair.name
+            );
+        }
+    }
+}
+
+#[test]
+fn the_active_set_predictor_changes_the_path_not_the_solution() {
+    // Friction and plasticity make the solution depend on the increments taken, so the runs
+    // compared must converge through the same ones: the leaf spring's first 2 mm in four
+    // increments (each run without cutback), and the coarse leaf spring's whole load history
+    // (loading, unloading, reloading). With and without the predictor they must agree at
+    // every increment.
+    for (model, on, off) in [
+        {
+            let (model, on) = leaf_spring_first_increment(4, |_| {});
+            let (_, off) = leaf_spring_first_increment(4, |s| s.active_set_solves = 0);
+            (model, on, off)
+        },
+        {
+            let (model, on) = coarse_leaf_spring(|_| {});
+            let (_, off) = coarse_leaf_spring(|scene| scene.solver.active_set_solves = 0);
+            (model, on, off)
+        },
+    ] {
+        let solves: usize = on.records.iter().map(|r| r.active_set_solves).sum();
+        assert!(solves > 0, "the predictor acted");
+        assert_eq!(on.times, off.times, "same increments");
+        let compared = assert_same_responses(&model, &on, &off);
+        assert_eq!(compared, model.responses.len() * (on.times.len() - 1));
+    }
+}
