@@ -261,6 +261,69 @@ impl Assembler {
         &self.elem_dofs[e][..self.elem_ndof[e]]
     }
 
+    /// The shortest fraction of the step from `z` to `z + dz` at which a Gauss point plastic
+    /// at `z` (`branches`) has crossed its material's elastic domain to the far side of its
+    /// yield surface ([`crate::material::MaterialLaw::elastic_crossing`]), and how many
+    /// points do; `(1.0, 0)` when none. Real parts; F-bar elements are not examined.
+    pub fn elastic_crossing(
+        &self,
+        model: &Model,
+        lifted: &Lifted<f64>,
+        z: &[f64],
+        dz: &[f64],
+        hist_old: &[f64],
+        branches: &[Branch],
+    ) -> (f64, usize) {
+        let mut fraction = 1.0f64;
+        let mut points = 0;
+        for e in 0..model.mesh.elements.len() {
+            let plastic = &branches[8 * e..8 * e + 8];
+            if !plastic.contains(&Branch::Plastic) {
+                continue;
+            }
+            let b = self.dofs.element_body[e];
+            let body = &model.bodies[b];
+            let conn = &model.mesh.elements[e];
+            let x_ref: [Vector3<f64>; 8] = std::array::from_fn(|a| lifted.coords[conn[a]]);
+            let gdofs = self.element_dofs(e);
+            let n = gdofs.len() / 3;
+            let mut d0 = [Vector3::<f64>::zeros(); MAX_GEN];
+            let mut d1 = [Vector3::<f64>::zeros(); MAX_GEN];
+            for a in 0..n {
+                let g = &gdofs[3 * a..3 * a + 3];
+                d0[a] = Vector3::new(z[g[0]], z[g[1]], z[g[2]]);
+                d1[a] = d0[a] + Vector3::new(dz[g[0]], dz[g[1]], dz[g[2]]);
+            }
+            let strains = |d: &[Vector3<f64>]| {
+                hex8::gauss_strains(&x_ref, d, body.kinematics, body.formulation)
+                    .ok()
+                    .flatten()
+            };
+            let (Some(e0), Some(e1)) = (strains(&d0[..n]), strains(&d1[..n])) else {
+                continue;
+            };
+            let nh = body.material.history_len();
+            let h0 = self.dofs.history_offset[e];
+            for g in (0..8).filter(|&g| plastic[g] == Branch::Plastic) {
+                let hist = &hist_old[h0 + nh * g..h0 + nh * (g + 1)];
+                let crossing = with_material!(&body.material, m => {
+                    crate::material::MaterialLaw::elastic_crossing(
+                        m,
+                        &lifted.material[b],
+                        &e0[g],
+                        &e1[g],
+                        hist,
+                    )
+                });
+                if let Some(s) = crossing {
+                    fraction = fraction.min(s);
+                    points += 1;
+                }
+            }
+        }
+        (fraction, points)
+    }
+
     /// Evaluate the residual (and, if `tangent` is given, the tangent) at unknowns `z`, time `t`,
     /// with committed history `hist_old`. `frozen` imposes the Gauss-point branches.
     #[allow(clippy::too_many_arguments)]

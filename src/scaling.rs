@@ -1154,7 +1154,7 @@ pub fn markdown(study: &Study) -> String {
     );
     let _ = writeln!(
         s,
-        "Times are wall clock on a machine with {} logical CPUs shared with other jobs (builds and test runs of other work were running): single runs, noisy by tens of percent at the small sizes; read the exponents to about +-0.1. The LU factor's nonzero count is not reported (faer keeps it private); the peak memory includes the factor, the pattern, and the per-element state.\n",
+        "Times are wall clock on a machine with {} logical CPUs (nothing else is stopped while the study runs): single runs, noisy by tens of percent at the small sizes; read the exponents to about +-0.1. The LU factor's nonzero count is not reported (faer keeps it private); the peak memory includes the factor, the pattern, and the per-element state.\n",
         study.cpus
     );
     let _ = writeln!(

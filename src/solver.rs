@@ -283,6 +283,11 @@ fn bounding_diagonal(points: &[nalgebra::Vector3<f64>]) -> f64 {
     (hi - lo).norm()
 }
 
+/// Shortest fraction of a Newton step the yield-surface crossing limiter keeps. Without a
+/// floor, points that cross near the start of the step cut it to 1e-7 and Newton stalls (the
+/// leaf spring refined 4 times ran out of time).
+const YIELD_CROSSING_FLOOR: f64 = 0.125;
+
 /// Of the nodes a step would close, the first active-set prediction takes those whose
 /// predicted penetration is at least this fraction of their pair's deepest.
 const ACTIVE_SET_ADD_FRACTION: f64 = 0.9;
@@ -1249,6 +1254,23 @@ impl<'m> Solver<'m> {
             if k == 0 && line_search {
                 record.active_set_solves +=
                     self.settle_active_set(z, &mut dz, hist, t, eval, &mut predictor, cost)?;
+            }
+            // Yield-surface crossing limiter: a step that carries a plastic point through its
+            // elastic domain to the far side of the yield surface stops where the point is
+            // deepest inside (at least YIELD_CROSSING_FLOOR of the step), so the next
+            // iteration sees it elastic instead of returned the other way (a two-cycle of
+            // constant branches otherwise: MaterialLaw::elastic_crossing).
+            let (crossing, points) =
+                self.assembler
+                    .elastic_crossing(model, &self.lifted, z, &dz, hist, &eval.branches);
+            if points > 0 {
+                let scale = crossing.max(YIELD_CROSSING_FLOOR);
+                if self.trace {
+                    eprintln!(
+                        "    yield crossing: {points} points cross their elastic domain, step x {scale:.3e}"
+                    );
+                }
+                dz.iter_mut().for_each(|d| *d *= scale);
             }
             k += 1;
             let energy: f64 = dz

@@ -242,6 +242,62 @@ pub struct Hex8Output<'a, S: Scalar> {
     pub min_det_f: f64,
 }
 
+/// `H = grad_X u` at a Gauss point from the generalised displacements (the enhanced part
+/// included).
+fn displacement_gradient<S: Scalar>(
+    dofs: &[Vector3<S>],
+    grads: &[Vector3<S>; MAX_GEN],
+    n_gen: usize,
+) -> Matrix3<S> {
+    let mut h = Matrix3::<S>::zeros();
+    for (d, g) in dofs.iter().zip(grads).take(n_gen) {
+        for i in 0..3 {
+            for j in 0..3 {
+                h[(i, j)] += d[i] * g[j];
+            }
+        }
+    }
+    h
+}
+
+/// The strain the material sees: Green-Lagrange `(F^T F - I) / 2` under large kinematics,
+/// `sym H` under small.
+fn strain_measure<S: Scalar>(h: &Matrix3<S>, large: bool) -> Matrix3<S> {
+    if large {
+        let f = h + Matrix3::identity();
+        (f.transpose() * f - Matrix3::identity()) * S::lift(0.5)
+    } else {
+        (h + h.transpose()) * S::lift(0.5)
+    }
+}
+
+/// The strain each Gauss point's material sees for the generalised displacements `dofs`
+/// (the evaluation's strain, without its stress update). `None` for F-bar, whose points see
+/// a strain modified by the element's centre.
+pub fn gauss_strains<S: Scalar>(
+    x_ref: &[Vector3<S>; 8],
+    dofs: &[Vector3<S>],
+    kinematics: Kinematics,
+    formulation: Hex8Formulation,
+) -> Result<Option<[Matrix3<S>; 8]>, ElementFailure> {
+    if formulation == Hex8Formulation::FBar {
+        return Ok(None);
+    }
+    let centre = if formulation == Hex8Formulation::IncompatibleModes {
+        Some(centre_jacobian(x_ref)?)
+    } else {
+        None
+    };
+    let n_gen = generalised_nodes(formulation);
+    let mut out = [Matrix3::<S>::zeros(); 8];
+    for (gp, (xi, e)) in gauss_points().iter().zip(out.iter_mut()).enumerate() {
+        let geo = reference_geometry(x_ref, *xi, gp, formulation, &centre)?;
+        let h = displacement_gradient(dofs, &geo.grads, n_gen);
+        *e = strain_measure(&h, kinematics == Kinematics::Large);
+    }
+    Ok(Some(out))
+}
+
 /// Reference geometry at one Gauss point: generalised gradients and the volume weight.
 struct GaussGeometry<S: Scalar> {
     grads: [Vector3<S>; MAX_GEN],
@@ -377,17 +433,7 @@ pub fn evaluate<S: Scalar, M: MaterialLaw>(
     let mut b = [[Voigt::<S>::zeros(); 3]; MAX_GEN];
     for (gp, xi) in gauss_points().iter().enumerate() {
         let geo = reference_geometry(input.x_ref, *xi, gp, input.formulation, &centre)?;
-        // H = grad_X u (with the enhanced part)
-        let mut h = Matrix3::<S>::zeros();
-        for a in 0..n_gen {
-            let d = &input.dofs[a];
-            let g = &geo.grads[a];
-            for i in 0..3 {
-                for j in 0..3 {
-                    h[(i, j)] += d[i] * g[j];
-                }
-            }
-        }
+        let h = displacement_gradient(input.dofs, &geo.grads, n_gen);
         let f = h + Matrix3::identity();
         let det_f = det3(&f);
         out.min_det_f = out.min_det_f.min(re(det_f));
@@ -397,11 +443,7 @@ pub fn evaluate<S: Scalar, M: MaterialLaw>(
                 det_f: re(det_f),
             });
         }
-        let strain = if large {
-            (f.transpose() * f - Matrix3::identity()) * S::lift(0.5)
-        } else {
-            (h + h.transpose()) * S::lift(0.5)
-        };
+        let strain = strain_measure(&h, large);
         let resp = material_point(input, out, gp, &strain)?;
         let sv = stress_to_voigt(&resp.stress);
         let w = geo.weight;

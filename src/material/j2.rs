@@ -377,6 +377,35 @@ impl MaterialLaw for J2Plasticity {
     fn name(&self) -> &'static str {
         "j2"
     }
+    /// The trial deviator `2 mu dev(E - E_p)` moves linearly along the step. The step
+    /// crosses the elastic domain when the point of its path nearest the origin lies inside
+    /// the yield surface (radius `sqrt(2/3) k(alpha)`) and the end lies on the other side of
+    /// the origin from the start (the return map would reverse the flow direction).
+    fn elastic_crossing(
+        &self,
+        p: &[f64],
+        strain_start: &Matrix3<f64>,
+        strain_end: &Matrix3<f64>,
+        hist_old: &[f64],
+    ) -> Option<f64> {
+        let h = hist_old;
+        let ep = Matrix3::new(h[0], h[3], h[5], h[3], h[1], h[4], h[5], h[4], h[2]);
+        let (_, mu) = lame(p[0], p[1]);
+        let radius = FlowStress::from_params(self.saturation, p).eval(h[6]).0 * SQRT_2_3;
+        let dev = |m: Matrix3<f64>| {
+            let m = (m + m.transpose()) * 0.5;
+            m - Matrix3::from_diagonal_element(m.trace() / 3.0)
+        };
+        let a = dev(strain_start - ep) * (2.0 * mu);
+        let b = dev(strain_end - strain_start) * (2.0 * mu);
+        let bb = b.norm_squared();
+        if bb == 0.0 {
+            return None;
+        }
+        let s = -a.dot(&b) / bb;
+        let crosses = s > 0.0 && s < 1.0 && (a + b * s).norm() < radius && a.dot(&(a + b)) < 0.0;
+        crosses.then_some(s)
+    }
 
     /// E and nu: the elastic branch is `C : (E - E_p)` with the history unchanged; the yield
     /// stress and the hardening parameters act only on the plastic branch.
@@ -490,6 +519,73 @@ mod tests {
     use nalgebra::{Rotation3, Vector3};
     use num_dual::{Dual64, DualSVec64};
     use proptest::prelude::*;
+
+    #[test]
+    fn a_step_through_the_elastic_domain_to_the_far_side_is_found_at_its_deepest_point() {
+        // Virgin history (E_p = 0, alpha = 0): the yield surface is |2 mu dev E| =
+        // sqrt(2/3) sigma_y. A pure shear strain gamma e (e = e_xy + e_yx) has
+        // |2 mu dev E| = 2 mu gamma sqrt(2).
+        let m = J2Plasticity::linear(206e3, 0.3, 800.0, 2000.0);
+        let p = m.params().to_vec();
+        let two_mu = 206e3 / 1.3;
+        let yield_gamma = (2.0f64 / 3.0).sqrt() * 800.0 / (two_mu * 2f64.sqrt());
+        let shear = |g: f64, off: f64| {
+            let mut e = Matrix3::zeros();
+            e[(0, 1)] = g;
+            e[(1, 0)] = g;
+            e[(1, 2)] = off;
+            e[(2, 1)] = off;
+            e
+        };
+        let h = [0.0; 7];
+        let beyond = 1.5 * yield_gamma;
+        // from beyond the surface on one side to beyond it on the other, through the centre:
+        // deepest at the midpoint, whatever the volumetric part of the step
+        let mut end = shear(-beyond, 0.0);
+        end[(0, 0)] = 1e-3;
+        end[(1, 1)] = 1e-3;
+        end[(2, 2)] = 1e-3;
+        let s = m
+            .elastic_crossing(&p, &shear(beyond, 0.0), &end, &h)
+            .expect("crosses");
+        assert!((s - 0.5).abs() < 1e-12, "{s}");
+        // ending three times as far out: deepest at a quarter of the step
+        let s = m
+            .elastic_crossing(&p, &shear(beyond, 0.0), &shear(-3.0 * beyond, 0.0), &h)
+            .expect("crosses");
+        assert!((s - 0.25).abs() < 1e-12, "{s}");
+        // going further out, or ending inside on the same side: no crossing
+        let none = |a: f64, b: f64| m.elastic_crossing(&p, &shear(a, 0.0), &shear(b, 0.0), &h);
+        assert_eq!(none(beyond, 2.0 * beyond), None);
+        assert_eq!(none(beyond, 0.1 * yield_gamma), None);
+        // passing the centre at a distance beyond the yield radius (an orthogonal shear of
+        // 1.2 times the yield value throughout): no crossing
+        let off = 1.2 * yield_gamma;
+        assert_eq!(
+            m.elastic_crossing(&p, &shear(beyond, off), &shear(-beyond, off), &h),
+            None
+        );
+        // hardened history: the radius grows with alpha, sqrt(2/3) (sigma_y + H alpha); at
+        // alpha = 0.3 it is 1.75 times the virgin one, so the orthogonal offset above now
+        // passes inside
+        let mut hardened = [0.0; 7];
+        hardened[6] = 0.3;
+        assert!(m
+            .elastic_crossing(
+                &p,
+                &shear(2.0 * beyond, off),
+                &shear(-2.0 * beyond, off),
+                &hardened
+            )
+            .is_some());
+        // elastic laws have no yield surface
+        let svk = crate::material::svk::StVenantKirchhoff::new(206e3, 0.3);
+        let sp = svk.params().to_vec();
+        assert_eq!(
+            svk.elastic_crossing(&sp, &shear(beyond, 0.0), &shear(-beyond, 0.0), &[]),
+            None
+        );
+    }
 
     // Oracle material (shared/oracles.md section 1), MPa.
     const YOUNG: f64 = 200e3;
