@@ -136,7 +136,9 @@ impl ScalingScene {
     /// does not converge: from the first correction the residual grows, then alternates
     /// between two values with the contact states unchanged (30 iterations); after the
     /// cutback the first half step converges in 3 and the second half grows the same way.
-    /// The cause is not found (at 3.5 and 2.5 each linear solve is accurate to 1e-12).
+    /// The cause is not found (at 3.5 and 2.5 each linear solve is accurate to 1e-12). It is
+    /// not the two-cycle of the refined leaf spring, whose plastic points crossed their
+    /// elastic domain (`MaterialLaw::elastic_crossing`): the slab is elastic.
     pub fn refinements(self, quick: bool) -> &'static [f64] {
         match (self, quick) {
             (ScalingScene::Indentation, false) => &[0.25, 0.4, 0.63, 1.0, 1.6, 2.5, 3.5],

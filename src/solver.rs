@@ -38,7 +38,9 @@ pub struct IncrementRecord {
     pub index: usize,
     /// Pseudo-time at the end of the increment.
     pub time: f64,
-    /// Newton iterations (linear solves) used by the converged attempt.
+    /// Newton iterations (linear solves) used by the converged attempt, the solves that
+    /// settled its first step's contact states ([`IncrementRecord::active_set_solves`])
+    /// included.
     pub iterations: usize,
     /// `|R_free|` at each residual evaluation of the converged attempt (every Newton
     /// iteration, and the line search's and penetration limiter's re-evaluations).
@@ -51,8 +53,9 @@ pub struct IncrementRecord {
     pub cutbacks: usize,
     /// Augmented-Lagrangian passes after the first (0 without such pairs).
     pub augmentations: usize,
-    /// Extra solves of the converged attempt's first step that settled its contact states
-    /// on the linearised problem ([`crate::model::SolverSettings::active_set_solves`]).
+    /// Solves that settled the contact states of the converged attempt's first step on the
+    /// linearised problem ([`crate::model::SolverSettings::active_set_solves`]); part of
+    /// [`IncrementRecord::iterations`].
     pub active_set_solves: usize,
 }
 
@@ -1087,6 +1090,8 @@ impl<'m> Solver<'m> {
         // inverted elements and cutbacks).
         let mut predict = !self.converged_choice.is_empty();
         let mut predictor = ActiveSetPredictor::new(&self.assembler);
+        // linear solves of the first step's active-set settling (counted as iterations)
+        let mut settle_solves = 0;
         // Newton iterations (solves) made
         let mut k = 0;
         loop {
@@ -1211,7 +1216,7 @@ impl<'m> Solver<'m> {
                     || (last_position_correction <= CORRECTION_ROUND_OFF * f64::EPSILON
                         && last_other_correction <= f64::EPSILON.sqrt()));
             if force_ok || energy_ok || correction_ok {
-                record.iterations = k;
+                record.iterations = k + settle_solves;
                 return Ok(factored);
             }
             // Backtrack only from the second correction on, and only on a blow-up (residual
@@ -1252,8 +1257,9 @@ impl<'m> Solver<'m> {
             self.factor_and_solve(&mut dz, cost)?;
             factored = true;
             if k == 0 && line_search {
-                record.active_set_solves +=
+                settle_solves =
                     self.settle_active_set(z, &mut dz, hist, t, eval, &mut predictor, cost)?;
+                record.active_set_solves += settle_solves;
             }
             // Yield-surface crossing limiter: a step that carries a plastic point through its
             // elastic domain to the far side of the yield surface stops where the point is

@@ -335,7 +335,7 @@ pub fn batched_cost(scene: &Scene, beta: f64) -> Result<BatchedCost, ValidateErr
 /// factorizations, solves and the rest, per parameter and increment, against the floor.
 fn write_time_ledger(s: &mut String, val: &Validation) {
     let _ = writeln!(s, "\n### Where the time goes\n");
-    let _ = writeln!(s, "The primal analysis (the in-line methods' own time taken out), split by the solver's own timers. Assembly: residual, tangent and contact search, line-search re-evaluations included; the rest: the predictor, the convergence checks, the bookkeeping of increments and cutbacks, the hand-over of each converged state to the observers. Newton iterations count the linear solves of the converged attempts; factorizations include the failed attempts before cutbacks.\n");
+    let _ = writeln!(s, "The primal analysis (the in-line methods' own time taken out), split by the solver's own timers. Assembly: residual, tangent and contact search, line-search re-evaluations included; the rest: the predictor, the convergence checks, the bookkeeping of increments and cutbacks, the hand-over of each converged state to the observers. Newton iterations count the linear solves of the converged attempts, those that settle the contact states of each attempt's first step included; factorizations include the failed attempts before cutbacks.\n");
     let _ = writeln!(
         s,
         "| scene | unknowns | increments | Newton it. / incr. | factorizations (with failed attempts) | primal s | assembly | factorization | solve | the rest |"
