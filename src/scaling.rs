@@ -156,9 +156,9 @@ impl ScalingScene {
     /// Nominal increments run, and what they are: indentation, one press increment (the
     /// whole 0.01 mm) and the first of the ten slide increments of the built-in scene; leaf
     /// spring, the first of its fifteen loading increments (2 mm; the block's nose and the
-    /// leaves come into frictional contact in it, which takes the solver 20 to 60 Newton
-    /// iterations and usually cutbacks, so one increment already costs what two press-and-slide
-    /// increments of the indentation cost many times over).
+    /// leaves come into frictional contact in it: 8 to 25 Newton iterations in the study of
+    /// 14cb521, without cutback up to 77,460 unknowns; before the active-set predictor and the
+    /// yield-crossing limiter, 8 to 180 with cutbacks from 2,626 unknowns on).
     pub fn increments(self) -> (usize, &'static str) {
         match self {
             ScalingScene::Indentation => (2, "1 press (0.01 mm) + 1 slide (0.333 mm) increment"),
