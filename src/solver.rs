@@ -938,6 +938,23 @@ impl<'m> Solver<'m> {
         Ok(())
     }
 
+    /// Newton's correction `dz = -K^-1 R` on the free unknowns for the evaluation `eval`
+    /// (its tangent in `self.matrix`); remembers the states the factorization was assembled
+    /// on.
+    fn newton_step(
+        &mut self,
+        eval: &Evaluation<f64>,
+        dz: &mut [f64],
+        cost: &mut PrimalCost,
+    ) -> Result<(), AttemptFailure> {
+        for (d, (dzi, r)) in dz.iter_mut().zip(&eval.residual).enumerate() {
+            *dzi = if self.constrained[d] { 0.0 } else { -r };
+        }
+        self.factored_choice.clone_from(&eval.contact.choice);
+        self.factored_branches.clone_from(&eval.branches);
+        self.factor_and_solve(dz, cost)
+    }
+
     /// Settle the contact active set of the first Newton step of an attempt on the
     /// linearised problem, before the state moves; returns the extra solves made.
     ///
@@ -1034,12 +1051,7 @@ impl<'m> Solver<'m> {
                 .map_err(AttemptFailure::Element)?;
             cost.assemblies += 1;
             cost.assembly_seconds += t0.elapsed().as_secs_f64();
-            for (d, (dzi, r)) in dz.iter_mut().zip(&eval.residual).enumerate() {
-                *dzi = if self.constrained[d] { 0.0 } else { -r };
-            }
-            self.factored_choice.clone_from(&eval.contact.choice);
-            self.factored_branches.clone_from(&eval.branches);
-            self.factor_and_solve(dz, cost)?;
+            self.newton_step(eval, dz, cost)?;
             solves += 1;
         }
         Ok(solves)
@@ -1246,15 +1258,8 @@ impl<'m> Solver<'m> {
             if k >= 4 && r_free > 1e4 * first_residual.max(f_ref) {
                 return Err(AttemptFailure::Diverged("residual growing"));
             }
-            let mut dz: Vec<f64> = eval
-                .residual
-                .iter()
-                .enumerate()
-                .map(|(d, r)| if self.constrained[d] { 0.0 } else { -r })
-                .collect();
-            self.factored_choice.clone_from(&eval.contact.choice);
-            self.factored_branches.clone_from(&eval.branches);
-            self.factor_and_solve(&mut dz, cost)?;
+            let mut dz = vec![0.0; eval.residual.len()];
+            self.newton_step(eval, &mut dz, cost)?;
             factored = true;
             if k == 0 && line_search {
                 settle_solves =

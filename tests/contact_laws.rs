@@ -6,15 +6,20 @@ use fricsens::contact::NormalLaw;
 use fricsens::scene::contact_patch;
 use fricsens::solver::{NoObserver, Results, RunOptions, Solver};
 
-fn run(normal: NormalLaw) -> (fricsens::model::Model, Results) {
-    let mut scene = contact_patch(None);
-    scene.contacts[0].normal = normal;
+/// Build `scene` and run it to the end.
+fn run_scene(scene: fricsens::scene::Scene) -> (fricsens::model::Model, Results) {
     let model = scene.build().unwrap();
     let res = Solver::new(&model)
         .unwrap()
         .run(&RunOptions::default(), &mut NoObserver)
         .unwrap();
     (model, res)
+}
+
+fn run(normal: NormalLaw) -> (fricsens::model::Model, Results) {
+    let mut scene = contact_patch(None);
+    scene.contacts[0].normal = normal;
+    run_scene(scene)
 }
 
 /// Largest penetration, and the pressures, at the end.
@@ -79,12 +84,7 @@ fn coarse_leaf_spring(
 ) -> (fricsens::model::Model, Results) {
     let mut scene = fricsens::scene::builtin("leaf-spring-coarse").unwrap();
     change(&mut scene);
-    let model = scene.build().unwrap();
-    let res = Solver::new(&model)
-        .unwrap()
-        .run(&RunOptions::default(), &mut NoObserver)
-        .unwrap();
-    (model, res)
+    run_scene(scene)
 }
 
 /// Assert that two runs of `model` agree, response by response, at every time both converged
@@ -169,12 +169,7 @@ fn leaf_spring_first_increment(
     let end = scene.steps[0].end / scene.steps[0].increments as f64;
     scene.steps = vec![fricsens::scene::StepSpec { end, increments: n }];
     change(&mut scene.solver);
-    let model = scene.build().unwrap();
-    let res = Solver::new(&model)
-        .unwrap()
-        .run(&RunOptions::default(), &mut NoObserver)
-        .unwrap();
-    (model, res)
+    run_scene(scene)
 }
 
 #[test]
