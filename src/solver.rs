@@ -419,6 +419,27 @@ impl ActiveSetPredictor {
     }
 }
 
+/// Assemble the residual and the tangent (into `matrix`) at the state `(z, hist_old, t)`,
+/// the time and the count going to `cost` when it succeeds. A free function: the callers
+/// freeze states they borrow from the solver while its matrix is written.
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    assembler: &Assembler,
+    model: &Model,
+    lifted: &Lifted<f64>,
+    matrix: &mut SparseMatrix,
+    (z, hist_old, t): (&[f64], &[f64], f64),
+    frozen: Option<&Frozen>,
+    eval: &mut Evaluation<f64>,
+    cost: &mut PrimalCost,
+) -> Result<(), AssemblyFailure> {
+    let t0 = Instant::now();
+    assembler.evaluate(model, lifted, z, hist_old, t, frozen, Some(matrix), eval)?;
+    cost.assemblies += 1;
+    cost.assembly_seconds += t0.elapsed().as_secs_f64();
+    Ok(())
+}
+
 /// Why an attempt failed (recoverable by cutback).
 #[derive(Debug)]
 enum AttemptFailure {
@@ -852,25 +873,19 @@ impl<'m> Solver<'m> {
         if !moved {
             return Ok(Some(false));
         }
-        let t0 = Instant::now();
-        if self
-            .assembler
-            .evaluate(
-                self.model,
-                &self.lifted,
-                z_old,
-                hist,
-                t,
-                None,
-                Some(&mut self.matrix),
-                eval,
-            )
-            .is_err()
-        {
+        let assembled = assemble(
+            &self.assembler,
+            self.model,
+            &self.lifted,
+            &mut self.matrix,
+            (z_old, hist, t),
+            None,
+            eval,
+            cost,
+        );
+        if assembled.is_err() {
             return Ok(None);
         }
-        cost.assemblies += 1;
-        cost.assembly_seconds += t0.elapsed().as_secs_f64();
         let mut kdzc = vec![0.0; n];
         self.matrix.mul_vec(&dzc, &mut kdzc)?;
         let mut dz: Vec<f64> = (0..n)
@@ -1036,21 +1051,17 @@ impl<'m> Solver<'m> {
                 contact: &predictor.choice,
                 skip: None,
             };
-            let t0 = Instant::now();
-            self.assembler
-                .evaluate(
-                    model,
-                    &self.lifted,
-                    z,
-                    hist,
-                    t,
-                    Some(&frozen),
-                    Some(&mut self.matrix),
-                    eval,
-                )
-                .map_err(AttemptFailure::Element)?;
-            cost.assemblies += 1;
-            cost.assembly_seconds += t0.elapsed().as_secs_f64();
+            assemble(
+                &self.assembler,
+                model,
+                &self.lifted,
+                &mut self.matrix,
+                (z, hist, t),
+                Some(&frozen),
+                eval,
+                cost,
+            )
+            .map_err(AttemptFailure::Element)?;
             self.newton_step(eval, dz, cost)?;
             solves += 1;
         }
@@ -1101,7 +1112,8 @@ impl<'m> Solver<'m> {
         // load the first step with forces orders of magnitude too large (leaf spring: 40x,
         // inverted elements and cutbacks).
         let mut predict = !self.converged_choice.is_empty();
-        let mut predictor = ActiveSetPredictor::new(&self.assembler);
+        // built at the first settling (its trial evaluation holds a whole history vector)
+        let mut predictor: Option<ActiveSetPredictor> = None;
         // linear solves of the first step's active-set settling (counted as iterations)
         let mut settle_solves = 0;
         // Newton iterations (solves) made
@@ -1113,25 +1125,17 @@ impl<'m> Solver<'m> {
                     contact: &self.converged_choice,
                     skip: None,
                 };
-                let t0 = Instant::now();
-                self.assembler
-                    .evaluate(
-                        model,
-                        &self.lifted,
-                        z,
-                        hist,
-                        t,
-                        if predict && k == 0 {
-                            Some(&frozen)
-                        } else {
-                            None
-                        },
-                        Some(&mut self.matrix),
-                        eval,
-                    )
-                    .map_err(AttemptFailure::Element)?;
-                cost.assemblies += 1;
-                cost.assembly_seconds += t0.elapsed().as_secs_f64();
+                assemble(
+                    &self.assembler,
+                    model,
+                    &self.lifted,
+                    &mut self.matrix,
+                    (z, hist, t),
+                    (predict && k == 0).then_some(&frozen),
+                    eval,
+                    cost,
+                )
+                .map_err(AttemptFailure::Element)?;
                 let mut r_free = 0.0;
                 let mut r_fixed = 0.0;
                 for (d, r) in eval.residual.iter().enumerate() {
@@ -1262,8 +1266,10 @@ impl<'m> Solver<'m> {
             self.newton_step(eval, &mut dz, cost)?;
             factored = true;
             if k == 0 && line_search {
+                let predictor =
+                    predictor.get_or_insert_with(|| ActiveSetPredictor::new(&self.assembler));
                 settle_solves =
-                    self.settle_active_set(z, &mut dz, hist, t, eval, &mut predictor, cost)?;
+                    self.settle_active_set(z, &mut dz, hist, t, eval, predictor, cost)?;
                 record.active_set_solves += settle_solves;
             }
             // Yield-surface crossing limiter: a step that carries a plastic point through its
