@@ -1205,10 +1205,10 @@ impl LinearSolver {
         let b_norm: Vec<f64> = b.chunks(n.max(1)).map(norm).collect();
         // X0 = M^-1 B, R0 = B - a X0
         self.solve_multi_in_place(rhs, ncols)?;
-        // the first solve and the final combination; each iteration adds its block
-        let mut solve_columns = 2 * ncols;
+        // the first solve; each iteration adds its block, the final combination its columns
+        let mut solve_columns = ncols;
         let mut r = vec![0.0; n * ncols];
-        residuals(a, &b, rhs, &mut r, ncols)?;
+        let start_relative = residuals(a, &b, rhs, &mut r, ncols)?;
         let target: Vec<f64> = b_norm.iter().map(|bn| tol * bn).collect();
         let active: Vec<bool> = (0..ncols)
             .map(|c| norm(&r[c * n..(c + 1) * n]) > target[c])
@@ -1239,15 +1239,21 @@ impl LinearSolver {
             }
         }
         let converged_estimate = arnoldi.exhausted() || estimate_ok(&arnoldi);
-        // X += M^-1 (V Y), all columns in one solve
-        let mut u = vec![0.0; n * ncols];
-        arnoldi.combine(&mut u);
-        self.solve_multi_in_place(&mut u, ncols)?;
-        for (xi, ui) in rhs.iter_mut().zip(&u) {
-            *xi += ui;
-        }
         // a NaN column shows and fails `converged`
-        let relative = residuals(a, &b, rhs, &mut r, ncols)?;
+        let relative = if iterations == 0 {
+            // the start solved every column: the iterate and its residual are the start's
+            start_relative
+        } else {
+            // X += M^-1 (V Y), all columns in one solve
+            let mut u = vec![0.0; n * ncols];
+            arnoldi.combine(&mut u);
+            self.solve_multi_in_place(&mut u, ncols)?;
+            solve_columns += ncols;
+            for (xi, ui) in rhs.iter_mut().zip(&u) {
+                *xi += ui;
+            }
+            residuals(a, &b, rhs, &mut r, ncols)?
+        };
         // a column whose relative residual is above `tol` is still solved when its backward
         // error is that of a stable direct solve (`|K||x|` far above `|b|`: the relative
         // residual a factorization of `a` would reach is no better)
@@ -1305,8 +1311,8 @@ const BACKWARD_STABLE_ULPS: f64 = 1.0;
 pub struct KrylovReport {
     /// Iterations (each one multi-column solve with the factor and a product per column).
     pub iterations: usize,
-    /// Columns solved with the factor: the start and the final combination of every column,
-    /// and the basis vectors of every iteration.
+    /// Columns solved with the factor: the start of every column, the basis vectors of every
+    /// iteration, and the final combination of every column (none without an iteration).
     pub solve_columns: usize,
     /// Largest relative residual `|b - a x| / |b|` over the columns, from the returned iterate.
     pub relative_residual: f64,
@@ -2053,6 +2059,8 @@ mod tests {
         let mut z = vec![0.0; n];
         let zero = solver.gmres_multi(&changed, &mut z, 1, 1e-12, 30).unwrap();
         assert!(zero.converged && zero.iterations == 0 && z.iter().all(|v| *v == 0.0));
+        // without an iteration there is nothing to combine: the start's solve is the only one
+        assert_eq!(zero.solve_columns, 1, "{zero:?}");
     }
 
     #[test]
