@@ -328,7 +328,9 @@ pub struct Settings {
     pub kink_tol: f64,
     /// Evaluate each pseudo-load (SDM's unbalance, DDM's derivative part) over only the
     /// elements the parameter reaches (forward SDM: only where they are fewer than half, as
-    /// it then evaluates the nominal state over them too); off: over all.
+    /// it then evaluates the nominal state over them too), and DDM's forced tangents and
+    /// pseudo-loads at flagged increments as the converged ones changed over the elements
+    /// whose branches are forced; off: everything over all elements.
     pub restrict: bool,
     /// Measure the floor (`SensitivityCost::floor_seconds`) at every increment, outside the
     /// method's own wall time.
@@ -403,6 +405,26 @@ struct Step {
     dz: Vec<Vec<f64>>,
     /// Round-off dominated, `[r][p]` (SDM; empty for DDM).
     roundoff: Vec<Vec<bool>>,
+}
+
+/// DDM's pseudo-loads at one increment, with what the update after the solve reuses.
+#[derive(Clone)]
+struct PseudoLoads {
+    /// `-dR/db` at fixed state, column-major per parameter (0 at prescribed unknowns).
+    rhs: Vec<f64>,
+    /// Derivative of the prescribed unknowns, per parameter.
+    dzc: Vec<Vec<f64>>,
+    /// The design seeded along each parameter.
+    designs: Vec<Lifted<Dual64>>,
+    /// The committed history carrying its derivative, per parameter.
+    hists: Vec<Vec<Dual64>>,
+}
+
+/// Per element: whether the Gauss-point branches of `a` and `b` agree on all its points
+/// (`None` when either leaves them free: every element counts as changed).
+fn unchanged_elements(a: &Frozen<'_>, b: &Frozen<'_>) -> Option<Vec<bool>> {
+    let (a, b) = (a.gauss?, b.gauss?);
+    Some(a.chunks(8).zip(b.chunks(8)).map(|(a, b)| a == b).collect())
 }
 
 /// Sensitivities at one converged increment.
@@ -797,25 +819,27 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
-    /// DDM for all parameters. Each parameter is seeded alone in a `Dual64` (a vector dual of
-    /// N parameters costs N times as much per element, or more, and would evaluate the union
-    /// of the parameters' elements): its pseudo-load is evaluated over only the elements it
-    /// reaches; all pseudo-loads go through one multi-column solve; then one update per
-    /// parameter carries `dz/db` into the history and the responses.
-    fn ddm(&mut self, c: &Converged<'_>, frozen: &Frozen<'_>) -> Result<Step, AnalysisError> {
+    /// DDM's pseudo-loads for all parameters. Each parameter is seeded alone in a `Dual64` (a
+    /// vector dual of N parameters costs N times as much per element, or more, and would
+    /// evaluate the union of the parameters' elements): its pseudo-load is evaluated over only
+    /// the elements it reaches.
+    fn pseudo_loads(
+        &mut self,
+        c: &Converged<'_>,
+        frozen: &Frozen<'_>,
+    ) -> Result<PseudoLoads, AnalysisError> {
         let np = self.params.len();
         let n = c.z.len();
         let nh = c.hist_prev.len();
-        let ne = c.model.mesh.elements.len();
-        let nr = c.model.responses.len();
-        let mut ev = Evaluation::<Dual64>::new(c.assembler, ne);
-        let mut dzc = vec![vec![0.0; n]; np];
-        let mut designs: Vec<Lifted<Dual64>> = Vec::with_capacity(np);
-        let mut hists: Vec<Vec<Dual64>> = Vec::with_capacity(np);
-        // pseudo-loads, column-major
-        let mut rhs = vec![0.0; n * np];
+        let mut ev = Evaluation::<Dual64>::new(c.assembler, c.model.mesh.elements.len());
+        let mut out = PseudoLoads {
+            rhs: vec![0.0; n * np],
+            dzc: vec![vec![0.0; n]; np],
+            designs: Vec::with_capacity(np),
+            hists: Vec::with_capacity(np),
+        };
         for k in 0..np {
-            self.prescribed_derivative(c, k, &mut dzc[k]);
+            self.prescribed_derivative(c, k, &mut out.dzc[k]);
             let p = &self.params[k];
             let overrides: Vec<(DesignParam, Dual64)> = p
                 .targets
@@ -824,12 +848,12 @@ impl<'a> Engine<'a> {
                 .collect();
             let lifted: Lifted<Dual64> = c.model.lifted(&overrides);
             let hist = duals(c.hist_prev, &self.dhist[k * nh..(k + 1) * nh]);
-            let z = duals(c.z, &dzc[k]);
+            let z = duals(c.z, &out.dzc[k]);
             // the pseudo-load is the derivative part alone: the elements the parameter does
             // not reach contribute none and are left out
             let mask = frozen
                 .gauss
-                .and_then(|g| self.unreached(c, k, &Reach::seeded(&lifted), &dzc[k], g, false));
+                .and_then(|g| self.unreached(c, k, &Reach::seeded(&lifted), &out.dzc[k], g, false));
             let pseudo = Frozen {
                 skip: mask.as_deref(),
                 ..*frozen
@@ -839,15 +863,66 @@ impl<'a> Engine<'a> {
                 self.results.cost.partial_evaluations += 1;
             }
             for i in 0..n {
-                rhs[k * n + i] = if c.constrained[i] {
+                out.rhs[k * n + i] = if c.constrained[i] {
                     0.0
                 } else {
                     -ev.residual[i].eps
                 };
             }
-            designs.push(lifted);
-            hists.push(hist);
+            out.designs.push(lifted);
+            out.hists.push(hist);
         }
+        Ok(out)
+    }
+
+    /// The pseudo-loads `base` (on the converged branches) moved to the branches `forced`:
+    /// the elements whose Gauss points `forced` changes, and the contact, evaluated on both
+    /// and the difference added, as for the tangent ([`Engine::forced_tangent_at`]). Without
+    /// `Settings::restrict`, evaluated anew over all elements.
+    fn forced_pseudo_loads(
+        &mut self,
+        c: &Converged<'_>,
+        base: &PseudoLoads,
+        forced: &Frozen<'_>,
+    ) -> Result<PseudoLoads, AnalysisError> {
+        let n = c.z.len();
+        let converged = converged_frozen(c);
+        let unchanged = match unchanged_elements(forced, &converged) {
+            Some(u) if self.settings.restrict => u,
+            _ => return self.pseudo_loads(c, forced),
+        };
+        let mut ev = Evaluation::<Dual64>::new(c.assembler, c.model.mesh.elements.len());
+        let mut out = base.clone();
+        for k in 0..self.params.len() {
+            let z = duals(c.z, &base.dzc[k]);
+            for (branches, sign) in [(forced, 1.0), (&converged, -1.0)] {
+                let frozen = Frozen {
+                    skip: Some(&unchanged),
+                    ..*branches
+                };
+                let (lifted, hist) = (&base.designs[k], &base.hists[k]);
+                self.evaluate(c, lifted, &z, hist, Some(&frozen), None, &mut ev)?;
+                for i in (0..n).filter(|&i| !c.constrained[i]) {
+                    out.rhs[k * n + i] -= sign * ev.residual[i].eps;
+                }
+            }
+            self.results.cost.partial_evaluations += 2;
+        }
+        Ok(out)
+    }
+
+    /// DDM's solve and update: the pseudo-loads `p` go through one multi-column solve, then
+    /// one update per parameter carries `dz/db` into the history and the responses.
+    fn ddm(
+        &mut self,
+        c: &Converged<'_>,
+        frozen: &Frozen<'_>,
+        p: &PseudoLoads,
+    ) -> Result<Step, AnalysisError> {
+        let np = self.params.len();
+        let nh = c.hist_prev.len();
+        let nr = c.model.responses.len();
+        let mut rhs = p.rhs.clone();
         self.solve(c, &mut rhs, np)?;
         // total derivatives: evaluate with z carrying dz/db. The update wants only the history
         // and the responses: elements frozen elastic keep their history and are skipped.
@@ -856,11 +931,12 @@ impl<'a> Engine<'a> {
             skip: skip.as_deref(),
             ..*frozen
         };
+        let mut ev = Evaluation::<Dual64>::new(c.assembler, c.model.mesh.elements.len());
         let mut dresp = vec![vec![0.0; np]; nr];
         let mut dhist = vec![0.0; nh * np];
         let mut dz_all = Vec::with_capacity(np);
-        for (k, (lifted, hist)) in designs.iter().zip(&hists).enumerate() {
-            let dz = total_dz(c, &rhs, &dzc[k], k);
+        for (k, (lifted, hist)) in p.designs.iter().zip(&p.hists).enumerate() {
+            let dz = total_dz(c, &rhs, &p.dzc[k], k);
             let z = duals(c.z, &dz);
             self.evaluate(c, lifted, &z, hist, Some(&update), None, &mut ev)?;
             for (r, resp) in c.model.responses.iter().enumerate() {
@@ -1015,6 +1091,7 @@ impl<'a> Engine<'a> {
     /// both of these evaluations, so forced contact states are taken in the same way. A
     /// flagged increment has a few such elements (5 and 13 of 138 on the two sides of the
     /// leaf spring's last one): two evaluations over them cost a fraction of an assembly.
+    /// Without `Settings::restrict` (or with free branches), one assembly over all elements.
     fn forced_tangent_at(
         &mut self,
         c: &Converged<'_>,
@@ -1022,16 +1099,21 @@ impl<'a> Engine<'a> {
     ) -> Result<crate::linalg::SparseMatrix, AnalysisError> {
         let ne = c.model.mesh.elements.len();
         let converged = converged_frozen(c);
-        let unchanged: Option<Vec<bool>> = match (forced.gauss, converged.gauss) {
-            (Some(f), Some(g)) => Some(f.chunks(8).zip(g.chunks(8)).map(|(f, g)| f == g).collect()),
-            _ => None,
-        };
         let mut k = c.tangent.clone();
-        let mut part = crate::linalg::SparseMatrix::new(c.assembler.pattern.clone());
         let mut ev = Evaluation::<f64>::new(c.assembler, ne);
+        let unchanged = match unchanged_elements(forced, &converged) {
+            Some(u) if self.settings.restrict => u,
+            // over all elements
+            _ => {
+                let (lifted, z, hist) = (c.lifted, c.z, c.hist_prev);
+                self.evaluate(c, lifted, z, hist, Some(forced), Some(&mut k), &mut ev)?;
+                return Ok(k);
+            }
+        };
+        let mut part = crate::linalg::SparseMatrix::new(c.assembler.pattern.clone());
         for (branches, sign) in [(forced, 1.0), (&converged, -1.0)] {
             let frozen = Frozen {
-                skip: unchanged.as_deref(),
+                skip: Some(&unchanged),
                 ..*branches
             };
             self.evaluate(
@@ -1227,6 +1309,8 @@ impl Observer for Engine<'_> {
             self.initial_history_derivative(c)?;
         }
         let kinks = self.kinks(c);
+        // DDM's pseudo-loads on the converged branches, which the one-sided derivatives move
+        let mut pseudo = None;
         let Step {
             dresp,
             dhist,
@@ -1234,7 +1318,13 @@ impl Observer for Engine<'_> {
             roundoff,
         } =
             match self.settings.method {
-                Method::Ddm => self.ddm(c, &converged_frozen(c))?,
+                Method::Ddm => {
+                    let frozen = converged_frozen(c);
+                    let p = self.pseudo_loads(c, &frozen)?;
+                    let step = self.ddm(c, &frozen, &p)?;
+                    pseudo = Some(p);
+                    step
+                }
                 Method::Sdm => self.sdm(c, false)?,
                 Method::SdmCentral => self.sdm(c, true)?,
                 Method::Fdm | Method::FdmCentral => return Err(AnalysisError::Sensitivity(
@@ -1290,7 +1380,9 @@ impl Observer for Engine<'_> {
                     skip: None,
                 };
                 self.forced_tangent = Some(self.forced_tangent_at(c, &frozen)?);
-                sides.push(self.ddm(c, &frozen)?.dresp);
+                let base = pseudo.as_ref().expect("DDM keeps its pseudo-loads");
+                let p = self.forced_pseudo_loads(c, base, &frozen)?;
+                sides.push(self.ddm(c, &frozen, &p)?.dresp);
             }
             let upper = sides.pop().expect("two sides");
             let lower = sides.pop().expect("two sides");
