@@ -47,6 +47,9 @@ pub struct ValidateOptions {
     /// Compare the shipped friction laws on the strip pull-out with this many elements
     /// ([`crate::compare_laws`]); `None` leaves the section out.
     pub friction_laws: Option<usize>,
+    /// Measure the batched cost on [`refined_leaf_spring`] too (one more primal run of about
+    /// a minute) when the leaf spring is validated.
+    pub refined_batch: bool,
 }
 
 /// The finite-difference betas of a scene in [`ValidateOptions::reduced_fdm`] (those of the
@@ -65,6 +68,7 @@ impl Default for ValidateOptions {
             // reruns for a full sweep
             reduced_fdm: vec!["leaf-spring".into(), "hertz".into()],
             friction_laws: Some(100),
+            refined_batch: true,
         }
     }
 }
@@ -240,9 +244,9 @@ pub struct Validation {
     pub floor: f64,
     /// Wall time of the whole validation (s).
     pub wall_seconds: f64,
-    /// Ten parameters of the leaf spring through one primal run (when the leaf spring is
-    /// validated).
-    pub batched: Option<BatchedCost>,
+    /// Ten parameters of the leaf spring through one primal run, on its mesh and on the mesh
+    /// refined twice along and through the leaves (when the leaf spring is validated).
+    pub batched: Vec<BatchedCost>,
 }
 
 /// The leaf spring's ten design parameters of the batched cost measurement: friction,
@@ -279,6 +283,26 @@ pub struct BatchedCost {
     pub increments: usize,
     /// The floor of one parameter over the run ([`SensitivityCost::floor_seconds`]).
     pub floor_seconds: f64,
+    /// Unknowns of the linear system.
+    pub unknowns: usize,
+}
+
+/// The leaf spring of [`default_scenes`] with twice the elements along and through the
+/// leaves (80 x 4 on the upper leaf), its load path unchanged: the batched cost on a mesh
+/// where the floor weighs less against the primal.
+pub fn refined_leaf_spring() -> Scene {
+    let base = LeafSpringSpec::default();
+    let mut s = leaf_spring(&LeafSpringSpec {
+        elements_along: 2 * base.elements_along,
+        elements_through: 2 * base.elements_through,
+        ..base
+    });
+    s.name = format!(
+        "leaf-spring, {} x {} elements",
+        2 * base.elements_along,
+        2 * base.elements_through
+    );
+    s
 }
 
 /// [`BatchedCost`] of [`LEAF_BATCH`] on `scene`, SDM (at `beta`) and DDM, both with Newton's
@@ -327,6 +351,7 @@ pub fn batched_cost(scene: &Scene, beta: f64) -> Result<BatchedCost, ValidateErr
             .collect(),
         increments: runs.first().map(|r| r.increments.len()).unwrap_or(0),
         floor_seconds: runs.first().map(|r| r.cost.floor_seconds).unwrap_or(0.0),
+        unknowns: model.dof_map().n_total,
     })
 }
 
@@ -407,7 +432,7 @@ fn write_time_ledger(s: &mut String, val: &Validation) {
             );
         }
     }
-    if let Some(b) = &val.batched {
+    for b in &val.batched {
         for (method, c) in &b.ledger {
             let name = format!("{method}, {} parameters batched", b.params.len());
             row(
@@ -1059,10 +1084,13 @@ pub fn validate(scenes: &[Scene], opts: &ValidateOptions) -> Result<Validation, 
         }
         None => None,
     };
-    let batched = match scenes.iter().find(|s| s.name == "leaf-spring") {
-        Some(s) => Some(batched_cost(s, opts.figure_beta)?),
-        None => None,
-    };
+    let mut batched = Vec::new();
+    if let Some(s) = scenes.iter().find(|s| s.name == "leaf-spring") {
+        batched.push(batched_cost(s, opts.figure_beta)?);
+        if opts.refined_batch {
+            batched.push(batched_cost(&refined_leaf_spring(), opts.figure_beta)?);
+        }
+    }
     let validation = Validation {
         scenes: out,
         oracles: oracle_rows,
@@ -1466,13 +1494,14 @@ fn report(
             cost(Method::FdmCentral)
         );
     }
-    if let Some(b) = &val.batched {
+    for b in &val.batched {
         let _ = writeln!(
             s,
-            "\n**Batched.** The {} parameters of `{}` ({}) through one primal run ({:.1} s): {}. Per parameter: {}.",
+            "\n**Batched.** The {} parameters of `{}` ({}) through one primal run ({} unknowns, {:.1} s): {}. Per parameter: {}.",
             b.params.len(),
             b.scene,
             b.params.iter().map(|p| format!("`{p}`")).collect::<Vec<_>>().join(", "),
+            b.unknowns,
             b.primal_seconds,
             b.ratios
                 .iter()

@@ -113,6 +113,7 @@ fn paper_scene_agreement(scene: fricsens::scene::Scene, fdm_tol: f64) {
         betas: vec![1e-3, 1e-4, 1e-5, 1e-6],
         reduced_fdm: vec![],
         friction_laws: None,
+        refined_batch: false,
         ..ValidateOptions::default()
     };
     let v = validate(std::slice::from_ref(&scene), &opts).expect("validation runs");
