@@ -1357,9 +1357,9 @@ impl BlockArnoldi {
     }
 
     /// Orthogonalize `w` against the basis (modified Gram-Schmidt, twice), its coordinates
-    /// added to `h`; append it normalized unless what is left of it is at most `deflation`
-    /// times its norm. Returns its norm if appended.
-    fn orthogonalize(&mut self, w: &mut [f64], h: &mut Vec<f64>, deflation: f64) -> Option<f64> {
+    /// added to `h`; append it normalized (its norm to `h`) unless what is left of it is at
+    /// most `deflation` times its norm.
+    fn orthogonalize(&mut self, w: &mut [f64], h: &mut Vec<f64>, deflation: f64) {
         h.resize(self.basis.len(), 0.0);
         let before = w.iter().map(|v| v * v).sum::<f64>().sqrt();
         for _pass in 0..2 {
@@ -1376,9 +1376,6 @@ impl BlockArnoldi {
             self.basis.push(w.iter().map(|v| v / norm).collect());
             self.g.extend(std::iter::repeat_n(0.0, self.ncols));
             h.push(norm);
-            Some(norm)
-        } else {
-            None
         }
     }
 
@@ -1994,9 +1991,11 @@ mod tests {
         let n = a.n();
         // three columns changed by more than the matrix's own entries (not a mere scaling of
         // a column, which would make the start residual an eigenvector): a change E of rank 3.
-        // From x0 = M^-1 b the residual lies in range(E), invariant under a M^-1 = I + E M^-1,
-        // so GMRES preconditioned with a's factor needs at most 3 steps in exact arithmetic;
-        // the bound asserted leaves one step for the tolerance's round-off
+        // From x0 = M^-1 b the residual lies in range(E), invariant under a M^-1 = I + E M^-1.
+        // Two columns start the shared space with 2 of its 3 dimensions and the first
+        // iteration spans the third, so block GMRES preconditioned with a's factor needs at
+        // most 2 iterations in exact arithmetic (separate spaces: 3 each); the bound asserted
+        // leaves one iteration for the tolerance's round-off
         let mut changed = a.clone();
         let cp = a.pattern().col_ptr().to_vec();
         for j in [17, 60, 100] {
@@ -2024,7 +2023,7 @@ mod tests {
         let mut x = bb.clone();
         let report = solver.gmres_multi(&changed, &mut x, 2, 1e-12, 30).unwrap();
         assert!(report.converged, "{report:?}");
-        assert!(report.iterations <= 4, "{report:?}");
+        assert!(report.iterations <= 3, "{report:?}");
         let dense = to_dense(&changed);
         for c in 0..2 {
             assert!(residual(&changed, &col(&x, c), &col(&bb, c)) < 1e-12);
