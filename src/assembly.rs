@@ -235,7 +235,10 @@ impl Assembler {
             }
         }
         let refs: Vec<&[usize]> = blocks.iter().map(|b| b.as_slice()).collect();
-        let pattern = std::sync::Arc::new(SparsePattern::new(dofs.n_total, &refs, extra)?);
+        let pattern = std::sync::Arc::new(
+            SparsePattern::new(dofs.n_total, &refs, extra)?
+                .with_multipliers_from(dofs.first_lambda),
+        );
         let mut elem_block = vec![usize::MAX; ne];
         let mut k = 0;
         for (e, nd) in elem_ndof.iter().enumerate() {

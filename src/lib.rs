@@ -49,4 +49,5 @@ pub mod scaling;
 pub mod scene;
 pub mod sensitivity;
 pub mod solver;
+pub mod symlu;
 pub mod validate;
