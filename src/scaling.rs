@@ -17,8 +17,9 @@
 //!   the sizes ([`fit_power_law`]); `n` is the number of free unknowns (nodal unknowns not
 //!   prescribed, incompatible-mode unknowns, contact multipliers).
 //!
-//! The LU factor's nonzero count is not recorded: faer 0.24 keeps it in private fields of its
-//! numeric LU; the peak memory stands in for it.
+//! The LU factor's size is not recorded (the symmetric-pattern LU knows it,
+//! [`crate::symlu::SymbolicSymLu::len_values`], but the study predates it); the peak memory
+//! stands in for it.
 
 use crate::plot::{write_svg_stack, Figure, PlotError, Style};
 use crate::scene::{indentation_refined, leaf_spring, LeafSpringSpec, Scene, SceneError, StepSpec};
@@ -1156,7 +1157,7 @@ pub fn markdown(study: &Study) -> String {
     );
     let _ = writeln!(
         s,
-        "Times are wall clock on a machine with {} logical CPUs (nothing else is stopped while the study runs): single runs, noisy by tens of percent at the small sizes; read the exponents to about +-0.1. The LU factor's nonzero count is not reported (faer keeps it private); the peak memory includes the factor, the pattern, and the per-element state.\n",
+        "Times are wall clock on a machine with {} logical CPUs (nothing else is stopped while the study runs): single runs, noisy by tens of percent at the small sizes; read the exponents to about +-0.1. The LU factor's size is not reported; the peak memory includes the factor, the pattern, and the per-element state.\n",
         study.cpus
     );
     let _ = writeln!(
