@@ -135,11 +135,8 @@ pub fn multiplier_order(
     first: usize,
 ) -> Vec<usize> {
     let n = order.len();
-    let mut pos = vec![0; n];
-    for (new, &old) in order.iter().enumerate() {
-        pos[old] = new;
-    }
-    let mut key: Vec<(usize, usize, usize)> = (0..n)
+    let pos = inverse(order);
+    let key: Vec<(usize, usize, usize)> = (0..n)
         .map(|old| {
             if old < first {
                 (pos[old], 0, 0)
@@ -156,8 +153,16 @@ pub fn multiplier_order(
         .collect();
     let mut perm: Vec<usize> = (0..n).collect();
     perm.sort_unstable_by_key(|&old| key[old]);
-    key.clear();
     perm
+}
+
+/// `inv[perm[i]] = i`.
+fn inverse(perm: &[usize]) -> Vec<usize> {
+    let mut inv = vec![0; perm.len()];
+    for (new, &old) in perm.iter().enumerate() {
+        inv[old] = new;
+    }
+    inv
 }
 
 impl SymbolicSymLu {
@@ -180,10 +185,7 @@ impl SymbolicSymLu {
         };
         let (chol, perm) = if multipliers_from < n {
             let perm = multiplier_order(a, &amd_perm, multipliers_from);
-            let mut inv = vec![0; n];
-            for (new, &old) in perm.iter().enumerate() {
-                inv[old] = new;
-            }
+            let inv = inverse(&perm);
             let custom = faer::perm::PermRef::new_checked(&perm, &inv, n);
             let chol = factorize_symbolic_cholesky(
                 a,
@@ -196,10 +198,7 @@ impl SymbolicSymLu {
         } else {
             (amd, amd_perm)
         };
-        let mut perm_inv = vec![0; n];
-        for (new, &old) in perm.iter().enumerate() {
-            perm_inv[old] = new;
-        }
+        let perm_inv = inverse(&perm);
         let mut begin = Vec::new();
         let mut pat_ptr = vec![0];
         let mut pat = Vec::new();
@@ -334,6 +333,9 @@ impl SymbolicSymLu {
         num.next.resize(ns, NONE);
         num.cursor.resize(ns, 0);
         num.map.resize(n, 0);
+        // update scratch: a descendant's rows T and columns Q in the target satisfy
+        // q <= t <= max_p and q <= max_w; its upper rows T \ Q lie in the target's pattern,
+        // so (t - q) q <= p_a w_a <= max_pw, which also holds the p x w permuted Ut
         num.tmp
             .resize(self.max_p * self.max_w.min(self.max_p).max(1), 0.0);
         num.tmp_t.resize(self.max_pw, 0.0);
@@ -522,7 +524,6 @@ impl SymbolicSymLu {
             if p > 0 {
                 let ys = mat(&y[st..], w, k, n);
                 let mut gm = mat_mut(&mut g[..p * k], p, k, p);
-                gm.fill(0.0);
                 let lhs = if transpose { ut } else { below };
                 matmul(gm.rb_mut(), Accum::Replace, lhs, ys, 1.0, Par::Seq);
                 for c in 0..k {
