@@ -412,7 +412,10 @@ impl Assembler {
                 let nh8 = self.elem_hist[e];
                 out.hist_new[h0..h0 + nh8].copy_from_slice(&loc.hist[..nh8]);
                 out.min_det_f = out.min_det_f.min(loc.min_det_f);
-                if let Some(k) = tangent.as_deref_mut() {
+                // a skipped element adds nothing (its slot of `kbuf` holds whatever an element
+                // of an earlier chunk left there)
+                let skipped = frozen.and_then(|f| f.skip).is_some_and(|skip| skip[e]);
+                if let (Some(k), false) = (tangent.as_deref_mut(), skipped) {
                     let ks = &kbuf[off * stride..off * stride + nd * nd];
                     for (f, v) in kf.iter_mut().zip(ks) {
                         *f = v.value();
