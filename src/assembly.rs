@@ -478,7 +478,8 @@ impl Assembler {
             .map_err(AssemblyFailure::Contact)?;
             if let Some(k) = tangent {
                 for (b, kt) in &local {
-                    k.add_block(*b, kt).expect("contact block of this pattern");
+                    k.add_block_part(*b, &kt.index, &kt.values)
+                        .expect("contact block of this pattern");
                 }
             }
         }

@@ -550,6 +550,30 @@ impl SparseMatrix {
         Ok(())
     }
 
+    /// Adds the row-major dense `k x k` matrix `local` at rows and columns `index` (positions
+    /// in block `b`, each below the block's size) of block `b`: a block whose other entries
+    /// are all zero, without touching them.
+    pub fn add_block_part(&mut self, b: usize, index: &[usize], local: &[f64]) -> Result<()> {
+        let nb = self.pattern.num_blocks();
+        if b >= nb {
+            return Err(LinalgError::IndexOutOfRange { index: b, n: nb });
+        }
+        let m = self.pattern.block_dofs(b).len();
+        let k = index.len();
+        check_len(k * k, local.len())?;
+        if let Some(&i) = index.iter().find(|&&i| i >= m) {
+            return Err(LinalgError::IndexOutOfRange { index: i, n: m });
+        }
+        let slots = self.pattern.block_slots(b);
+        for (a, &r) in index.iter().enumerate() {
+            let row = &slots[r * m..(r + 1) * m];
+            for (&c, &v) in index.iter().zip(&local[a * k..(a + 1) * k]) {
+                self.values[row[c] as usize] += v;
+            }
+        }
+        Ok(())
+    }
+
     /// Adds `v` to entry `(i, j)`.
     pub fn add(&mut self, i: usize, j: usize, v: f64) -> Result<()> {
         let n = self.pattern.n;
@@ -1856,6 +1880,31 @@ mod tests {
             solver.solve_in_place(&mut x).unwrap();
             assert!(rel_err(&x, &x_ref) < 1e-12, "c = {c}");
         }
+    }
+
+    #[test]
+    fn part_of_a_block_adds_like_the_zero_padded_block() {
+        let blocks: Vec<Vec<usize>> = vec![vec![0, 3, 1, 5], vec![2, 4]];
+        let pat = Arc::new(SparsePattern::new(6, &refs(&blocks), &[]).unwrap());
+        // rows and columns 3 and 1 of block 0 (DOFs 5 and 3), in that order
+        let index = [3, 1];
+        let part = [1.0, 2.0, 3.0, 4.0];
+        let mut padded = vec![0.0; 16];
+        for (a, &r) in index.iter().enumerate() {
+            for (c, &k) in index.iter().enumerate() {
+                padded[r * 4 + k] = part[a * 2 + c];
+            }
+        }
+        let mut a = SparseMatrix::new(pat.clone());
+        let mut b = SparseMatrix::new(pat.clone());
+        a.add_block_part(0, &index, &part).unwrap();
+        b.add_block(0, &padded).unwrap();
+        assert_eq!(a.values(), b.values());
+        assert_eq!((a.get(5, 5), a.get(5, 3), a.get(3, 5)), (1.0, 2.0, 3.0));
+        // a position outside the block, a wrong length: typed errors
+        assert!(a.add_block_part(0, &[4], &[1.0]).is_err());
+        assert!(a.add_block_part(0, &[0, 1], &[1.0]).is_err());
+        assert!(a.add_block_part(2, &[0], &[1.0]).is_err());
     }
 
     #[test]

@@ -101,3 +101,68 @@ fn contact_tangent_on_a_deformable_target() {
     println!("stick {stick}, slip {slip}");
     assert!(stick + slip > 0);
 }
+
+/// The stick anchor on another face than the contact face: the node's tangent then has the
+/// anchor face's unknowns too (the widest of the tangent's dual types). And an anchor on a
+/// face outside the node's candidates, which has no place in its block: a typed error, not
+/// a panic.
+#[test]
+fn contact_tangent_with_the_anchor_on_another_face() {
+    use fricsens::contact::Target;
+    let model = contact_patch(Some(0.3)).build().unwrap();
+    let mut solver = Solver::new(&model).unwrap();
+    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let pair = &model.contacts[0];
+    let Target::Faces { faces } = &pair.target else {
+        panic!("the patch's target is deformable")
+    };
+    let asm = Assembler::new(&model, &[]).unwrap();
+    let h0 = asm.contact.history[0];
+    let nh = pair.history_len();
+    let z = &res.states[1];
+    let mut hist = res.histories[0].clone();
+    let mut moved = 0;
+    let mut outside = None;
+    for (i, cands) in pair.candidates.iter().enumerate() {
+        let at = h0 + nh * i;
+        let face = hist[at] as usize;
+        // another candidate face that shares no node with the anchor's
+        if let Some(&other) = cands
+            .iter()
+            .find(|&&f| faces[f].iter().all(|n| !faces[face].contains(n)))
+        {
+            hist[at] = other as f64;
+            moved += 1;
+        }
+        // a face with a node outside this node's candidates
+        if outside.is_none() {
+            outside = (0..faces.len())
+                .find(|f| {
+                    faces[*f]
+                        .iter()
+                        .any(|n| cands.iter().all(|&c| !faces[c].contains(n)))
+                })
+                .map(|f| (f, i));
+        }
+    }
+    assert!(moved > 0, "no node has a second candidate face");
+    let (stick, slip) = check(&model, z, &hist, 1.0);
+    println!("{moved} anchors moved: stick {stick}, slip {slip}");
+    assert!(stick + slip > 0);
+    // an anchor face with a node outside the candidates of node i
+    let (f, i) = outside.expect("a face outside some node's candidates");
+    let mut bad = res.histories[0].clone();
+    bad[h0 + nh * i] = f as f64;
+    let ne = model.mesh.elements.len();
+    let mut k = SparseMatrix::new(asm.pattern.clone());
+    let mut ev = Evaluation::<f64>::new(&asm, ne);
+    let lifted = model.lifted::<f64>(&[]);
+    let err = asm
+        .evaluate(&model, &lifted, z, &bad, 1.0, None, Some(&mut k), &mut ev)
+        .expect_err("an anchor outside the block");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("not on any of the hitting node's candidate faces"),
+        "{msg}"
+    );
+}

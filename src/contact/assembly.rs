@@ -175,7 +175,16 @@ pub fn rigid_translation<S: Scalar>(pair: &ContactPair, values: &[S], t: f64) ->
 }
 
 /// Local tangent contributions of one node: `(row, col, value)` in block-local indices.
-type LocalTangent = Vec<f64>;
+/// The tangent of one hitting node: the dense `m x m` matrix (row-major) of the `m` block
+/// unknowns it couples (`index`: positions in the node's block; every other entry of the block
+/// is zero). A block spans all candidate faces; the tangent only the contact and anchor faces.
+#[derive(Clone, Debug)]
+pub struct LocalTangent {
+    /// Positions of the rows and columns in the node's block.
+    pub index: Vec<usize>,
+    /// Row-major `index.len()` squared values.
+    pub values: Vec<f64>,
+}
 
 /// Evaluate every contact pair: adds to `residual`, writes the friction history into
 /// `hist_new`, fills `out`, and returns the local tangents (block-major, dense) if wanted.
@@ -362,13 +371,12 @@ fn project_on_quad_s<S: Scalar>(
     Ok(p.xi)
 }
 
-/// Maximum number of seeded local unknowns: hitting node (3), contact face (12), anchor face
-/// (12), multiplier (1).
-const NSEED: usize = 28;
-type Ad = DualSVec64<NSEED>;
-
 /// The dense block tangent of one hitting node (rows and columns in block order), from one
-/// evaluation of the kernel with the node's local unknowns seeded.
+/// evaluation of the kernel with the node's local unknowns seeded: the hitting node (3), the
+/// nodes of the contact face and of the stick anchor's face (3 each, shared nodes once), the
+/// multiplier (1). The dual type is as wide as the seeds need: 4 against a rigid target, 16
+/// where the anchor lies on the contact face (or there is none), 28 where it lies on another
+/// face (every op on a 28-wide dual costs about seven times one on a 4-wide one).
 #[allow(clippy::too_many_arguments)]
 fn local_tangent<S: Scalar>(
     model: &Model,
@@ -381,7 +389,49 @@ fn local_tangent<S: Scalar>(
     i: usize,
     face: usize,
     fz: Option<ContactChoice>,
-) -> Result<Vec<f64>, ContactFailure> {
+) -> Result<LocalTangent, ContactFailure> {
+    let pair = &model.contacts[p];
+    let seeds = match &pair.target {
+        Target::Faces { faces } => {
+            let mut nodes: Vec<usize> = faces[face].to_vec();
+            if pair.anchor_len() > 0 {
+                let h0 = layout.history[p] + pair.history_len() * i;
+                let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
+                nodes.extend(faces[af].iter().filter(|n| !faces[face].contains(n)));
+            }
+            4 + 3 * nodes.len()
+        }
+        Target::Rigid { .. } => 4,
+    };
+    let args = (model, layout, lifted, z, hist_old, time, p, i, face, fz);
+    if seeds <= 4 {
+        local_tangent_n::<S, 4>(args)
+    } else if seeds <= 16 {
+        local_tangent_n::<S, 16>(args)
+    } else {
+        local_tangent_n::<S, 28>(args)
+    }
+}
+
+/// The arguments of [`local_tangent`], passed on to the tangent of one dual width.
+type TangentArgs<'a, S> = (
+    &'a Model,
+    &'a ContactLayout,
+    &'a Lifted<S>,
+    &'a [S],
+    &'a [S],
+    f64,
+    usize,
+    usize,
+    usize,
+    Option<ContactChoice>,
+);
+
+/// [`local_tangent`] with `N`-wide duals (`N` at least the number of seeds).
+fn local_tangent_n<S: Scalar, const N: usize>(
+    (model, layout, lifted, z, hist_old, time, p, i, face, fz): TangentArgs<'_, S>,
+) -> Result<LocalTangent, ContactFailure> {
+    type Ad<const N: usize> = DualSVec64<N>;
     let pair = &model.contacts[p];
     let block = &layout.blocks[p][i];
     let nb = block.dofs.len();
@@ -389,15 +439,15 @@ fn local_tangent<S: Scalar>(
     let nh = pair.history_len();
     let h0 = layout.history[p] + nh * i;
     let re3 = |v: Vector3<S>| v.map(|c| c.value());
-    let xref = |n: usize| re3(lifted.coords[n]).map(Ad::from_re);
+    let xref = |n: usize| re3(lifted.coords[n]).map(Ad::<N>::from_re);
     let disp =
         |n: usize| Vector3::new(z[3 * n].value(), z[3 * n + 1].value(), z[3 * n + 2].value());
     // seeds: slot -> block-local column
-    let mut slots: Vec<usize> = Vec::with_capacity(NSEED);
+    let mut slots: Vec<usize> = Vec::with_capacity(N);
     let seed = |v: f64, col: usize, slots: &mut Vec<usize>| {
         let k = slots.len();
         slots.push(col);
-        Ad::from_re(v).derivative(k)
+        Ad::<N>::from_re(v).derivative(k)
     };
     let us = disp(s);
     let u = Vector3::new(
@@ -405,35 +455,47 @@ fn local_tangent<S: Scalar>(
         seed(us[1], 1, &mut slots),
         seed(us[2], 2, &mut slots),
     );
-    let local_of = |n: usize| block.target_nodes.iter().position(|&m| m == n);
-    let mut seeded_nodes: Vec<(usize, Vector3<Ad>)> = Vec::new();
-    let mut node_ad = |n: usize, slots: &mut Vec<usize>| -> Vector3<Ad> {
-        if let Some((_, v)) = seeded_nodes.iter().find(|(m, _)| *m == n) {
-            return *v;
-        }
-        let un = disp(n);
-        let col = 3 + 3 * local_of(n).expect("target node in block");
-        let v = Vector3::new(
-            seed(un[0], col, slots),
-            seed(un[1], col + 1, slots),
-            seed(un[2], col + 2, slots),
-        );
-        seeded_nodes.push((n, v));
-        v
+    // the block column of a target node: a face outside the node's candidates (a history or
+    // frozen choice from elsewhere) has none
+    let local_of = |n: usize| {
+        block
+            .target_nodes
+            .iter()
+            .position(|&m| m == n)
+            .ok_or(ContactFailure::OutsideCandidates { node: n })
     };
-    let fparams: Vec<Ad> = lifted.friction[p]
+    let mut seeded_nodes: Vec<(usize, Vector3<Ad<N>>)> = Vec::new();
+    let mut node_ad =
+        |n: usize, slots: &mut Vec<usize>| -> Result<Vector3<Ad<N>>, ContactFailure> {
+            if let Some((_, v)) = seeded_nodes.iter().find(|(m, _)| *m == n) {
+                return Ok(*v);
+            }
+            let un = disp(n);
+            let col = 3 + 3 * local_of(n)?;
+            let v = Vector3::new(
+                seed(un[0], col, slots),
+                seed(un[1], col + 1, slots),
+                seed(un[2], col + 2, slots),
+            );
+            seeded_nodes.push((n, v));
+            Ok(v)
+        };
+    let fparams: Vec<Ad<N>> = lifted.friction[p]
         .iter()
-        .map(|v| Ad::from_re(v.value()))
+        .map(|v| Ad::<N>::from_re(v.value()))
         .collect();
-    let eps_t = Ad::from_re(lifted.tangential[p].value());
-    let rv: Vec<Ad> = lifted.rigid_motion[p]
+    let eps_t = Ad::<N>::from_re(lifted.tangential[p].value());
+    let rv: Vec<Ad<N>> = lifted.rigid_motion[p]
         .iter()
-        .map(|v| Ad::from_re(v.value()))
+        .map(|v| Ad::<N>::from_re(v.value()))
         .collect();
-    let d: Vector3<Ad> = rigid_translation(pair, &rv, time);
+    let d: Vector3<Ad<N>> = rigid_translation(pair, &rv, time);
     let (target, contact_nodes) = match &pair.target {
         Target::Faces { faces } => {
-            let nodes = faces[face].map(|n| xref(n) + node_ad(n, &mut slots));
+            let mut nodes = [Vector3::zeros(); 4];
+            for (a, &n) in faces[face].iter().enumerate() {
+                nodes[a] = xref(n) + node_ad(n, &mut slots)?;
+            }
             (
                 TargetGeom::Quad {
                     nodes,
@@ -446,28 +508,32 @@ fn local_tangent<S: Scalar>(
     };
     let na = pair.anchor_len();
     let lambda_bar = if pair.augmented() {
-        Ad::from_re(hist_old[h0 + na].value())
+        Ad::<N>::from_re(hist_old[h0 + na].value())
     } else {
-        Ad::from_re(0.0)
+        Ad::<N>::from_re(0.0)
     };
     let anchor = if na > 0 {
         Some(match &pair.target {
             Target::Faces { faces } => {
                 let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
+                let mut displacement = [Vector3::zeros(); 4];
+                for (a, &n) in faces[af].iter().enumerate() {
+                    displacement[a] = node_ad(n, &mut slots)?;
+                }
                 AnchorGeom::Quad {
                     reference: faces[af].map(xref),
-                    displacement: faces[af].map(|n| node_ad(n, &mut slots)),
+                    displacement,
                     xi: [
-                        Ad::from_re(hist_old[h0 + 1].value()),
-                        Ad::from_re(hist_old[h0 + 2].value()),
+                        Ad::<N>::from_re(hist_old[h0 + 1].value()),
+                        Ad::<N>::from_re(hist_old[h0 + 2].value()),
                     ],
                 }
             }
             Target::Rigid { .. } => AnchorGeom::Rigid {
                 offset: Vector3::new(
-                    Ad::from_re(hist_old[h0].value()),
-                    Ad::from_re(hist_old[h0 + 1].value()),
-                    Ad::from_re(hist_old[h0 + 2].value()),
+                    Ad::<N>::from_re(hist_old[h0].value()),
+                    Ad::<N>::from_re(hist_old[h0 + 1].value()),
+                    Ad::<N>::from_re(hist_old[h0 + 2].value()),
                 ),
                 d,
             },
@@ -477,6 +543,10 @@ fn local_tangent<S: Scalar>(
     };
     let lam_col = nb - 1;
     let lambda = seed(z[layout.lambda[p] + i].value(), lam_col, &mut slots);
+    debug_assert!(
+        slots.len() <= N,
+        "local_tangent sized its duals to the seeds"
+    );
     let par = KernelParams {
         normal: pair.normal,
         friction: pair.friction.as_ref(),
@@ -496,10 +566,18 @@ fn local_tangent<S: Scalar>(
         &par,
         fz.map(|c| c.state),
     )?;
-    let mut kt = vec![0.0; nb * nb];
-    let mut add_row = |row: usize, v: &Ad| {
-        for (k, &col) in slots.iter().enumerate() {
-            kt[row * nb + col] += v.eps.0.map(|m| m[k]).unwrap_or(0.0);
+    // rows and columns: the seeded unknowns (every row with a force is one of them)
+    let m = slots.len();
+    let mut values = vec![0.0; m * m];
+    let mut add_row = |row: usize, v: &Ad<N>| {
+        let r = slots
+            .iter()
+            .position(|&c| c == row)
+            .expect("a row with a force is a seeded unknown");
+        if let Some(d) = &v.eps.0 {
+            for (v, dv) in values[r * m..(r + 1) * m].iter_mut().zip(d.iter()) {
+                *v += dv;
+            }
         }
     };
     for c in 0..3 {
@@ -507,14 +585,17 @@ fn local_tangent<S: Scalar>(
     }
     if let Some(cn) = contact_nodes {
         for (a, &n) in cn.iter().enumerate() {
-            let row = 3 + 3 * local_of(n).expect("target node in block");
+            let row = 3 + 3 * local_of(n)?;
             for c in 0..3 {
                 add_row(row + c, &(ko.weights[a] * ko.force[c]));
             }
         }
     }
     add_row(lam_col, &ko.r_lambda);
-    Ok(kt)
+    Ok(LocalTangent {
+        index: slots,
+        values,
+    })
 }
 
 /// The history at t = 0: zero for the materials; for every frictional hitting node the stick

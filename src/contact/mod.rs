@@ -438,6 +438,13 @@ pub enum ContactFailure {
     /// The closest-point projection failed (its message).
     #[error("projection: {0}")]
     Geometry(String),
+    /// A contact or anchor face (from the history or a frozen choice) has a node outside the
+    /// hitting node's candidate faces, so its tangent has no place in the node's block.
+    #[error("target node {node} is not on any of the hitting node's candidate faces")]
+    OutsideCandidates {
+        /// The target node (global mesh node number).
+        node: usize,
+    },
 }
 
 /// The contact kernel of one hitting node (see the module docs).
