@@ -174,7 +174,6 @@ pub fn rigid_translation<S: Scalar>(pair: &ContactPair, values: &[S], t: f64) ->
     d
 }
 
-/// Local tangent contributions of one node: `(row, col, value)` in block-local indices.
 /// The tangent of one hitting node: the dense `m x m` matrix (row-major) of the `m` block
 /// unknowns it couples (`index`: positions in the node's block; every other entry of the block
 /// is zero). A block spans all candidate faces; the tangent only the contact and anchor faces.
@@ -393,13 +392,18 @@ fn local_tangent<S: Scalar>(
     let pair = &model.contacts[p];
     let seeds = match &pair.target {
         Target::Faces { faces } => {
-            let mut nodes: Vec<usize> = faces[face].to_vec();
-            if pair.anchor_len() > 0 {
+            // the anchor face's nodes that are not on the contact face
+            let off_face = if pair.anchor_len() > 0 {
                 let h0 = layout.history[p] + pair.history_len() * i;
                 let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
-                nodes.extend(faces[af].iter().filter(|n| !faces[face].contains(n)));
-            }
-            4 + 3 * nodes.len()
+                faces[af]
+                    .iter()
+                    .filter(|n| !faces[face].contains(n))
+                    .count()
+            } else {
+                0
+            };
+            4 + 3 * (4 + off_face)
         }
         Target::Rigid { .. } => 4,
     };
