@@ -349,6 +349,9 @@ impl Assembler {
         }
         out.min_det_f = f64::INFINITY;
         let want_k = tangent.is_some();
+        // elements left out of this evaluation
+        let skip = frozen.and_then(|f| f.skip);
+        let skipped = |e: usize| skip.is_some_and(|s| s[e]);
         let ne = model.mesh.elements.len();
         let mut locals: Vec<Local<S>> = Vec::new();
         // element tangents of one chunk, allocated once per evaluation (not per element)
@@ -375,7 +378,7 @@ impl Assembler {
                 .into_par_iter()
                 .zip(slots.into_par_iter())
                 .map(|(e, k)| {
-                    if frozen.and_then(|f| f.skip).is_some_and(|skip| skip[e]) {
+                    if skipped(e) {
                         return self.skipped_local(hist_old, frozen.and_then(|f| f.gauss), e);
                     }
                     self.element_local(
@@ -414,8 +417,7 @@ impl Assembler {
                 out.min_det_f = out.min_det_f.min(loc.min_det_f);
                 // a skipped element adds nothing (its slot of `kbuf` holds whatever an element
                 // of an earlier chunk left there)
-                let skipped = frozen.and_then(|f| f.skip).is_some_and(|skip| skip[e]);
-                if let (Some(k), false) = (tangent.as_deref_mut(), skipped) {
+                if let (Some(k), false) = (tangent.as_deref_mut(), skipped(e)) {
                     let ks = &kbuf[off * stride..off * stride + nd * nd];
                     for (f, v) in kf.iter_mut().zip(ks) {
                         *f = v.value();

@@ -121,12 +121,21 @@ fn contact_tangent_with_the_anchor_on_another_face() {
     let nh = pair.history_len();
     let z = &res.states[1];
     let mut hist = res.histories[0].clone();
+    // each node's contact face at this state (the evaluation below keeps it: the contact
+    // face is searched from the state, not from the history)
+    let ne = model.mesh.elements.len();
+    let lifted = model.lifted::<f64>(&[]);
+    let mut ev = Evaluation::<f64>::new(&asm, ne);
+    asm.evaluate(&model, &lifted, z, &hist, 1.0, None, None, &mut ev)
+        .unwrap();
+    let flat = asm.contact.flat[0];
     let mut moved = 0;
     let mut outside = None;
     for (i, cands) in pair.candidates.iter().enumerate() {
         let at = h0 + nh * i;
-        let face = hist[at] as usize;
-        // another candidate face that shares no node with the anchor's
+        let face = ev.contact.choice[flat + i].face;
+        // a candidate face that shares no node with the contact face: the tangent then
+        // seeds 3 + 4 x 3 + 4 x 3 + 1 = 28 unknowns, the widest dual
         if let Some(&other) = cands
             .iter()
             .find(|&&f| faces[f].iter().all(|n| !faces[face].contains(n)))
@@ -153,10 +162,7 @@ fn contact_tangent_with_the_anchor_on_another_face() {
     let (f, i) = outside.expect("a face outside some node's candidates");
     let mut bad = res.histories[0].clone();
     bad[h0 + nh * i] = f as f64;
-    let ne = model.mesh.elements.len();
     let mut k = SparseMatrix::new(asm.pattern.clone());
-    let mut ev = Evaluation::<f64>::new(&asm, ne);
-    let lifted = model.lifted::<f64>(&[]);
     let err = asm
         .evaluate(&model, &lifted, z, &bad, 1.0, None, Some(&mut k), &mut ev)
         .expect_err("an anchor outside the block");
