@@ -223,16 +223,49 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
     extra
 }
 
-/// Write the whole run: `history.csv`, `newton.json`, and `vtk/` with one `.vtu` per increment.
-pub fn write_run(dir: &Path, model: &Model, res: &Results) -> Result<(), OutputError> {
-    std::fs::create_dir_all(dir.join("vtk")).map_err(io(dir))?;
+/// Which increments [`write_run`] writes as VTK files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VtkOutput {
+    /// None (`fricsens run --no-vtk`).
+    None,
+    /// Every `N`-th stored increment (the initial state is the 0th) and the last one.
+    Every(usize),
+}
+
+impl VtkOutput {
+    /// Whether stored increment `k` of `n` is written.
+    fn writes(self, k: usize, n: usize) -> bool {
+        match self {
+            VtkOutput::None => false,
+            VtkOutput::Every(every) => k % every.max(1) == 0 || k + 1 == n,
+        }
+    }
+}
+
+/// Write the whole run: `history.csv`, `newton.json`, and, as `vtk` says, `vtk/` with one
+/// `.vtu` per written increment and the `.pvd` collection of them.
+pub fn write_run(
+    dir: &Path,
+    model: &Model,
+    res: &Results,
+    vtk: VtkOutput,
+) -> Result<(), OutputError> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
     write_history_csv(&dir.join("history.csv"), model, res)?;
     let p = dir.join("newton.json");
     let json = serde_json::to_string_pretty(&res.records).expect("records serialise");
     std::fs::write(&p, json).map_err(io(&p))?;
+    if vtk == VtkOutput::None {
+        return Ok(());
+    }
+    std::fs::create_dir_all(dir.join("vtk")).map_err(io(dir))?;
     let mut files = Vec::new();
+    let stored = res.states.len().min(res.times.len());
     for (k, t) in res.times.iter().enumerate() {
         let Some(z) = res.states.get(k) else { break };
+        if !vtk.writes(k, stored) {
+            continue;
+        }
         let name = format!("step_{k:04}.vtu");
         write_vtu(
             &dir.join("vtk").join(&name),

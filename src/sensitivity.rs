@@ -23,14 +23,24 @@
 //! magnitude of a prescribed displacement) and enters `r` through the coupling terms.
 //!
 //! ## Tangent of the sensitivity solve
-//! * `last`: the last Newton factorization, of the iterate before convergence (the paper);
-//! * `refined`: the same, plus iterative refinement against the converged tangent;
-//! * `exact`: the converged tangent, to a relative residual of [`KRYLOV_TOL`] (or, where
+//! * `exact` (the default): the converged tangent, to a relative residual of [`KRYLOV_TOL`] (or, where
 //!   `|K||x|` is far above `|b|` and no solve reaches that, to the backward error of a
 //!   backward-stable direct solve): by GMRES
 //!   preconditioned with Newton's last factorization (a few solves: the two matrices differ by
 //!   Newton's last correction and any branches it switched), factored afresh where GMRES
-//!   does not converge in [`KRYLOV_MAX_ITER`] steps or `Settings::krylov` is off.
+//!   does not converge in [`KRYLOV_MAX_ITER`] steps or `Settings::krylov` is off; then refined
+//!   with residuals in double-double arithmetic until the correction is below 1e-13 of the
+//!   solution (`refine_extended`), so that the result no longer depends on which solve
+//!   produced it (two backward-stable solves differ by up to `cond(K) eps`: 2e-10 of the leaf
+//!   spring's d(force)/d(length)). DDM is then the exact derivative of the discrete
+//!   incremental solution to about 1e-13, and SDM's error is its own finite-difference error
+//!   alone;
+//! * `last`: the last Newton factorization, of the iterate before convergence (the paper's
+//!   choice; no extra solve). It is the tangent of a state one Newton correction away from the
+//!   converged one, so every in-line method inherits an error of the order of that correction
+//!   (1.2e-2 relative on the leaf spring, 8.8e-5 on the indentation: the report's cost table);
+//! * `refined`: the last factorization plus `Settings::refine_steps` steps of iterative
+//!   refinement against the converged tangent (between the two in cost and accuracy).
 //!
 //! DDM's one-sided derivatives solve with forced tangents the same way (preconditioned with
 //! the converged tangent's factorization where one was made at that increment).
@@ -99,7 +109,7 @@ impl Method {
     }
 }
 
-/// Which factorization the sensitivity solve uses.
+/// Which tangent the sensitivity solve uses (the module docs compare their accuracy and cost).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum TangentChoice {
@@ -111,8 +121,10 @@ pub enum TangentChoice {
     /// The last factorization plus `Settings::refine_steps` steps of iterative refinement
     /// against the converged tangent.
     Refined,
-    /// The tangent at the converged state: by GMRES preconditioned with Newton's last
-    /// factorization, or factored afresh (see `Settings::krylov`).
+    /// The tangent at the converged state, solved to a relative residual of [`KRYLOV_TOL`]:
+    /// by GMRES preconditioned with Newton's last factorization, or factored afresh (see
+    /// `Settings::krylov`), and refined with double-double residuals to 1e-13 of the
+    /// solution. The default.
     Exact,
 }
 
@@ -318,7 +330,7 @@ pub struct Settings {
     pub method: Method,
     /// Relative perturbation (SDM, FDM).
     pub beta: f64,
-    /// Tangent of the sensitivity solve (SDM, DDM).
+    /// Tangent of the sensitivity solve (SDM, DDM); default [`TangentChoice::Exact`].
     pub tangent: TangentChoice,
     /// Refinement steps for `TangentChoice::Refined`.
     pub refine_steps: usize,
@@ -350,7 +362,7 @@ pub struct Settings {
 /// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
 /// iterate): about what the direct solves reach on the paper's scenes (`FRICSENS_TRACE`
 /// prints theirs).
-pub const KRYLOV_TOL: f64 = 1e-11;
+pub const KRYLOV_TOL: f64 = 1e-13;
 
 /// GMRES steps before the tangent is factored instead (each step is one solve with the
 /// factor at hand and one product; a factorization of the leaf spring's tangent costs about
@@ -362,7 +374,7 @@ impl Default for Settings {
         Settings {
             method: Method::Ddm,
             beta: 1e-6,
-            tangent: TangentChoice::Last,
+            tangent: TangentChoice::Exact,
             refine_steps: 2,
             freeze_branches: true,
             kink_tol: 1e-6,
@@ -528,6 +540,73 @@ fn total_dz(c: &Converged<'_>, rhs: &[f64], dzc: &[f64], k: usize) -> Vec<f64> {
             }
         })
         .collect()
+}
+
+/// Relative residual the correction solves of [`refine_extended`] ask of GMRES: each step of
+/// the refinement then shrinks the error by about this factor. Loose, so that the usual
+/// correction is one solve with the factor at hand and one product (GMRES stops at its
+/// start).
+const CORRECTION_TOL: f64 = 1e-3;
+
+/// [`refine_extended`] stops when every column's correction is below this fraction of the
+/// column: three orders of magnitude below the accuracy the default DDM is tested to (1e-10
+/// of each sensitivity's scale against a fresh factorization).
+const REFINED_TO: f64 = 1e-13;
+
+/// Steps of [`refine_extended`] at most (two reach working precision wherever the first
+/// solve kept a few digits; a third only guards a slow correction).
+const EXTENDED_REFINEMENT_STEPS: usize = 3;
+
+/// Solves `k d = r` in place for [`refine_extended`]'s corrections, adding its work to the
+/// cost.
+type CorrectionSolve<'a> =
+    dyn FnMut(&mut [f64], &mut SensitivityCost) -> Result<(), crate::linalg::LinalgError> + 'a;
+
+/// Iterative refinement of the solution `x` of `k x = b` (`ncols` column-major columns) with
+/// residuals in double-double arithmetic ([`crate::linalg::SparseMatrix::residual_extended`]),
+/// each correction solved by `correct` (with the factor or GMRES that solved `x`), until every
+/// column's correction is below [`REFINED_TO`] of the column (or
+/// [`EXTENDED_REFINEMENT_STEPS`]).
+///
+/// Why: a backward-stable solve (a factorization, or GMRES accepted at a direct solve's
+/// backward error) leaves a forward error of up to `cond(k) eps`, and two such solves (DDM
+/// by GMRES and by a fresh factorization) differ by that much. Where the pseudo-load is small
+/// against `|k| |x|` (a slender beam's load in `E`: relative residual 2e-9 at a backward
+/// error of 0.3 eps) that was 1.7e-10 of the derivative's scale on the elastica cantilever.
+/// With the residual computed to twice the working precision, refinement converges to the
+/// solution rounded to working precision, whichever solve started it (Moler 1967; Higham,
+/// *Accuracy and Stability of Numerical Algorithms*, section 12.1).
+fn refine_extended(
+    k: &crate::linalg::SparseMatrix,
+    b: &[f64],
+    x: &mut [f64],
+    ncols: usize,
+    cost: &mut SensitivityCost,
+    correct: &mut CorrectionSolve<'_>,
+) -> Result<(), crate::linalg::LinalgError> {
+    let n = k.n();
+    let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+    let mut r = vec![0.0; n * ncols];
+    for _ in 0..EXTENDED_REFINEMENT_STEPS {
+        for c in 0..ncols {
+            let cols = c * n..(c + 1) * n;
+            k.residual_extended(&x[cols.clone()], &b[cols.clone()], &mut r[cols])?;
+        }
+        correct(&mut r, cost)?;
+        let mut done = true;
+        for c in 0..ncols {
+            let cols = c * n..(c + 1) * n;
+            let (d, xc) = (norm(&r[cols.clone()]), norm(&x[cols.clone()]));
+            done &= d <= REFINED_TO * xc;
+            for (xi, di) in x[cols.clone()].iter_mut().zip(&r[cols]) {
+                *xi += di;
+            }
+        }
+        if done {
+            break;
+        }
+    }
+    Ok(())
 }
 
 /// Add the wall time of `f` to `slot`.
@@ -783,6 +862,15 @@ impl<'a> Engine<'a> {
                 if report.converged {
                     cost.krylov_solves += 1;
                     cost.krylov_iterations += report.iterations;
+                    let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
+                        let rep = m.gmres_multi(&k, r, ncols, CORRECTION_TOL, KRYLOV_MAX_ITER)?;
+                        cost.solve_columns += rep.solve_columns;
+                        cost.krylov_iterations += rep.iterations;
+                        Ok(())
+                    };
+                    let t = Instant::now();
+                    refine_extended(&k, &b, rhs, ncols, cost, &mut correct)?;
+                    cost.solve_seconds += t.elapsed().as_secs_f64();
                     return Ok(());
                 }
                 rhs.copy_from_slice(&b);
@@ -797,9 +885,16 @@ impl<'a> Engine<'a> {
             if !forced {
                 self.exact_holds = Some(c.index);
             }
-            timed(&mut cost.solve_seconds, || {
-                s.solve_multi_in_place(rhs, ncols)
-            })?;
+            let b = rhs.to_vec();
+            let s = &*s;
+            let t = Instant::now();
+            s.solve_multi_in_place(rhs, ncols)?;
+            let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
+                cost.solve_columns += ncols;
+                s.solve_multi_in_place(r, ncols)
+            };
+            refine_extended(&k, &b, rhs, ncols, cost, &mut correct)?;
+            cost.solve_seconds += t.elapsed().as_secs_f64();
         } else {
             let last = c.last_factor.expect("checked above");
             let b = rhs.to_vec();

@@ -101,7 +101,7 @@ fn friction_force_stays_at_mu_n_while_sliding_across_segments() {
     assert!(worst < 1e-2, "friction force deviates from mu N by {worst}");
     // the state map is written to the VTK files
     let dir = std::env::temp_dir().join(format!("fricsens-sliding-{}", std::process::id()));
-    fricsens::output::write_run(&dir, &model, &res).unwrap();
+    fricsens::output::write_run(&dir, &model, &res, fricsens::output::VtkOutput::Every(1)).unwrap();
     let vtu = std::fs::read_to_string(dir.join("vtk").join("step_0010.vtu")).unwrap();
     assert!(vtu.contains("Name=\"contact_state\"") && vtu.contains("Name=\"friction_force\""));
     let _ = std::fs::remove_dir_all(&dir);
