@@ -37,6 +37,7 @@ pub mod ccx;
 pub mod compare_laws;
 pub mod contact;
 pub mod element;
+pub mod fuzz;
 pub mod linalg;
 pub mod material;
 pub mod mesh;

@@ -160,6 +160,33 @@ enum Command {
         #[arg(long)]
         refinement: f64,
     },
+    /// The physics fuzzer: random valid contact scenes run with default settings, each
+    /// converged increment checked (equilibrium, Coulomb, penetration); writes fuzz.md and
+    /// fuzz.json, and every failing scene as TOML into --corpus.
+    Fuzz {
+        /// Number of seeds.
+        #[arg(long, default_value_t = 1000)]
+        seeds: u64,
+        /// First seed.
+        #[arg(long, default_value_t = 0)]
+        start: u64,
+        /// Output directory (fuzz.md, fuzz.json).
+        #[arg(long, default_value = "validation/robustness")]
+        out: PathBuf,
+        /// Write every failing scene as TOML into this directory.
+        #[arg(long)]
+        corpus: Option<PathBuf>,
+        /// Wall-time limit of one scene, seconds.
+        #[arg(long, default_value_t = 120.0)]
+        time_limit: f64,
+        /// Run only these seeds (repeat), e.g. to rerun failures.
+        #[arg(long = "seed")]
+        only: Vec<u64>,
+        /// Run and check these scenes (built-in names or TOML files, e.g. the corpus) instead
+        /// of generated ones.
+        #[arg(long = "scene")]
+        scenes: Vec<String>,
+    },
     /// Primal analysis: history CSV, Newton records, VTK files.
     Run {
         /// A built-in scene name or a TOML scene file.
@@ -587,6 +614,83 @@ fn scaling(
     Ok(())
 }
 
+fn fuzz(
+    seeds: Vec<u64>,
+    scenes: Vec<String>,
+    out: PathBuf,
+    corpus: Option<PathBuf>,
+    time_limit: f64,
+) -> Result<(), String> {
+    use fricsens::fuzz::{generate, run_case, Summary};
+    use rayon::prelude::*;
+    let given: Vec<Scene> = scenes
+        .iter()
+        .map(|s| Scene::load(s).map_err(|e| e.to_string()))
+        .collect::<Result<_, _>>()?;
+    let seeds: Vec<u64> = if given.is_empty() {
+        seeds
+    } else {
+        (0..given.len() as u64).collect()
+    };
+    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    if let Some(c) = &corpus {
+        std::fs::create_dir_all(c).map_err(|e| format!("{}: {e}", c.display()))?;
+    }
+    let pb = progress(seeds.len());
+    pb.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} scenes {msg} [{elapsed}]")
+            .expect("valid template"),
+    );
+    let failed = std::sync::atomic::AtomicUsize::new(0);
+    let outcomes: Vec<_> = seeds
+        .par_iter()
+        .with_max_len(1)
+        .map(|&seed| {
+            let scene = match given.get(seed as usize) {
+                Some(s) => s.clone(),
+                None => generate(seed),
+            };
+            let o = run_case(seed, &scene, Some(time_limit));
+            if !o.passed {
+                let n = failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                pb.set_message(format!("{n} failed"));
+                pb.suspend(|| {
+                    eprintln!(
+                        "{}: {} ({} unknowns, {}/{} increments, {:.1} s)",
+                        scene.name,
+                        o.failure
+                            .as_ref()
+                            .map(|f| f.to_string())
+                            .unwrap_or_default(),
+                        o.unknowns,
+                        o.converged,
+                        o.increments,
+                        o.seconds
+                    )
+                });
+                if let Some(c) = &corpus {
+                    let _ = std::fs::write(c.join(format!("seed-{seed}.toml")), scene.to_toml());
+                }
+            }
+            pb.inc(1);
+            o
+        })
+        .collect();
+    pb.finish_and_clear();
+    let summary = Summary::of(&outcomes);
+    let md = summary.markdown();
+    std::fs::write(out.join("fuzz.md"), &md).map_err(|e| e.to_string())?;
+    let json = serde_json::to_string_pretty(&serde_json::json!({
+        "summary": summary,
+        "outcomes": outcomes,
+    }))
+    .map_err(|e| e.to_string())?;
+    std::fs::write(out.join("fuzz.json"), json).map_err(|e| e.to_string())?;
+    outp!("{md}");
+    out!("written to {}", out.display());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -605,6 +709,22 @@ fn main() -> ExitCode {
                 "unknown built-in scene '{name}' (see `fricsens scenes`)"
             )),
         },
+        Command::Fuzz {
+            seeds,
+            start,
+            out,
+            corpus,
+            time_limit,
+            only,
+            scenes,
+        } => {
+            let list = if only.is_empty() {
+                (start..start + seeds).collect()
+            } else {
+                only
+            };
+            fuzz(list, scenes, out, corpus, time_limit)
+        }
         Command::Run {
             scene,
             out,

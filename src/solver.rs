@@ -202,6 +202,18 @@ pub enum AnalysisError {
     /// A sensitivity computation failed (e.g. an unknown parameter name).
     #[error("sensitivity: {0}")]
     Sensitivity(String),
+    /// The run took longer than [`RunOptions::time_limit`].
+    #[error("increment {increment} (t = {time:.6}): stopped at the time limit of {seconds} s")]
+    TimeLimit {
+        /// The increment being solved (counting converged sub-increments).
+        increment: usize,
+        /// Pseudo-time the attempt aimed at.
+        time: f64,
+        /// The limit, seconds.
+        seconds: f64,
+        /// Everything computed up to the last converged increment.
+        partial: Box<Results>,
+    },
 }
 
 impl std::fmt::Debug for Results {
@@ -241,7 +253,9 @@ impl AnalysisError {
     /// Results computed before the failure, where the error keeps them.
     pub fn partial(&self) -> Option<&Results> {
         match self {
-            AnalysisError::Diverged { partial, .. } => Some(partial),
+            AnalysisError::Diverged { partial, .. } | AnalysisError::TimeLimit { partial, .. } => {
+                Some(partial)
+            }
             _ => None,
         }
     }
@@ -252,11 +266,18 @@ impl AnalysisError {
 pub struct RunOptions {
     /// Keep the full state vector of every increment in the results.
     pub keep_states: bool,
+    /// Stop with [`AnalysisError::TimeLimit`] (keeping the results so far) once the run has
+    /// taken this many seconds of wall time, checked at every Newton iteration (none: no
+    /// limit).
+    pub time_limit: Option<f64>,
 }
 
 impl Default for RunOptions {
     fn default() -> Self {
-        RunOptions { keep_states: true }
+        RunOptions {
+            keep_states: true,
+            time_limit: None,
+        }
     }
 }
 
@@ -465,11 +486,23 @@ fn assemble(
     Ok(())
 }
 
-/// Why an attempt failed (recoverable by cutback).
+/// Why an attempt failed (recoverable by cutback, but for the time limit).
 #[derive(Debug)]
 enum AttemptFailure {
     Element(AssemblyFailure),
     Diverged(&'static str),
+    /// [`RunOptions::time_limit`] passed: the run stops.
+    TimeLimit,
+}
+
+impl std::fmt::Display for AttemptFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AttemptFailure::Element(e) => write!(f, "{e}"),
+            AttemptFailure::Diverged(s) => write!(f, "{s}"),
+            AttemptFailure::TimeLimit => write!(f, "time limit"),
+        }
+    }
 }
 
 /// The primal solver of one model.
@@ -494,6 +527,8 @@ pub struct Solver<'m> {
     /// assembled at (see [`Converged::factor_matches`]).
     factored_choice: Vec<ContactChoice>,
     factored_branches: Vec<crate::material::Branch>,
+    /// When the run must stop ([`RunOptions::time_limit`]).
+    deadline: Option<Instant>,
 }
 
 impl<'m> Solver<'m> {
@@ -563,6 +598,7 @@ impl<'m> Solver<'m> {
             factored_branches: Vec::new(),
             trace: std::env::var_os("FRICSENS_TRACE").is_some(),
             penetration_floor,
+            deadline: None,
         })
     }
 
@@ -601,6 +637,9 @@ impl<'m> Solver<'m> {
         observer: &mut dyn Observer,
     ) -> Result<Results, AnalysisError> {
         let start = Instant::now();
+        self.deadline = opts
+            .time_limit
+            .map(|s| start + std::time::Duration::from_secs_f64(s.max(0.0)));
         let model = self.model;
         let n = self.assembler.dofs.n_total;
         let ne = model.mesh.elements.len();
@@ -809,13 +848,20 @@ impl<'m> Solver<'m> {
                             step = (step * 2.0).min(t_end - t_prev_nominal);
                         }
                     }
+                    Err(AttemptFailure::TimeLimit) => {
+                        res.history = hist;
+                        res.cost.wall_seconds = start.elapsed().as_secs_f64();
+                        return Err(AnalysisError::TimeLimit {
+                            increment: index + 1,
+                            time: t,
+                            seconds: opts.time_limit.unwrap_or(0.0),
+                            partial: Box::new(res),
+                        });
+                    }
                     Err(why) => {
                         let at_minimum = step <= min_step * (1.0 + 1e-9);
                         if cutbacks >= model.solver.max_cutbacks || at_minimum {
-                            let mut reason = match why {
-                                AttemptFailure::Element(f) => f.to_string(),
-                                AttemptFailure::Diverged(s) => s.to_string(),
-                            };
+                            let mut reason = why.to_string();
                             if at_minimum {
                                 reason.push_str(&format!(
                                     " (at the minimum increment {min_step:.3e}: the nominal one halved {} times)",
@@ -851,10 +897,7 @@ impl<'m> Solver<'m> {
                                 record.residuals
                             );
                         }
-                        let why = match &why {
-                            AttemptFailure::Element(f) => f.to_string(),
-                            AttemptFailure::Diverged(s) => s.to_string(),
-                        };
+                        let why = why.to_string();
                         last_failure = Some((t, std::mem::take(&mut record.residuals), why));
                         failed += 1;
                         cutbacks += 1;
@@ -1165,6 +1208,9 @@ impl<'m> Solver<'m> {
         // Newton iterations (solves) made
         let mut k = 0;
         loop {
+            if self.deadline.is_some_and(|d| Instant::now() > d) {
+                return Err(AttemptFailure::TimeLimit);
+            }
             let (r_free, f_ref) = loop {
                 let frozen = Frozen {
                     gauss: None,

@@ -1,0 +1,1135 @@
+//! A physics fuzzer: random *valid* contact scenes, run with default settings and checked.
+//!
+//! [`generate`] turns a seed into a [`Scene`] a user could have written: a deformable block
+//! (random size, aspect, grading, element formulation and kinematics; St Venant-Kirchhoff,
+//! Neo-Hookean or J2 with linear or saturation hardening; `E` over six decades and `nu` up to
+//! 0.49) pressed by a rigid cylinder, sphere, rounded punch or plane, or by a second deformable
+//! block, with every normal law (Lagrange, penalty, augmented Lagrangian) and friction law
+//! (none, Coulomb, regularised, pressure-dependent; `mu` in [0, 1.5]), along a random path of
+//! press, slide (either way), unload (partly, or to lift-off) and reload phases with random
+//! increment counts, in plane strain or 3D. Every setting a user may leave out (tangential
+//! stiffness, constraint scale, search radius, solver settings) is left out.
+//!
+//! [`run_case`] runs a scene and checks every converged increment against physics rather than
+//! against the code's own output ([`IncrementCheck`]):
+//! * global equilibrium: the reactions at the supports, the loads and the forces of the rigid
+//!   targets add up to zero in every direction (to [`EQUILIBRIUM_TOL`] of the largest of them);
+//! * the Coulomb inequality at every closed hitting node, `|t| <= mu(p_n) p_n` (the law's own
+//!   slip limit, to [`COULOMB_TOL`]), no tensile normal force, no friction force on an open
+//!   node;
+//! * no penetration of a Lagrange-multiplier pair beyond round-off ([`PENETRATION_TOL`] of the
+//!   smallest element).
+//!
+//! A run that fails either to complete or a check is a failure with a class
+//! ([`FailureClass`]); `fricsens fuzz` runs thousands of seeds, writes the table of the
+//! report's robustness section and keeps every failing scene as TOML, the regression corpus
+//! (`tests/corpus/robustness/`) whose scenes the default test suite runs.
+
+use crate::contact::friction::FrictionLaw;
+use crate::contact::Target;
+use crate::mesh::{Axis, BlockSpec, Zone};
+use crate::model::Model;
+use crate::scene::{
+    BodySpec, Component, ContactSpec, FrictionSpec, MaterialSpec, MotionSpec, PrescribedSpec,
+    ResponseSpec, RigidSpec, Scene, StepSpec, TargetSpec,
+};
+use crate::solver::{AnalysisError, Converged, Observer, RunOptions, Solver};
+use std::time::Instant;
+
+/// A small, fast, deterministic generator (SplitMix64): the same seed gives the same scene on
+/// every machine.
+#[derive(Clone, Debug)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator started from `seed`.
+    pub fn new(seed: u64) -> Self {
+        Rng(seed ^ 0x5851_f42d_4c95_7f2d)
+    }
+
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`.
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in `[a, b)`.
+    pub fn uniform(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.unit()
+    }
+
+    /// Log-uniform in `[a, b)` (`0 < a < b`).
+    pub fn log_uniform(&mut self, a: f64, b: f64) -> f64 {
+        (a.ln() + (b.ln() - a.ln()) * self.unit()).exp()
+    }
+
+    /// Uniform integer in `[a, b]`.
+    pub fn int(&mut self, a: usize, b: usize) -> usize {
+        a + (self.next_u64() % (b - a + 1) as u64) as usize
+    }
+
+    /// True with probability `p`.
+    pub fn chance(&mut self, p: f64) -> bool {
+        self.unit() < p
+    }
+
+    /// Index chosen with the given weights.
+    pub fn weighted(&mut self, weights: &[f64]) -> usize {
+        let total: f64 = weights.iter().sum();
+        let mut x = self.unit() * total;
+        for (i, w) in weights.iter().enumerate() {
+            if x < *w {
+                return i;
+            }
+            x -= w;
+        }
+        weights.len() - 1
+    }
+}
+
+/// What presses the block.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Indenter {
+    Cylinder,
+    Sphere,
+    Punch,
+    Plane,
+    Block,
+}
+
+/// An axis of `n` elements over `length`, uniform or graded.
+fn axis(r: &mut Rng, length: f64, n: usize, fine: Option<bool>) -> Axis {
+    // fine: None uniform-ish; Some(true) fine in the middle; Some(false) fine at the end
+    match fine {
+        Some(true) if n >= 6 && r.chance(0.7) => {
+            let side = r.int(1, (n / 3).max(1));
+            let middle = n - 2 * side;
+            let ratio = r.log_uniform(1.5, 8.0);
+            let fm = r.uniform(0.2, 0.6);
+            Axis {
+                length,
+                zones: vec![
+                    Zone {
+                        fraction: (1.0 - fm) / 2.0,
+                        elements: side,
+                        ratio: 1.0 / ratio,
+                    },
+                    Zone {
+                        fraction: fm,
+                        elements: middle,
+                        ratio: 1.0,
+                    },
+                    Zone {
+                        fraction: (1.0 - fm) / 2.0,
+                        elements: side,
+                        ratio,
+                    },
+                ],
+            }
+        }
+        Some(false) if n >= 4 && r.chance(0.7) => {
+            let coarse = r.int(1, n / 2);
+            let ratio = r.log_uniform(1.5, 8.0);
+            let fc = r.uniform(0.3, 0.8);
+            Axis {
+                length,
+                zones: vec![
+                    Zone {
+                        fraction: fc,
+                        elements: coarse,
+                        ratio: 1.0 / ratio,
+                    },
+                    Zone {
+                        fraction: 1.0 - fc,
+                        elements: n - coarse,
+                        ratio: 1.0,
+                    },
+                ],
+            }
+        }
+        _ => Axis::uniform(length, n),
+    }
+}
+
+fn material(r: &mut Rng, e: f64) -> MaterialSpec {
+    let nu = if r.chance(0.15) {
+        r.uniform(0.45, 0.49)
+    } else {
+        r.uniform(0.0, 0.45)
+    };
+    match r.weighted(&[0.35, 0.2, 0.45]) {
+        0 => MaterialSpec::Svk { young: e, nu },
+        1 => MaterialSpec::NeoHookean { young: e, nu },
+        _ => {
+            let sigma_y = e * r.log_uniform(3e-4, 1e-2);
+            let hardening = if r.chance(0.2) {
+                0.0
+            } else {
+                e * r.log_uniform(1e-3, 0.2)
+            };
+            let (sigma_inf, delta) = if r.chance(0.25) {
+                (
+                    Some(sigma_y * r.uniform(1.1, 3.0)),
+                    Some(r.log_uniform(5.0, 500.0)),
+                )
+            } else {
+                (None, None)
+            };
+            MaterialSpec::J2 {
+                young: e,
+                nu,
+                sigma_y,
+                hardening,
+                sigma_inf,
+                delta,
+            }
+        }
+    }
+}
+
+fn body(r: &mut Rng, block: BlockSpec, e: f64) -> BodySpec {
+    use crate::element::{Hex8Formulation, Kinematics};
+    BodySpec {
+        block,
+        material: material(r, e),
+        kinematics: if r.chance(0.3) {
+            Kinematics::Small
+        } else {
+            Kinematics::Large
+        },
+        formulation: match r.weighted(&[0.2, 0.5, 0.3]) {
+            0 => Hex8Formulation::Full,
+            1 => Hex8Formulation::IncompatibleModes,
+            _ => Hex8Formulation::FBar,
+        },
+    }
+}
+
+fn friction(r: &mut Rng, force_scale: f64) -> Option<FrictionSpec> {
+    let mu = if r.chance(0.1) {
+        0.0
+    } else {
+        r.uniform(0.0, 1.5)
+    };
+    match r.weighted(&[0.12, 0.55, 0.18, 0.15]) {
+        0 => None,
+        1 => Some(FrictionSpec::Coulomb { mu }),
+        2 => Some(FrictionSpec::RegularizedCoulomb { mu }),
+        _ => Some(FrictionSpec::PressureDependent {
+            mu0: mu,
+            p0: force_scale * r.log_uniform(0.1, 10.0),
+            n: r.uniform(0.0, 0.3),
+        }),
+    }
+}
+
+fn normal_law(r: &mut Rng, e: f64, h: f64, depth: f64) -> crate::contact::NormalLaw {
+    use crate::contact::NormalLaw;
+    // a penalty stiffness (pressure per unit penetration) of 1 to 100 times E over the
+    // element size: penetrations of 1 to 1e-2 of the elastic strain's displacement
+    let stiffness = e / h * r.log_uniform(1.0, 100.0);
+    match r.weighted(&[0.6, 0.2, 0.2]) {
+        0 => NormalLaw::Lagrange,
+        1 => NormalLaw::Penalty { stiffness },
+        _ => NormalLaw::Augmented {
+            stiffness,
+            tolerance: depth * r.log_uniform(1e-4, 1e-2),
+        },
+    }
+}
+
+/// One phase of the path: the target's displacement at its end, and its increments.
+struct Phase {
+    end: [f64; 3],
+    increments: usize,
+}
+
+/// A random path: press, then a few of slide (either way), unload (partly, or to lift-off),
+/// reload and press further. `depth` is the first press; `slide` a typical sliding distance.
+fn path(r: &mut Rng, gap0: f64, depth: f64, slide: f64, three_d: bool) -> Vec<Phase> {
+    let mut phases = Vec::new();
+    let mut at = [0.0, -(gap0 + depth), 0.0];
+    phases.push(Phase {
+        end: at,
+        increments: r.int(1, 8),
+    });
+    let n = r.int(0, 4);
+    let mut lifted = false;
+    for _ in 0..n {
+        let mut next = at;
+        match r.weighted(&[0.5, 0.2, 0.15, 0.15]) {
+            0 if !lifted => {
+                let s = slide * r.uniform(0.2, 1.5) * if r.chance(0.35) { -1.0 } else { 1.0 };
+                if three_d && r.chance(0.4) {
+                    let a = r.uniform(0.0, std::f64::consts::TAU);
+                    next[0] += s * a.cos();
+                    next[2] += s * a.sin();
+                } else {
+                    next[0] += s;
+                }
+            }
+            1 => {
+                // unload by a fraction of the press; above 1 the target lifts off
+                let f = r.uniform(0.2, 1.3);
+                next[1] = (at[1] + f * depth).min(gap0 + 0.5 * depth);
+                lifted = next[1] > -gap0;
+            }
+            2 => {
+                next[1] = -(gap0 + depth * r.uniform(0.5, 1.0));
+                lifted = false;
+            }
+            _ => {
+                next[1] = at[1] - depth * r.uniform(0.1, 0.5);
+                lifted = false;
+            }
+        }
+        if next == at {
+            continue;
+        }
+        at = next;
+        phases.push(Phase {
+            end: at,
+            increments: r.int(1, 10),
+        });
+    }
+    phases
+}
+
+/// The random scene of `seed` (see the module docs).
+pub fn generate(seed: u64) -> Scene {
+    let mut r = Rng::new(seed);
+    let three_d = r.chance(0.25);
+    // units: a length scale over four decades, E over six
+    let unit = r.log_uniform(1e-2, 1e2);
+    let e = r.log_uniform(1.0, 1e6);
+    let lx = unit * r.uniform(10.0, 60.0);
+    let ly = lx * r.uniform(0.25, 0.8);
+    let (nx, ny) = if three_d {
+        (r.int(4, 10), r.int(2, 5))
+    } else {
+        (r.int(6, 28), r.int(3, 12))
+    };
+    let nz = if three_d { r.int(2, 6) } else { 1 };
+    let indenter = if three_d {
+        [
+            Indenter::Cylinder,
+            Indenter::Sphere,
+            Indenter::Punch,
+            Indenter::Plane,
+            Indenter::Block,
+        ][r.weighted(&[0.2, 0.3, 0.2, 0.1, 0.2])]
+    } else {
+        [
+            Indenter::Cylinder,
+            Indenter::Punch,
+            Indenter::Plane,
+            Indenter::Block,
+        ][r.weighted(&[0.4, 0.2, 0.1, 0.3])]
+    };
+    // the contact region in the middle of x (and z): grade there unless a plane presses all
+    let fine = indenter != Indenter::Plane;
+    let x = axis(&mut r, lx, nx, Some(fine));
+    let y = axis(&mut r, ly, ny, Some(false));
+    // plane strain: one element as thick as a typical element in x
+    let hx = lx / nx as f64;
+    let lz = if three_d {
+        lx * r.uniform(0.3, 1.0)
+    } else {
+        hx * r.uniform(0.5, 2.0)
+    };
+    let z = if three_d {
+        axis(&mut r, lz, nz, Some(fine))
+    } else {
+        Axis::uniform(lz, 1)
+    };
+    // smallest element size of the base near its top
+    let h = [&x, &y, &z]
+        .iter()
+        .map(|a| {
+            let t = a.fractions();
+            t.windows(2)
+                .map(|w| (w[1] - w[0]) * a.length)
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(f64::INFINITY, f64::min);
+    let origin = [-lx / 2.0, -ly, if three_d { -lz / 2.0 } else { 0.0 }];
+    let base = BlockSpec {
+        name: "base".into(),
+        origin,
+        x,
+        y,
+        z,
+    };
+    let mut bodies = vec![body(&mut r, base, e)];
+    let mut prescribed = vec![PrescribedSpec {
+        name: "support".into(),
+        set: "base.ymin".into(),
+        components: vec![Component::X, Component::Y, Component::Z],
+        value: 0.0,
+        amplitude: vec![(0.0, 0.0), (1.0, 1.0)],
+    }];
+    if !three_d {
+        // plane strain; the support's z is prescribed by the support itself
+        prescribed[0].components.pop();
+        prescribed.push(PrescribedSpec {
+            name: "plane-strain".into(),
+            set: "base.all".into(),
+            components: vec![Component::Z],
+            value: 0.0,
+            amplitude: vec![(0.0, 0.0), (1.0, 1.0)],
+        });
+    }
+    // press depth: 0.3 % to 5 % of the block's height, at least a tenth of an element
+    let mut depth = ly * r.log_uniform(3e-3, 5e-2);
+    let gap0 = if r.chance(0.6) {
+        0.0
+    } else {
+        depth * r.uniform(0.0, 0.5)
+    };
+    let mut responses = Vec::new();
+    let contacts;
+    let slide;
+    let force_scale = e * h * h * 1e-2;
+    match indenter {
+        Indenter::Block => {
+            let w = lx * r.uniform(0.15, 0.5);
+            let hgt = ly * r.uniform(0.15, 0.5);
+            let n_sx = r.int(2, if three_d { 5 } else { 12 });
+            let n_sy = r.int(1, if three_d { 3 } else { 6 });
+            let (lzs, nzs) = if three_d {
+                (lz * r.uniform(0.3, 0.8), r.int(1, 4))
+            } else {
+                (lz, 1)
+            };
+            let slider = BlockSpec {
+                name: "slider".into(),
+                origin: [
+                    -w / 2.0 + lx * r.uniform(-0.1, 0.1),
+                    gap0,
+                    if three_d { -lzs / 2.0 } else { 0.0 },
+                ],
+                x: Axis::uniform(w, n_sx),
+                y: Axis::uniform(hgt, n_sy),
+                z: Axis::uniform(lzs, nzs),
+            };
+            // the slider's material: same or another stiffness (up to 100 times either way)
+            let es = if r.chance(0.5) {
+                e
+            } else {
+                e * r.log_uniform(1e-2, 1e2)
+            };
+            bodies.push(body(&mut r, slider, es));
+            depth = depth.min(0.3 * hgt);
+            slide = w * r.uniform(0.05, 0.5);
+            let phases = path(&mut r, gap0, depth, slide, three_d);
+            let mut comps = vec![Component::X, Component::Y];
+            if three_d {
+                comps.push(Component::Z);
+            }
+            for (c, comp) in comps.iter().enumerate() {
+                let mut amp = vec![(0.0, 0.0)];
+                for (k, p) in phases.iter().enumerate() {
+                    amp.push(((k + 1) as f64, p.end[c]));
+                }
+                prescribed.push(PrescribedSpec {
+                    name: format!("drive-{}", ["x", "y", "z"][c]),
+                    set: "slider.ymax".into(),
+                    components: vec![*comp],
+                    value: 1.0,
+                    amplitude: amp,
+                });
+            }
+            if !three_d {
+                prescribed.push(PrescribedSpec {
+                    name: "slider-plane-strain".into(),
+                    set: "slider.all".into(),
+                    components: vec![Component::Z],
+                    value: 0.0,
+                    amplitude: vec![(0.0, 0.0), (1.0, 1.0)],
+                });
+            }
+            let (hitting, target) = if r.chance(0.8) {
+                ("slider.ymin", "base.ymax")
+            } else {
+                ("base.ymax", "slider.ymin")
+            };
+            contacts = vec![ContactSpec {
+                name: "interface".into(),
+                hitting: hitting.into(),
+                target: TargetSpec::Faces(target.into()),
+                normal: normal_law(&mut r, e.min(es), h, depth),
+                friction: friction(&mut r, force_scale),
+                tangential_stiffness: None,
+                constraint_scale: None,
+                activation: None,
+                search_radius: None,
+            }];
+            for c in [Component::X, Component::Y] {
+                responses.push(ResponseSpec::Reaction {
+                    name: format!("drive-force-{c:?}").to_lowercase(),
+                    set: "slider.ymax".into(),
+                    component: c,
+                });
+            }
+            let steps = phases
+                .iter()
+                .enumerate()
+                .map(|(k, p)| StepSpec {
+                    end: (k + 1) as f64,
+                    increments: p.increments,
+                })
+                .collect();
+            return finish(seed, bodies, prescribed, contacts, steps, responses);
+        }
+        Indenter::Cylinder | Indenter::Sphere => {
+            let radius = lx * r.log_uniform(0.15, 10.0);
+            // keep the contact half-width sqrt(2 R d) within a third of the block
+            depth = depth.min((0.33 * lx).powi(2) / (2.0 * radius));
+            let a = (2.0 * radius * depth).sqrt();
+            slide = a.max(2.0 * h) * r.uniform(0.3, 2.0);
+            let centre = [lx * r.uniform(-0.1, 0.1), gap0 + radius, 0.0];
+            let surface = if indenter == Indenter::Cylinder {
+                RigidSpec::Cylinder {
+                    axis_point: centre,
+                    axis: [0.0, 0.0, 1.0],
+                    radius,
+                }
+            } else {
+                RigidSpec::RoundedBox {
+                    center: centre,
+                    half_extents: [radius; 3],
+                    radius,
+                }
+            };
+            contacts = vec![rigid_contact(&mut r, surface, e, h, depth, force_scale)];
+        }
+        Indenter::Punch => {
+            let w = lx * r.uniform(0.1, 0.3);
+            let round = w * r.uniform(0.05, 0.9);
+            let hz = if three_d {
+                lz * r.uniform(0.2, 0.8)
+            } else {
+                lz
+            };
+            let half = [w, w.max(round), hz.max(round)];
+            depth = depth.min(0.5 * round);
+            slide = w * r.uniform(0.05, 0.6);
+            let surface = RigidSpec::RoundedBox {
+                center: [lx * r.uniform(-0.1, 0.1), gap0 + half[1], 0.0],
+                half_extents: half,
+                radius: round,
+            };
+            contacts = vec![rigid_contact(&mut r, surface, e, h, depth, force_scale)];
+        }
+        Indenter::Plane => {
+            depth = ly * r.log_uniform(1e-3, 2e-2);
+            slide = depth * r.uniform(0.5, 5.0);
+            let surface = RigidSpec::Plane {
+                point: [0.0, gap0, 0.0],
+                normal: [0.0, -1.0, 0.0],
+            };
+            contacts = vec![rigid_contact(&mut r, surface, e, h, depth, force_scale)];
+        }
+    }
+    let phases = path(&mut r, gap0, depth, slide, three_d);
+    let mut contacts = contacts;
+    if let TargetSpec::Rigid { motion, .. } = &mut contacts[0].target {
+        for c in 0..if three_d { 3 } else { 2 } {
+            let mut amp = vec![(0.0, 0.0)];
+            for (k, p) in phases.iter().enumerate() {
+                amp.push(((k + 1) as f64, p.end[c]));
+            }
+            if amp.iter().all(|(_, v)| *v == 0.0) {
+                continue;
+            }
+            motion.push(MotionSpec {
+                component: [Component::X, Component::Y, Component::Z][c],
+                value: 1.0,
+                amplitude: amp,
+            });
+        }
+    }
+    for c in [Component::X, Component::Y] {
+        responses.push(ResponseSpec::TargetForce {
+            name: format!("target-force-{c:?}").to_lowercase(),
+            pair: "indenter".into(),
+            component: c,
+        });
+    }
+    let steps = phases
+        .iter()
+        .enumerate()
+        .map(|(k, p)| StepSpec {
+            end: (k + 1) as f64,
+            increments: p.increments,
+        })
+        .collect();
+    finish(seed, bodies, prescribed, contacts, steps, responses)
+}
+
+fn rigid_contact(
+    r: &mut Rng,
+    surface: RigidSpec,
+    e: f64,
+    h: f64,
+    depth: f64,
+    force_scale: f64,
+) -> ContactSpec {
+    ContactSpec {
+        name: "indenter".into(),
+        hitting: "base.ymax".into(),
+        target: TargetSpec::Rigid {
+            surface,
+            motion: Vec::new(),
+        },
+        normal: normal_law(r, e, h, depth),
+        friction: friction(r, force_scale),
+        tangential_stiffness: None,
+        constraint_scale: None,
+        activation: None,
+        search_radius: None,
+    }
+}
+
+fn finish(
+    seed: u64,
+    bodies: Vec<BodySpec>,
+    prescribed: Vec<PrescribedSpec>,
+    contacts: Vec<ContactSpec>,
+    steps: Vec<StepSpec>,
+    responses: Vec<ResponseSpec>,
+) -> Scene {
+    Scene {
+        name: format!("fuzz-{seed}"),
+        description: format!("physics fuzzer scene, seed {seed} (fricsens::fuzz::generate)"),
+        bodies,
+        free_nodes: Vec::new(),
+        springs: Vec::new(),
+        prescribed,
+        loads: Vec::new(),
+        contacts,
+        steps,
+        responses,
+        solver: Default::default(),
+        study: Default::default(),
+    }
+}
+
+/// Relative tolerance of the global equilibrium check: far above the residual Newton leaves
+/// (1e-9 of the reference force), far below any missing or doubled force.
+pub const EQUILIBRIUM_TOL: f64 = 1e-6;
+/// Relative tolerance of the Coulomb inequality `|t| <= mu p_n`: the return map puts a
+/// slipping node's force on the limit to round-off, and a stick within its round-off margin.
+pub const COULOMB_TOL: f64 = 1e-6;
+/// Penetration of a Lagrange pair allowed, as a fraction of the smallest element size: the
+/// constraint `g = 0` holds to Newton's tolerance.
+pub const PENETRATION_TOL: f64 = 1e-6;
+
+/// The physics checks of one converged increment.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct IncrementCheck {
+    /// `|sum of reactions, loads and rigid-target forces|` over the largest of them, the
+    /// worst component.
+    pub equilibrium: f64,
+    /// Largest `|t| / limit - 1` over the closed hitting nodes with friction (negative when
+    /// every node is inside its cone), or a friction force on an open node over the force
+    /// scale.
+    pub coulomb: f64,
+    /// Largest tensile normal force over the force scale (0 when none).
+    pub tension: f64,
+    /// Largest penetration of a Lagrange pair over the smallest element size.
+    pub penetration: f64,
+}
+
+impl IncrementCheck {
+    /// Whether every check holds.
+    pub fn passes(&self) -> bool {
+        self.equilibrium <= EQUILIBRIUM_TOL
+            && self.coulomb <= COULOMB_TOL
+            && self.tension <= COULOMB_TOL
+            && self.penetration <= PENETRATION_TOL
+    }
+
+    /// The worse of two checks, check by check.
+    fn worst(&mut self, o: &IncrementCheck) {
+        self.equilibrium = self.equilibrium.max(o.equilibrium);
+        self.coulomb = self.coulomb.max(o.coulomb);
+        self.tension = self.tension.max(o.tension);
+        self.penetration = self.penetration.max(o.penetration);
+    }
+}
+
+/// The physics checks of a converged increment (see the module docs). `scale` is the largest
+/// force of the run so far (support reactions, loads, rigid-target forces, normal forces): the
+/// imbalance and the tensile forces are measured against it and it is raised to this
+/// increment's largest, so that an unloaded state's round-off is not measured against its own
+/// vanishing forces.
+pub fn check_increment(c: &Converged<'_>, element_size: f64, scale: &mut f64) -> IncrementCheck {
+    let model = c.model;
+    let r = &c.eval.residual;
+    let n_nodal = c.assembler.dofs.n_nodal;
+    let mut out = IncrementCheck {
+        coulomb: f64::NEG_INFINITY,
+        ..IncrementCheck::default()
+    };
+    // global equilibrium, per component, against the largest force of any component: the
+    // residual at the supports (the reactions), the loads and the forces of the rigid targets
+    // on the bodies add up to zero (the internal forces of every element add up to zero, and
+    // so do the contact forces between deformable bodies)
+    let mut imbalance = [0.0f64; 3];
+    let mut largest: f64 = 0.0;
+    for (comp, imb) in imbalance.iter_mut().enumerate() {
+        let mut sum = 0.0;
+        for d in (comp..n_nodal).step_by(3) {
+            if c.constrained[d] {
+                sum += r[d];
+                largest = largest.max(r[d].abs());
+            }
+        }
+        // springs to the ground are supports too: their force `K u` on the node is in the
+        // residual as an internal force that does not add up to zero
+        for sp in model.springs.iter().filter(|sp| sp.b.is_none()) {
+            let f: f64 = (0..3)
+                .map(|j| sp.stiffness[comp][j] * c.z[3 * sp.a + j])
+                .sum();
+            sum -= f;
+            largest = largest.max(f.abs());
+        }
+        for (l, load) in model.loads.iter().enumerate() {
+            if load.component == comp {
+                let f = c.lifted.loads[l] * load.amplitude.at(c.time);
+                sum += f;
+                largest = largest.max(f.abs());
+            }
+        }
+        for (p, pair) in model.contacts.iter().enumerate() {
+            if let Target::Rigid { .. } = pair.target {
+                let f = c.eval.contact.pair_force[p][comp];
+                sum += f;
+                largest = largest.max(f.abs());
+            }
+        }
+        *imb = sum.abs();
+    }
+    let ce = &c.eval.contact;
+    *scale = ce
+        .normal_force
+        .iter()
+        .fold(scale.max(largest), |a, f| a.max(f.abs()));
+    if *scale > 0.0 {
+        out.equilibrium = imbalance.iter().fold(0.0f64, |a, b| a.max(*b)) / *scale;
+    }
+    // contact: Coulomb, tension, penetration
+    let force_scale = scale.max(f64::MIN_POSITIVE);
+    let mut flat = 0;
+    for (p, pair) in model.contacts.iter().enumerate() {
+        for k in 0..pair.hitting.len() {
+            let i = flat + k;
+            let state = ce.choice[i].state;
+            let p_n = ce.normal_force[i];
+            let t = ce.traction[i];
+            if state == crate::contact::ContactState::Open {
+                out.coulomb = out.coulomb.max(t.norm() / force_scale - 1.0);
+                continue;
+            }
+            out.tension = out.tension.max(-p_n / force_scale);
+            if pair.normal == crate::contact::NormalLaw::Lagrange {
+                out.penetration = out.penetration.max(-ce.gap[i] / element_size);
+            }
+            if let Some(law) = &pair.friction {
+                let tn = t.norm();
+                // the law's slip limit at this normal force: its return of a trial force far
+                // outside the cone along the node's friction force
+                let dir = if tn > 0.0 {
+                    t / tn
+                } else {
+                    nalgebra::Vector3::x()
+                };
+                let trial = dir * (1e12 * (p_n.abs() + tn) + 1.0);
+                let params = &c.lifted.friction[p];
+                let limit = crate::with_friction!(law, f => f.return_map(params, &trial, p_n.max(0.0), 0.0, None))
+                    .traction
+                    .norm();
+                let v = if limit > 0.0 {
+                    tn / limit - 1.0
+                } else if tn > 0.0 {
+                    tn / force_scale
+                } else {
+                    -1.0
+                };
+                out.coulomb = out.coulomb.max(v);
+            }
+        }
+        flat += pair.hitting.len();
+    }
+    if out.coulomb == f64::NEG_INFINITY {
+        out.coulomb = 0.0;
+    }
+    out
+}
+
+/// Why a generated scene failed.
+#[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+pub enum FailureClass {
+    /// The scene did not build (a generator bug: every generated scene should be valid).
+    Build,
+    /// A pre-check refused the scene before the first increment.
+    Precheck,
+    /// Newton did not converge; the reason of the last attempt.
+    Diverged(String),
+    /// The run exceeded its time budget.
+    TimeLimit,
+    /// A converged increment failed a physics check: equilibrium.
+    Equilibrium,
+    /// A converged increment failed a physics check: the Coulomb inequality or tension.
+    Coulomb,
+    /// A converged increment failed a physics check: penetration of a Lagrange pair.
+    Penetration,
+    /// Another analysis error.
+    Other(String),
+}
+
+impl std::fmt::Display for FailureClass {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FailureClass::Build => write!(f, "does not build"),
+            FailureClass::Precheck => write!(f, "refused by a pre-check"),
+            FailureClass::Diverged(why) => write!(f, "diverged: {why}"),
+            FailureClass::TimeLimit => write!(f, "time limit"),
+            FailureClass::Equilibrium => write!(f, "wrong answer: equilibrium"),
+            FailureClass::Coulomb => write!(f, "wrong answer: Coulomb inequality"),
+            FailureClass::Penetration => write!(f, "wrong answer: penetration"),
+            FailureClass::Other(why) => write!(f, "{why}"),
+        }
+    }
+}
+
+/// What one generated scene did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CaseOutcome {
+    /// The seed (the scene's name is `fuzz-SEED`).
+    pub seed: u64,
+    /// Unknowns of the model (0 if it did not build).
+    pub unknowns: usize,
+    /// Whether it is a 3D scene (else plane strain).
+    pub three_d: bool,
+    /// Load increments the scene asks for.
+    pub increments: usize,
+    /// Converged increments (cut-back sub-increments included).
+    pub converged: usize,
+    /// Whether the whole path completed and every check held.
+    pub passed: bool,
+    /// Newton iterations of each converged increment.
+    pub iterations: Vec<usize>,
+    /// Cutbacks over the run.
+    pub cutbacks: usize,
+    /// Wall time, seconds.
+    pub seconds: f64,
+    /// Why it failed.
+    pub failure: Option<FailureClass>,
+    /// The error message, or the failed check.
+    pub message: String,
+    /// The worst of every increment's checks.
+    pub check: IncrementCheck,
+}
+
+struct Checker {
+    element_size: f64,
+    /// The largest force of the run so far.
+    scale: f64,
+    worst: IncrementCheck,
+    first_failure: Option<(usize, IncrementCheck)>,
+}
+
+impl Observer for Checker {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        let check = check_increment(c, self.element_size, &mut self.scale);
+        if !check.passes() && self.first_failure.is_none() {
+            self.first_failure = Some((c.index, check.clone()));
+        }
+        self.worst.worst(&check);
+        Ok(())
+    }
+}
+
+/// The smallest element edge of a model's reference mesh.
+fn smallest_edge(model: &Model) -> f64 {
+    let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+    let mut h = f64::INFINITY;
+    for e in &model.mesh.elements {
+        for (a, b) in [
+            (0, 1),
+            (1, 2),
+            (2, 3),
+            (3, 0),
+            (4, 5),
+            (0, 4),
+            (1, 5),
+            (2, 6),
+        ] {
+            h = h.min((x[e[a]] - x[e[b]]).norm());
+        }
+    }
+    h
+}
+
+/// Run one scene with default settings and check it (see the module docs). `time_limit`
+/// bounds the wall time (seconds).
+pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcome {
+    let start = Instant::now();
+    let mut out = CaseOutcome {
+        seed,
+        unknowns: 0,
+        three_d: !scene.prescribed.iter().any(|p| p.name == "plane-strain"),
+        increments: scene.steps.iter().map(|s| s.increments).sum(),
+        converged: 0,
+        passed: false,
+        iterations: Vec::new(),
+        cutbacks: 0,
+        seconds: 0.0,
+        failure: None,
+        message: String::new(),
+        check: IncrementCheck::default(),
+    };
+    let model = match scene.build() {
+        Ok(m) => m,
+        Err(e) => {
+            out.failure = Some(FailureClass::Build);
+            out.message = e.to_string();
+            out.seconds = start.elapsed().as_secs_f64();
+            return out;
+        }
+    };
+    let h = smallest_edge(&model);
+    // the force a strain of 1e-6 carries over one element face of the stiffest body: the
+    // smallest force scale of the checks, so that the round-off of an unloaded state is not
+    // measured against its own vanishing forces
+    let e_max = model
+        .bodies
+        .iter()
+        .map(|b| b.material.params()[0])
+        .fold(0.0f64, f64::max);
+    let mut checker = Checker {
+        element_size: h,
+        scale: 1e-6 * e_max * h * h,
+        worst: IncrementCheck::default(),
+        first_failure: None,
+    };
+    let result = Solver::new(&model).and_then(|mut s| {
+        out.unknowns = s.assembler.dofs.n_total;
+        s.run(
+            &RunOptions {
+                keep_states: false,
+                time_limit,
+            },
+            &mut checker,
+        )
+    });
+    out.seconds = start.elapsed().as_secs_f64();
+    out.check = checker.worst.clone();
+    let records = match &result {
+        Ok(res) => Some(&res.records),
+        Err(e) => e.partial().map(|p| &p.records),
+    };
+    if let Some(records) = records {
+        out.converged = records.len();
+        out.iterations = records.iter().map(|r| r.iterations).collect();
+        out.cutbacks = records.iter().map(|r| r.cutbacks).sum();
+    }
+    match result {
+        Err(e) => {
+            out.failure = Some(match &e {
+                AnalysisError::Diverged { reason, .. } => {
+                    FailureClass::Diverged(reason_class(reason))
+                }
+                AnalysisError::TimeLimit { .. } => FailureClass::TimeLimit,
+                AnalysisError::Model(m) if m.contains("pre-check") => FailureClass::Precheck,
+                other => FailureClass::Other(first_words(&other.to_string())),
+            });
+            out.message = e.to_string();
+        }
+        Ok(_) => {
+            if let Some((inc, check)) = checker.first_failure {
+                out.failure = Some(if check.equilibrium > EQUILIBRIUM_TOL {
+                    FailureClass::Equilibrium
+                } else if check.penetration > PENETRATION_TOL {
+                    FailureClass::Penetration
+                } else {
+                    FailureClass::Coulomb
+                });
+                out.message = format!("increment {inc}: {check:?}");
+            } else {
+                out.passed = true;
+            }
+        }
+    }
+    out
+}
+
+/// The class of a divergence reason: its words up to the first number or parenthesis (of
+/// the last failed attempt, where the attempt budget ran out).
+fn reason_class(reason: &str) -> String {
+    let reason = match reason.split_once("the last failed attempt, to t = ") {
+        Some((_, rest)) => rest.split_once(": ").map(|(_, r)| r).unwrap_or(rest),
+        None => reason,
+    };
+    first_words(reason)
+}
+
+fn first_words(s: &str) -> String {
+    s.split(|c: char| c == '(' || c == ':' || c == ';' || c.is_ascii_digit())
+        .next()
+        .unwrap_or(s)
+        .trim()
+        .to_string()
+}
+
+/// The figures of a fuzzing campaign: what the report's robustness section tabulates.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Summary {
+    /// Scenes tried.
+    pub tried: usize,
+    /// Scenes that completed their whole path with every check holding.
+    pub passed: usize,
+    /// Failures per class, most frequent first.
+    pub classes: Vec<(String, usize)>,
+    /// Median Newton iterations per converged increment over all scenes.
+    pub median_iterations: f64,
+    /// 90th percentile of the iterations per converged increment.
+    pub p90_iterations: f64,
+    /// Per size class (`unknowns` upper bound): scenes, median seconds, largest seconds, and
+    /// the largest over the median.
+    pub size_classes: Vec<SizeClass>,
+}
+
+/// Wall times of the scenes of one size class.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SizeClass {
+    /// Unknowns below this bound (and at or above the previous class's).
+    pub below: usize,
+    /// Scenes in the class.
+    pub scenes: usize,
+    /// Median wall time, seconds.
+    pub median_seconds: f64,
+    /// Largest wall time, seconds.
+    pub max_seconds: f64,
+    /// Seed of the slowest scene.
+    pub slowest_seed: u64,
+}
+
+fn percentile(v: &mut [f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let k = ((v.len() - 1) as f64 * q).round() as usize;
+    v[k]
+}
+
+/// Upper bounds (unknowns) of the size classes.
+pub const SIZE_CLASSES: [usize; 5] = [500, 1_000, 2_000, 5_000, usize::MAX];
+
+impl Summary {
+    /// The figures of `outcomes`.
+    pub fn of(outcomes: &[CaseOutcome]) -> Summary {
+        let mut classes = std::collections::BTreeMap::<String, usize>::new();
+        for o in outcomes {
+            if let Some(f) = &o.failure {
+                *classes.entry(f.to_string()).or_default() += 1;
+            }
+        }
+        let mut classes: Vec<(String, usize)> = classes.into_iter().collect();
+        classes.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+        let mut iters: Vec<f64> = outcomes
+            .iter()
+            .flat_map(|o| o.iterations.iter().map(|&i| i as f64))
+            .collect();
+        let median_iterations = percentile(&mut iters, 0.5);
+        let p90_iterations = percentile(&mut iters, 0.9);
+        let mut size_classes = Vec::new();
+        let mut lower = 0;
+        for &below in &SIZE_CLASSES {
+            let members: Vec<&CaseOutcome> = outcomes
+                .iter()
+                .filter(|o| o.unknowns >= lower && o.unknowns < below)
+                .collect();
+            lower = below;
+            if members.is_empty() {
+                continue;
+            }
+            let mut t: Vec<f64> = members.iter().map(|o| o.seconds).collect();
+            let slowest = members
+                .iter()
+                .max_by(|a, b| a.seconds.total_cmp(&b.seconds))
+                .expect("not empty");
+            size_classes.push(SizeClass {
+                below,
+                scenes: members.len(),
+                median_seconds: percentile(&mut t, 0.5),
+                max_seconds: slowest.seconds,
+                slowest_seed: slowest.seed,
+            });
+        }
+        Summary {
+            tried: outcomes.len(),
+            passed: outcomes.iter().filter(|o| o.passed).count(),
+            classes,
+            median_iterations,
+            p90_iterations,
+            size_classes,
+        }
+    }
+
+    /// The summary as Markdown (the report's robustness tables).
+    pub fn markdown(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "{} scenes tried, {} completed their whole path with every check holding ({:.1} %); Newton iterations per converged increment: median {}, 90th percentile {}.\n",
+            self.tried,
+            self.passed,
+            100.0 * self.passed as f64 / self.tried.max(1) as f64,
+            self.median_iterations,
+            self.p90_iterations
+        );
+        if !self.classes.is_empty() {
+            let _ = writeln!(s, "| failure class | scenes |\n|---|---|");
+            for (c, n) in &self.classes {
+                let _ = writeln!(s, "| {c} | {n} |");
+            }
+            s.push('\n');
+        }
+        let _ = writeln!(
+            s,
+            "| unknowns | scenes | median time (s) | largest (s) | largest / median | slowest seed |\n|---|---|---|---|---|---|"
+        );
+        let mut lower = 0;
+        for c in &self.size_classes {
+            let range = if c.below == usize::MAX {
+                format!(">= {lower}")
+            } else {
+                format!("{lower} - {}", c.below)
+            };
+            lower = c.below;
+            let _ = writeln!(
+                s,
+                "| {range} | {} | {:.3} | {:.3} | {:.1} | {} |",
+                c.scenes,
+                c.median_seconds,
+                c.max_seconds,
+                c.max_seconds / c.median_seconds.max(1e-9),
+                c.slowest_seed
+            );
+        }
+        s
+    }
+}
