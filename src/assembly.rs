@@ -40,13 +40,25 @@ pub struct Assembler {
     pub contact: ContactLayout,
 }
 
-/// Branch decisions imposed on an evaluation (SDM's frozen state, one-sided derivatives).
-#[derive(Clone, Copy, Debug)]
+/// Branch decisions imposed on an evaluation (SDM's frozen state, one-sided derivatives), and
+/// the guidance the primal solver gives free decisions (face hysteresis, forced stick).
+/// `Frozen::default()` leaves everything free.
+#[derive(Clone, Copy, Debug, Default)]
 pub struct Frozen<'a> {
     /// Per Gauss point (8 per element); `None` leaves them free.
     pub gauss: Option<&'a [Branch]>,
-    /// Per hitting node (flat over pairs).
+    /// Per hitting node (flat over pairs); empty: every contact state decided freely.
     pub contact: &'a [ContactChoice],
+    /// Per hitting node (flat over pairs), for the nodes whose contact is not frozen: the
+    /// target face to keep while the node projects onto it within
+    /// [`crate::contact::geometry::SEGMENT_KEEP`] (the faces of the last converged state:
+    /// hysteresis of the face choice, see there).
+    pub keep_faces: Option<&'a [ContactChoice]>,
+    /// Per hitting node (flat over pairs), for the nodes whose contact is not frozen: a node
+    /// the free decision puts in slip sticks instead (the primal solver's remedy for a slip
+    /// direction that reverses between Newton iterates; the evaluation is then not the true
+    /// residual and never accepted as converged).
+    pub stick: Option<&'a [bool]>,
     /// Per element: left out of the evaluation. A skipped element adds nothing to the
     /// residual and carries its history over unchanged (`hist_new = hist_old`, derivative
     /// parts included). For evaluations that want only the updated history and responses
@@ -470,7 +482,9 @@ impl Assembler {
                 z,
                 hist_old,
                 time,
-                frozen.map(|f| f.contact),
+                frozen.map(|f| f.contact).filter(|c| !c.is_empty()),
+                frozen.and_then(|f| f.keep_faces),
+                frozen.and_then(|f| f.stick),
                 want_k,
                 &mut out.residual,
                 &mut out.hist_new,

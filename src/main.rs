@@ -186,6 +186,9 @@ enum Command {
         /// of generated ones.
         #[arg(long = "scene")]
         scenes: Vec<String>,
+        /// Print the scene of this seed as TOML and exit.
+        #[arg(long)]
+        show: Option<u64>,
     },
     /// Primal analysis: history CSV, Newton records, VTK files.
     Run {
@@ -710,6 +713,12 @@ fn main() -> ExitCode {
             )),
         },
         Command::Fuzz {
+            show: Some(seed), ..
+        } => {
+            outp!("{}", fricsens::fuzz::generate(seed).to_toml());
+            Ok(())
+        }
+        Command::Fuzz {
             seeds,
             start,
             out,
@@ -717,6 +726,7 @@ fn main() -> ExitCode {
             time_limit,
             only,
             scenes,
+            show: None,
         } => {
             let list = if only.is_empty() {
                 (start..start + seeds).collect()

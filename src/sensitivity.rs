@@ -524,6 +524,7 @@ fn converged_frozen<'c>(c: &'c Converged<'_>) -> Frozen<'c> {
         gauss: Some(&c.eval.branches),
         contact: &c.eval.contact.choice,
         skip: None,
+        ..Frozen::default()
     }
 }
 
@@ -1473,6 +1474,7 @@ impl Observer for Engine<'_> {
                     gauss: Some(&gauss),
                     contact: &contact,
                     skip: None,
+                    ..Frozen::default()
                 };
                 self.forced_tangent = Some(self.forced_tangent_at(c, &frozen)?);
                 let base = pseudo.as_ref().expect("DDM keeps its pseudo-loads");

@@ -312,6 +312,14 @@ fn bounding_diagonal(points: &[nalgebra::Vector3<f64>]) -> f64 {
 /// leaf spring refined 4 times ran out of time).
 const YIELD_CROSSING_FLOOR: f64 = 0.125;
 
+/// A Newton iteration whose residual is above this fraction of the last one's stalls: the
+/// slip-reversal remedy acts only then.
+const STALL_RATIO: f64 = 0.5;
+
+/// Times a hitting node may be forced onto the stick branch per attempt when its slip
+/// direction reverses between two Newton iterates ([`Solver`]'s attempt).
+const SLIP_REVERSALS: usize = 3;
+
 /// Of the nodes a step would close, the first active-set prediction takes those whose
 /// predicted penetration is at least this fraction of their pair's deepest.
 const ACTIVE_SET_ADD_FRACTION: f64 = 0.9;
@@ -373,6 +381,7 @@ impl ActiveSetPredictor {
         hist: &[f64],
         t: f64,
         current: &Evaluation<f64>,
+        keep_faces: &[ContactChoice],
     ) -> Option<(String, usize)> {
         let trial = &mut self.trial;
         trial.residual.iter_mut().for_each(|r| *r = 0.0);
@@ -384,6 +393,8 @@ impl ActiveSetPredictor {
             &self.z,
             hist,
             t,
+            None,
+            Some(keep_faces),
             None,
             false,
             &mut trial.residual,
@@ -1086,9 +1097,15 @@ impl<'m> Solver<'m> {
             for ((tz, zi), d) in predictor.z.iter_mut().zip(z).zip(dz.iter()) {
                 *tz = zi + d;
             }
-            let Some((trial, changes)) =
-                predictor.next(model, &self.assembler, &self.lifted, hist, t, eval)
-            else {
+            let Some((trial, changes)) = predictor.next(
+                model,
+                &self.assembler,
+                &self.lifted,
+                hist,
+                t,
+                eval,
+                &self.converged_choice,
+            ) else {
                 break;
             };
             if self.trace {
@@ -1139,6 +1156,7 @@ impl<'m> Solver<'m> {
                 gauss: None,
                 contact: &predictor.choice,
                 skip: None,
+                ..Frozen::default()
             };
             assemble(
                 &self.assembler,
@@ -1207,15 +1225,33 @@ impl<'m> Solver<'m> {
         let mut settle_solves = 0;
         // Newton iterations (solves) made
         let mut k = 0;
+        // Slip reversal (see `SLIP_REVERSALS`): the states and friction forces of the last
+        // free evaluation, the nodes forced to stick in the current one, and how often each
+        // node has been forced in this attempt
+        let friction = model.contacts.iter().any(|c| c.friction.is_some());
+        let mut last_free: Option<(Vec<ContactState>, Vec<nalgebra::Vector3<f64>>)> = None;
+        let mut forced: Vec<bool> = Vec::new();
+        let mut forced_count: Vec<usize> = Vec::new();
         loop {
             if self.deadline.is_some_and(|d| Instant::now() > d) {
                 return Err(AttemptFailure::TimeLimit);
             }
             let (r_free, f_ref) = loop {
+                // the first iteration's contact states and faces those of the last converged
+                // increment (the predictor below), the others' decided freely but for the
+                // faces' hysteresis against the converged ones
                 let frozen = Frozen {
                     gauss: None,
                     contact: &self.converged_choice,
                     skip: None,
+                    ..Frozen::default()
+                };
+                let free = Frozen {
+                    gauss: None,
+                    contact: &[],
+                    skip: None,
+                    keep_faces: Some(&self.converged_choice),
+                    stick: (!forced.is_empty()).then_some(&forced[..]),
                 };
                 assemble(
                     &self.assembler,
@@ -1223,7 +1259,7 @@ impl<'m> Solver<'m> {
                     &self.lifted,
                     &mut self.matrix,
                     (z, hist, t),
-                    (predict && k == 0).then_some(&frozen),
+                    Some(if predict && k == 0 { &frozen } else { &free }),
                     eval,
                     cost,
                 )
@@ -1262,7 +1298,7 @@ impl<'m> Solver<'m> {
                     .zip(&eval.contact.normal_force)
                     .enumerate()
                     .filter(|(_, (c, _))| c.state != crate::contact::ContactState::Open)
-                    .map(|(i, (c, f))| format!("{i}:{:?}:{f:.3e}", c.state))
+                    .map(|(i, (c, f))| format!("{i}:{:?}:{f:.3e}:f{}", c.state, c.face))
                     .collect();
                 eprintln!(
                     "  t = {t:.4e} k = {k} alpha = {alpha:.3} r = {r_free:.3e} closed {}",
@@ -1284,7 +1320,7 @@ impl<'m> Solver<'m> {
             // lower one along its whole length (0.02 mm clearance), and the primal-dual active
             // set then released the spurious contacts one node per iteration (26 iterations;
             // refined meshes ran out of iterations).
-            if line_search && k >= 1 && !limited {
+            if line_search && k >= 1 && !limited && forced.is_empty() {
                 let floor = self.penetration_floor;
                 let first_touch = base_gap
                     .iter()
@@ -1309,9 +1345,11 @@ impl<'m> Solver<'m> {
                     continue;
                 }
             }
-            let force_ok = r_free <= s.force_tol * f_ref || r_free == 0.0;
+            let forcing = !forced.is_empty();
+            let force_ok = !forcing && (r_free <= s.force_tol * f_ref || r_free == 0.0);
             // (a first correction of zero energy gives no scale: the force criterion decides)
-            let energy_ok = k > 0 && energy0 > 0.0 && last_energy <= s.energy_tol * energy0;
+            let energy_ok =
+                !forcing && k > 0 && energy0 > 0.0 && last_energy <= s.energy_tol * energy0;
             // the correction is at round-off: Newton cannot move the state any more, the
             // residual left is the noise of its own evaluation. Either the whole correction
             // is at round-off of the unknowns, or the positions moved by less than the
@@ -1322,7 +1360,8 @@ impl<'m> Solver<'m> {
             // below it in the first increments of the finest mesh, where Newton stayed at the
             // floor for 29 iterations with position corrections of 0.0 to 0.6 eps |x| (the
             // quadratic step before reaching the floor: 450 eps |x| and more).
-            let correction_ok = k > 1
+            let correction_ok = !forcing
+                && k > 1
                 && (last_correction <= CORRECTION_ROUND_OFF * f64::EPSILON
                     || (last_position_correction <= CORRECTION_ROUND_OFF * f64::EPSILON
                         && last_other_correction <= f64::EPSILON.sqrt()));
@@ -1340,7 +1379,12 @@ impl<'m> Solver<'m> {
             // sliding block 5.75 / 4.91 / 4.81 iterations per increment, strip pull-out
             // 21 / 39 / 83 increments (its slip front needs the damping), leaf spring
             // diverged / 12 / 12.
-            if line_search && k > 1 && r_free > LINE_SEARCH_GROWTH * prev_r && alpha > 1.0 / 32.0 {
+            if line_search
+                && !forcing
+                && k > 1
+                && r_free > LINE_SEARCH_GROWTH * prev_r
+                && alpha > 1.0 / 32.0
+            {
                 // step back to z_prev + (alpha / 2) dz and evaluate again
                 alpha *= 0.5;
                 for (zi, d) in z.iter_mut().zip(&last_dz) {
@@ -1348,9 +1392,52 @@ impl<'m> Solver<'m> {
                 }
                 continue;
             }
+            // Slip reversal: a node that slipped at the last free evaluation and slips the
+            // other way now has its stick zone between the two iterates; Newton's slip tangent
+            // (no stiffness along the slip) steps over it each time and cycles. Evaluate again
+            // with such nodes on the stick branch, so that the step is solved with their
+            // stick stiffness and lands them in the zone (at most SLIP_REVERSALS times per
+            // node and attempt: the forcing ends, and the free decisions take over).
+            if friction && !forcing && !(predict && k == 0) {
+                let states: Vec<ContactState> =
+                    eval.contact.choice.iter().map(|c| c.state).collect();
+                let mut reversed = Vec::new();
+                // only where Newton stalls: far from the solution a slip direction may turn
+                // on the way (the leaf spring's nose nodes do at its second iteration, where
+                // forcing them cost 27 more iterations over the run)
+                let stalled = r_free > STALL_RATIO * prev_r;
+                if let (true, Some((old_states, old_t))) = (stalled, &last_free) {
+                    forced_count.resize(states.len(), 0);
+                    for i in 0..states.len() {
+                        if states[i] == ContactState::Slip
+                            && old_states[i] == ContactState::Slip
+                            && eval.contact.traction[i].dot(&old_t[i]) < 0.0
+                            && forced_count[i] < SLIP_REVERSALS
+                        {
+                            reversed.push(i);
+                        }
+                    }
+                }
+                last_free = Some((states, eval.contact.traction.clone()));
+                if !reversed.is_empty() {
+                    forced = vec![false; eval.contact.choice.len()];
+                    for &i in &reversed {
+                        forced[i] = true;
+                        forced_count[i] += 1;
+                    }
+                    if self.trace {
+                        eprintln!(
+                            "    slip reversal: nodes {reversed:?} evaluated again on the stick branch"
+                        );
+                    }
+                    continue;
+                }
+            }
             alpha = 1.0;
             limited = false;
-            prev_r = r_free;
+            if !forcing {
+                prev_r = r_free;
+            }
             if k == s.max_iterations {
                 return Err(AttemptFailure::Diverged("iteration limit"));
             }
@@ -1360,6 +1447,7 @@ impl<'m> Solver<'m> {
             let mut dz = vec![0.0; eval.residual.len()];
             self.newton_step(eval, &mut dz, cost)?;
             factored = true;
+            forced.clear();
             if k == 0 && line_search {
                 let predictor =
                     predictor.get_or_insert_with(|| ActiveSetPredictor::new(&self.assembler));
@@ -1397,9 +1485,15 @@ impl<'m> Solver<'m> {
             }
             last_energy = energy;
             let n_nodal = self.assembler.dofs.n_nodal;
+            // the displacement-like unknowns (nodal, and the elements' incompatible modes)
+            // against the positions' round-off; the multipliers against themselves (an
+            // unloaded body's incompatible modes are zero, and their corrections were measured
+            // against nothing: the fuzzer found Newton at the round-off floor of a lifted-off
+            // body for 30 iterations)
+            let first_lambda = self.assembler.dofs.first_lambda.min(dz.len());
             let norm = |v: &[f64]| v.iter().map(|v| v * v).sum::<f64>().sqrt();
-            let (dz_nodal, dz_other) = (norm(&dz[..n_nodal]), norm(&dz[n_nodal..]));
-            let (z_nodal, z_other) = (norm(&z[..n_nodal]), norm(&z[n_nodal..]));
+            let (dz_nodal, dz_other) = (norm(&dz[..first_lambda]), norm(&dz[first_lambda..]));
+            let (z_nodal, z_other) = (norm(&z[..first_lambda]), norm(&z[first_lambda..]));
             let x_norm = (0..n_nodal)
                 .map(|d| (self.lifted.coords[d / 3][d % 3] + z[d]).powi(2))
                 .sum::<f64>()

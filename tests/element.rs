@@ -471,6 +471,7 @@ fn tangents_over_complementary_element_sets_add_up() {
             gauss: None,
             contact: &[],
             skip: Some(s),
+            ..Frozen::default()
         });
         let mut k = SparseMatrix::new(asm.pattern.clone());
         let mut ev = Evaluation::<f64>::new(&asm, ne);

@@ -146,6 +146,7 @@ impl fricsens::solver::Observer for SkipCheck {
             gauss: Some(&c.eval.branches),
             contact: &c.eval.contact.choice,
             skip: None,
+            ..Frozen::default()
         };
         let skip = Frozen::history_unchanged(c.model, &c.eval.branches);
         let update = Frozen {

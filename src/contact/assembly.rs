@@ -7,7 +7,7 @@
 //! reference configuration) and its multiplier. The block never changes during a run, so the
 //! symbolic factorization is done once however far the node slides over its candidates.
 
-use super::geometry::closest_on_quads;
+use super::geometry::{closest_on_quads, closest_on_quads_keeping};
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
     KernelParams, Target, TargetGeom,
@@ -145,21 +145,24 @@ fn node_pos<S: Scalar>(lifted: &Lifted<S>, z: &[S], n: usize) -> Vector3<S> {
 }
 
 /// Which candidate face is closest to `x` (a branch decision, on real parts), and the
-/// convected coordinates of the closest point on it.
+/// convected coordinates of the closest point on it; face `keep` (of the last converged state)
+/// is kept while `x` projects onto it within [`super::geometry::SEGMENT_KEEP`].
 fn closest_face<S: Scalar>(
     lifted: &Lifted<S>,
     z: &[S],
     faces: &[[usize; 4]],
     candidates: &[usize],
     x: &Vector3<S>,
+    keep: Option<usize>,
 ) -> Result<(usize, [f64; 2]), ContactFailure> {
     let quads: Vec<[Vector3<f64>; 4]> = candidates
         .iter()
         .map(|&f| faces[f].map(|n| node_pos(lifted, z, n).map(|v| v.value())))
         .collect();
     let xr = x.map(|v| v.value());
-    let (k, pr) =
-        closest_on_quads(&xr, &quads, None).map_err(|e| ContactFailure::Geometry(e.to_string()))?;
+    let keep = keep.and_then(|f| candidates.iter().position(|&c| c == f));
+    let (k, pr) = closest_on_quads_keeping(&xr, &quads, keep)
+        .map_err(|e| ContactFailure::Geometry(e.to_string()))?;
     Ok((candidates[k], [pr.xi[0], pr.xi[1]]))
 }
 
@@ -196,6 +199,8 @@ pub fn evaluate<S: Scalar>(
     hist_old: &[S],
     time: f64,
     frozen: Option<&[ContactChoice]>,
+    keep_faces: Option<&[ContactChoice]>,
+    force_stick: Option<&[bool]>,
     want_tangent: bool,
     residual: &mut [S],
     hist_new: &mut [S],
@@ -238,7 +243,15 @@ pub fn evaluate<S: Scalar>(
             let (face, xi_start) = match &pair.target {
                 Target::Faces { faces } => match fz {
                     Some(c) => (c.face, [0.0, 0.0]),
-                    None => closest_face(lifted, z, faces, &pair.candidates[i], &x).map_err(err)?,
+                    None => closest_face(
+                        lifted,
+                        z,
+                        faces,
+                        &pair.candidates[i],
+                        &x,
+                        keep_faces.and_then(|k| k.get(flat)).map(|c| c.face),
+                    )
+                    .map_err(err)?,
                 },
                 Target::Rigid { .. } => (0, [0.0, 0.0]),
             };
@@ -274,7 +287,7 @@ pub fn evaluate<S: Scalar>(
             } else {
                 None
             };
-            let ko = node_kernel(
+            let mut ko = node_kernel(
                 &x_ref,
                 &u,
                 lambda,
@@ -285,6 +298,31 @@ pub fn evaluate<S: Scalar>(
                 fz.map(|c| c.state),
             )
             .map_err(err)?;
+            // a node the solver forces to stick: evaluated again on the stick branch (its
+            // normal state stays the free decision: slip implies closed), and the tangent
+            // and the history follow that branch
+            let mut fz = fz;
+            if fz.is_none()
+                && ko.state == ContactState::Slip
+                && force_stick.and_then(|f| f.get(flat)).copied() == Some(true)
+            {
+                ko = node_kernel(
+                    &x_ref,
+                    &u,
+                    lambda,
+                    lambda_bar,
+                    &target,
+                    anchor.as_ref(),
+                    &par,
+                    Some(ContactState::Stick),
+                )
+                .map_err(err)?;
+                fz = Some(ContactChoice {
+                    state: ContactState::Stick,
+                    face,
+                    anchor_face: face,
+                });
+            }
             // ---- residual ----
             for c in 0..3 {
                 residual[3 * s + c] -= ko.force[c];
@@ -332,9 +370,18 @@ pub fn evaluate<S: Scalar>(
                         anchor_face = match fz {
                             Some(c) => c.anchor_face,
                             None => {
-                                closest_face(lifted, z, faces, &pair.candidates[i], &ko.new_anchor)
-                                    .map_err(err)?
-                                    .0
+                                // on the node's contact face while it lies on it (within the
+                                // same hysteresis), else the closest
+                                closest_face(
+                                    lifted,
+                                    z,
+                                    faces,
+                                    &pair.candidates[i],
+                                    &ko.new_anchor,
+                                    Some(face),
+                                )
+                                .map_err(err)?
+                                .0
                             }
                         };
                         let nodes = faces[anchor_face].map(|n| node_pos(lifted, z, n));
