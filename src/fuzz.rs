@@ -28,7 +28,6 @@
 use crate::contact::friction::FrictionLaw;
 use crate::contact::Target;
 use crate::mesh::{Axis, BlockSpec, Zone};
-use crate::model::Model;
 use crate::scene::{
     BodySpec, Component, ContactSpec, FrictionSpec, MaterialSpec, MotionSpec, PrescribedSpec,
     ResponseSpec, RigidSpec, Scene, StepSpec, TargetSpec,
@@ -860,27 +859,6 @@ impl Observer for Checker {
     }
 }
 
-/// The smallest element edge of a model's reference mesh.
-fn smallest_edge(model: &Model) -> f64 {
-    let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
-    let mut h = f64::INFINITY;
-    for e in &model.mesh.elements {
-        for (a, b) in [
-            (0, 1),
-            (1, 2),
-            (2, 3),
-            (3, 0),
-            (4, 5),
-            (0, 4),
-            (1, 5),
-            (2, 6),
-        ] {
-            h = h.min((x[e[a]] - x[e[b]]).norm());
-        }
-    }
-    h
-}
-
 /// Run one scene with default settings and check it (see the module docs). `time_limit`
 /// bounds the wall time (seconds).
 pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcome {
@@ -908,7 +886,9 @@ pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcom
             return out;
         }
     };
-    let h = smallest_edge(&model);
+    let h = model
+        .mesh
+        .smallest_edge(&model.mesh.coordinates::<f64>(&model.mesh.block_geometry()));
     // the force a strain of 1e-6 carries over one element face of the stiffest body: the
     // smallest force scale of the checks, so that the round-off of an unloaded state is not
     // measured against its own vanishing forces
@@ -951,7 +931,7 @@ pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcom
                     FailureClass::Diverged(reason_class(reason))
                 }
                 AnalysisError::TimeLimit { .. } => FailureClass::TimeLimit,
-                AnalysisError::Model(m) if m.contains("pre-check") => FailureClass::Precheck,
+                AnalysisError::Precheck(_) => FailureClass::Precheck,
                 other => FailureClass::Other(first_words(&other.to_string())),
             });
             out.message = e.to_string();
@@ -981,7 +961,13 @@ fn reason_class(reason: &str) -> String {
         Some((_, rest)) => rest.split_once(": ").map(|(_, r)| r).unwrap_or(rest),
         None => reason,
     };
-    first_words(reason)
+    if reason.starts_with("Newton cycles with the contact states unchanged") {
+        "cycle, contact states unchanged".into()
+    } else if reason.starts_with("Newton cycles") {
+        "cycle, contact states flipping".into()
+    } else {
+        first_words(reason)
+    }
 }
 
 fn first_words(s: &str) -> String {

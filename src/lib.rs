@@ -44,6 +44,7 @@ pub mod mesh;
 pub mod model;
 pub mod output;
 pub mod plot;
+pub mod precheck;
 pub mod response;
 pub mod scalar;
 pub mod scaling;

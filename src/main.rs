@@ -418,7 +418,13 @@ fn run(scene_name: &str, out: Option<PathBuf>, vtk: output::VtkOutput) -> Result
     let scene = Scene::load(scene_name).map_err(|e| e.to_string())?;
     let model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
     let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
+    for n in &model.notes {
+        eprintln!("default: {n}");
+    }
     let mut solver = Solver::new(&model).map_err(|e| e.to_string())?;
+    for w in solver.warnings() {
+        eprintln!("warning: {w}");
+    }
     let mut obs = Progress(progress(model.times.len()));
     let result = solver.run(&RunOptions::default(), &mut obs);
     obs.0.finish_and_clear();

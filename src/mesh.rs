@@ -187,6 +187,29 @@ impl Mesh {
         self.places.len()
     }
 
+    /// The shortest element edge (the twelve edges of every hex8) at the coordinates `x`
+    /// (infinite without elements).
+    pub fn smallest_edge(&self, x: &[Vector3<f64>]) -> f64 {
+        const EDGES: [(usize, usize); 12] = [
+            (0, 1),
+            (1, 2),
+            (2, 3),
+            (3, 0),
+            (4, 5),
+            (5, 6),
+            (6, 7),
+            (7, 4),
+            (0, 4),
+            (1, 5),
+            (2, 6),
+            (3, 7),
+        ];
+        self.elements
+            .iter()
+            .flat_map(|e| EDGES.iter().map(move |(a, b)| (x[e[*a]] - x[e[*b]]).norm()))
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Add a free node with fixed coordinates; returns its number.
     pub fn add_free_node(&mut self, x: [f64; 3]) -> usize {
         self.places.push(NodePlace::Free(x));

@@ -243,6 +243,9 @@ pub struct Model {
     pub responses: Vec<crate::response::Response>,
     /// Newton-Raphson settings.
     pub solver: SolverSettings,
+    /// What building the model chose for the user (defaults derived from the scene, hitting
+    /// nodes left out of a pair), one sentence each: `fricsens run` prints them.
+    pub notes: Vec<String>,
 }
 
 /// A design parameter: something the responses can be differentiated with respect to.

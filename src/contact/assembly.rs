@@ -226,6 +226,7 @@ pub fn evaluate<S: Scalar>(
         for (i, &s) in pair.hitting.iter().enumerate() {
             let flat = layout.flat[p] + i;
             par.area = pair.area[i];
+            par.eps_t = eps_t * pair.tangential_weight[i];
             let block = &layout.blocks[p][i];
             let lam_dof = layout.lambda[p] + i;
             let h0 = layout.history[p] + nh * i;
@@ -535,7 +536,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
         .iter()
         .map(|v| Ad::<N>::from_re(v.value()))
         .collect();
-    let eps_t = Ad::<N>::from_re(lifted.tangential[p].value());
+    let eps_t = Ad::<N>::from_re(lifted.tangential[p].value() * pair.tangential_weight[i]);
     let rv: Vec<Ad<N>> = lifted.rigid_motion[p]
         .iter()
         .map(|v| Ad::<N>::from_re(v.value()))

@@ -204,8 +204,15 @@ pub struct ContactPair {
     pub normal: NormalLaw,
     /// Friction law (`None`: frictionless).
     pub friction: Option<Friction>,
-    /// Tangential penalty stiffness `eps_T` (force per unit elastic slip).
+    /// Tangential penalty stiffness `eps_T` (force per unit elastic slip), the scale of every
+    /// hitting node's (`tangential_weight`); the design parameter `PAIR.eps_t`.
     pub tangential_stiffness: f64,
+    /// Each hitting node's share of the tangential stiffness: node `i` sticks with
+    /// `tangential_stiffness * tangential_weight[i]`. All ones when the scene gives
+    /// `tangential_stiffness`; derived from the surface elements otherwise (see
+    /// `fricsens::scene`'s default: `c_T E* A_i / h_i`, the stiffness of the element layer
+    /// under node `i`, over its mean).
+    pub tangential_weight: Vec<f64>,
     /// Row scale `k` of the multiplier constraints (force per unit gap).
     pub constraint_scale: f64,
     /// Weight `c` of the gap in the active-set rule of Lagrange multipliers: a node is active

@@ -1,0 +1,281 @@
+//! Checks of a model before its first increment, for what would otherwise show up as a failed
+//! or silently wrong analysis many increments later:
+//!
+//! * **overlap**: hitting nodes that start inside their target (which nodes, how deep) — an
+//!   error: the first increment would load them with the whole overlap at once;
+//! * **rigid-body modes**: a body whose supports (prescribed components and springs to the
+//!   ground) leave it free to translate or rotate — an error when nothing else holds it (the
+//!   tangent is singular), a warning when it is in a contact pair (it is then held only by
+//!   contact, which must be closed from the first increment on, or the tangent is singular);
+//! * **pairs that cannot touch**: a rigid target that stays further from every hitting node
+//!   than the hitting body's size along its whole path — a warning.
+//!
+//! [`crate::solver::Solver::new`] runs them; its errors are [`PrecheckError`]s inside
+//! [`crate::solver::AnalysisError::Precheck`], its warnings [`crate::solver::Solver::warnings`].
+
+use crate::assembly::{Assembler, Evaluation};
+use crate::contact::Target;
+use crate::model::{Lifted, Model};
+use nalgebra::{Matrix6, Vector3, Vector6};
+
+/// A model that cannot be run as it is.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PrecheckError {
+    /// Hitting nodes start inside their target.
+    #[error("pre-check: contact pair '{pair}': {} hitting node(s) start inside the target, the deepest by {:.3e} ({:.2} of its element size): {}; move the bodies apart (or start the target where it touches) so that the first increment closes the contact", nodes.len(), nodes[0].1, nodes[0].1 / element_size.max(f64::MIN_POSITIVE), list_nodes(nodes))]
+    Overlap {
+        /// The pair.
+        pair: String,
+        /// `(mesh node, penetration depth)`, deepest first.
+        nodes: Vec<(usize, f64)>,
+        /// Element size at the deepest node (square root of its tributary area).
+        element_size: f64,
+    },
+    /// A body can move as a rigid body and nothing holds it.
+    #[error("pre-check: body '{body}' is free to move as a rigid body ({}) and is in no contact pair: the tangent is singular; prescribe those components on some of its nodes (or tie it with springs)", modes.join("; "))]
+    RigidBody {
+        /// The body.
+        body: String,
+        /// The free rigid motions, described.
+        modes: Vec<String>,
+    },
+}
+
+fn list_nodes(nodes: &[(usize, f64)]) -> String {
+    let shown: Vec<String> = nodes
+        .iter()
+        .take(8)
+        .map(|(n, d)| format!("node {n} ({d:.3e})"))
+        .collect();
+    if nodes.len() > 8 {
+        format!("{}, ... ({} more)", shown.join(", "), nodes.len() - 8)
+    } else {
+        shown.join(", ")
+    }
+}
+
+/// Something a user should know before the run, which does not stop it.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PrecheckWarning {
+    /// A body is held only by contact in some rigid-body directions.
+    #[error("body '{body}' is held only by contact (pairs {}) against moving as a rigid body ({}): the contact must be closed and pressed from the first increment on, or the tangent is singular", pairs.join(", "), modes.join("; "))]
+    HeldByContact {
+        /// The body.
+        body: String,
+        /// Its free rigid motions, described.
+        modes: Vec<String>,
+        /// The pairs it is in.
+        pairs: Vec<String>,
+    },
+    /// A rigid target never comes near the hitting nodes.
+    #[error("contact pair '{pair}': the target stays at least {closest:.3e} away from every hitting node along its whole path (the hitting body is {size:.3e} across): it cannot touch unless the body deforms that far")]
+    NeverTouches {
+        /// The pair.
+        pair: String,
+        /// Smallest gap of any hitting node (reference position) at any breakpoint of the
+        /// target's path.
+        closest: f64,
+        /// Bounding-box diagonal of the hitting nodes.
+        size: f64,
+    },
+}
+
+/// Overlap of a model's contact pairs at the start (`eval`: the contact evaluated at the
+/// reference state and `t = 0`). A node counts when it is deeper than 1e-6 of its element size
+/// (the square root of its tributary area; round-off of touching surfaces is far below).
+pub fn overlap(
+    model: &Model,
+    assembler: &Assembler,
+    eval: &Evaluation<f64>,
+) -> Result<(), PrecheckError> {
+    for (p, pair) in model.contacts.iter().enumerate() {
+        let first = assembler.contact.flat[p];
+        let mut nodes: Vec<(usize, f64, f64)> = Vec::new();
+        for (i, &s) in pair.hitting.iter().enumerate() {
+            let g = eval.contact.gap[first + i];
+            let h = pair.area[i].sqrt();
+            if g.is_finite() && -g > 1e-6 * h {
+                nodes.push((s, -g, h));
+            }
+        }
+        if nodes.is_empty() {
+            continue;
+        }
+        nodes.sort_by(|a, b| b.1.total_cmp(&a.1));
+        return Err(PrecheckError::Overlap {
+            pair: pair.name.clone(),
+            element_size: nodes[0].2,
+            nodes: nodes.into_iter().map(|(n, d, _)| (n, d)).collect(),
+        });
+    }
+    Ok(())
+}
+
+/// The rigid-body modes of every body its supports leave free (`constrained`: the prescribed
+/// unknowns). Bodies tied by a spring to another node are skipped (the spring may hold them).
+pub fn rigid_body_modes(
+    model: &Model,
+    lifted: &Lifted<f64>,
+    constrained: &[bool],
+) -> (Vec<PrecheckWarning>, Result<(), PrecheckError>) {
+    let mut warnings = Vec::new();
+    let block_of = |n: usize| match model.mesh.places[n] {
+        crate::mesh::NodePlace::Block { block, .. } => Some(block),
+        crate::mesh::NodePlace::Free(_) => None,
+    };
+    for body in &model.bodies {
+        let elements = model.mesh.block_elements[body.block].clone();
+        let mut nodes: Vec<usize> = model.mesh.elements[elements]
+            .iter()
+            .flatten()
+            .copied()
+            .collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        if nodes.is_empty() {
+            continue;
+        }
+        let tied = model.springs.iter().any(|s| {
+            s.b.is_some()
+                && (block_of(s.a) == Some(body.block) || s.b.and_then(block_of) == Some(body.block))
+        });
+        if tied {
+            continue;
+        }
+        let centre = nodes
+            .iter()
+            .map(|&n| lifted.coords[n])
+            .sum::<Vector3<f64>>()
+            / nodes.len() as f64;
+        let size = nodes
+            .iter()
+            .map(|&n| (lifted.coords[n] - centre).norm())
+            .fold(0.0f64, f64::max)
+            .max(f64::MIN_POSITIVE);
+        // rows [e_c, (r / L) x e_c]: u_c = a_c + w . (r x e_c) for the rigid motion
+        // u = a + w x r, with w scaled by the body's size
+        let mut m = Matrix6::<f64>::zeros();
+        let mut add = |r: Vector3<f64>, c: usize| {
+            let mut e = Vector3::zeros();
+            e[c] = 1.0;
+            let rot = (r / size).cross(&e);
+            let row = Vector6::new(e[0], e[1], e[2], rot[0], rot[1], rot[2]);
+            m += row * row.transpose();
+        };
+        for &n in &nodes {
+            let r = lifted.coords[n] - centre;
+            for c in 0..3 {
+                let grounded = model
+                    .springs
+                    .iter()
+                    .any(|s| s.b.is_none() && s.a == n && s.stiffness[c][c] > 0.0);
+                if constrained[3 * n + c] || grounded {
+                    add(r, c);
+                }
+            }
+        }
+        let eig = m.symmetric_eigen();
+        let scale = eig.eigenvalues.max().max(1.0);
+        let mut modes = Vec::new();
+        for k in 0..6 {
+            if eig.eigenvalues[k] <= 1e-9 * scale {
+                modes.push(describe(&eig.eigenvectors.column(k).into_owned()));
+            }
+        }
+        if modes.is_empty() {
+            continue;
+        }
+        let pairs: Vec<String> = model
+            .contacts
+            .iter()
+            .filter(|c| {
+                c.hitting.iter().any(|&n| block_of(n) == Some(body.block))
+                    || match &c.target {
+                        Target::Faces { faces } => faces
+                            .iter()
+                            .any(|f| f.iter().any(|&n| block_of(n) == Some(body.block))),
+                        Target::Rigid { .. } => false,
+                    }
+            })
+            .map(|c| c.name.clone())
+            .collect();
+        if pairs.is_empty() {
+            return (
+                warnings,
+                Err(PrecheckError::RigidBody {
+                    body: body.name.clone(),
+                    modes,
+                }),
+            );
+        }
+        warnings.push(PrecheckWarning::HeldByContact {
+            body: body.name.clone(),
+            modes,
+            pairs,
+        });
+    }
+    (warnings, Ok(()))
+}
+
+/// A rigid motion `(a, w L)` in words: its translation and rotation directions.
+fn describe(v: &Vector6<f64>) -> String {
+    let t = Vector3::new(v[0], v[1], v[2]);
+    let w = Vector3::new(v[3], v[4], v[5]);
+    let fmt = |d: Vector3<f64>| {
+        // unit, its largest component positive
+        let k = d.iamax();
+        let d = d / d.norm() * d[k].signum();
+        format!("({:.2}, {:.2}, {:.2})", d[0], d[1], d[2]).replace("-0.00", "0.00")
+    };
+    let (tn, wn) = (t.norm(), w.norm());
+    if wn <= 1e-6 * tn {
+        format!("translation along {}", fmt(t))
+    } else if tn <= 1e-6 * wn {
+        format!("rotation about {}", fmt(w))
+    } else {
+        format!(
+            "rotation about {} with translation along {}",
+            fmt(w),
+            fmt(t)
+        )
+    }
+}
+
+/// Rigid targets that stay further from every hitting node than the hitting body's size,
+/// at every breakpoint of their path.
+pub fn never_touching(model: &Model, lifted: &Lifted<f64>) -> Vec<PrecheckWarning> {
+    let mut out = Vec::new();
+    for (p, pair) in model.contacts.iter().enumerate() {
+        let Target::Rigid { surface, motion } = &pair.target else {
+            continue;
+        };
+        let mut times = vec![0.0];
+        for m in motion {
+            times.extend(m.amplitude.points.iter().map(|(t, _)| *t));
+        }
+        times.extend(model.times.last().copied());
+        let x: Vec<Vector3<f64>> = pair.hitting.iter().map(|&n| lifted.coords[n]).collect();
+        let lo = x.iter().fold(x[0], |a, b| a.inf(b));
+        let hi = x.iter().fold(x[0], |a, b| a.sup(b));
+        let size = (hi - lo).norm();
+        let mut closest = f64::INFINITY;
+        for &t in &times {
+            let d = crate::contact::assembly::rigid_translation(pair, &lifted.rigid_motion[p], t);
+            for xi in &x {
+                if let Ok(pr) = surface.project(xi, &d) {
+                    closest = closest.min(pr.gap);
+                }
+            }
+        }
+        if closest.is_finite() && closest > size.max(f64::MIN_POSITIVE) {
+            out.push(PrecheckWarning::NeverTouches {
+                pair: pair.name.clone(),
+                closest,
+                size,
+            });
+        }
+    }
+    out
+}
