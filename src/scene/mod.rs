@@ -1030,7 +1030,15 @@ impl Scene {
             }
             t0 = s.end;
         }
-        let contacts = self.build_contacts(&mesh, &bodies, &springs, &amplitude)?;
+        let mut notes = Vec::new();
+        let contacts = self.build_contacts(
+            &mesh,
+            &bodies,
+            &springs,
+            &prescribed,
+            &amplitude,
+            &mut notes,
+        )?;
         let mut responses = Vec::new();
         let mut history_refs: Vec<(usize, usize, usize, usize, usize)> = Vec::new();
         for (i, r) in self.responses.iter().enumerate() {
@@ -1137,6 +1145,7 @@ impl Scene {
             contacts,
             responses,
             solver: self.solver.clone(),
+            notes,
         };
         if !history_refs.is_empty() {
             let dofs = model.dof_map();
@@ -1242,6 +1251,132 @@ fn tributary_areas(mesh: &Mesh, faces: &[[usize; 4]], nodes: &[usize]) -> Vec<f6
     area
 }
 
+/// Factor `c_T` of the default tangential penalty `c_T E* A_i / h_i`: the stiffness of the
+/// element layer under a hitting node times this. With it the elastic slip in stick,
+/// `mu p_n / eps_T = (mu sigma_n / (c_T E*)) h_i`, is a strain-sized fraction of the element
+/// (0.5 % of it at mu = 0.5 and a contact pressure of E* / 100), and Newton meets a stick
+/// stiffness no larger than the structure's next to it.
+pub const TANGENTIAL_STIFFNESS_FACTOR: f64 = 1.0;
+
+fn tangential_factor() -> f64 {
+    std::env::var("EPST")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(TANGENTIAL_STIFFNESS_FACTOR)
+}
+
+/// Per node of `nodes` (sorted, with tributary areas `area`) on the boundary faces `faces`:
+/// `A_i / h_i`, the node's area over the thickness of the element layer under it (the mean of
+/// twice the distance from each adjacent face's centre to its element's centre). `None` when a
+/// face belongs to no element.
+fn layer_stiffness(
+    mesh: &Mesh,
+    x: &[nalgebra::Vector3<f64>],
+    faces: &[[usize; 4]],
+    nodes: &[usize],
+    area: &[f64],
+) -> Option<Vec<f64>> {
+    use std::collections::{HashMap, HashSet};
+    let key = |f: &[usize]| {
+        let mut k = [f[0], f[1], f[2], f[3]];
+        k.sort_unstable();
+        k
+    };
+    let wanted: HashSet<[usize; 4]> = faces.iter().map(|f| key(f)).collect();
+    let mut element_of: HashMap<[usize; 4], usize> = HashMap::new();
+    for (e, conn) in mesh.elements.iter().enumerate() {
+        for f in crate::element::hex8::FACE_NODES {
+            let k = key(&f.map(|i| conn[i]));
+            if wanted.contains(&k) {
+                element_of.insert(k, e);
+            }
+        }
+    }
+    let index: HashMap<usize, usize> = nodes.iter().enumerate().map(|(k, n)| (*n, k)).collect();
+    let mut h = vec![0.0; nodes.len()];
+    let mut count = vec![0usize; nodes.len()];
+    for f in faces {
+        let e = *element_of.get(&key(f))?;
+        let centre_f = f.iter().map(|n| x[*n]).sum::<nalgebra::Vector3<f64>>() / 4.0;
+        let centre_e = mesh.elements[e]
+            .iter()
+            .map(|n| x[*n])
+            .sum::<nalgebra::Vector3<f64>>()
+            / 8.0;
+        let hf = 2.0 * (centre_e - centre_f).norm();
+        for n in f {
+            if let Some(&k) = index.get(n) {
+                h[k] += hf;
+                count[k] += 1;
+            }
+        }
+    }
+    Some(
+        area.iter()
+            .zip(h.iter().zip(&count))
+            .map(|(a, (h, c))| a / (h / (*c).max(1) as f64))
+            .collect(),
+    )
+}
+
+/// The generating block of node `n` (`None` for a free node).
+fn block_of(mesh: &Mesh, n: usize) -> Option<usize> {
+    match mesh.places[n] {
+        crate::mesh::NodePlace::Block { block, .. } => Some(block),
+        crate::mesh::NodePlace::Free(_) => None,
+    }
+}
+
+/// How far the prescribed displacements can move nodes of `blocks`: per component the sum of
+/// `|value| max |amplitude|` over the prescribed entries acting on them, as a vector norm.
+fn prescribed_travel(mesh: &Mesh, prescribed: &[Prescribed], blocks: &[Option<usize>]) -> f64 {
+    let mut m = [0.0f64; 3];
+    for p in prescribed {
+        if p.nodes.iter().any(|&n| blocks.contains(&block_of(mesh, n))) {
+            let amp = p
+                .amplitude
+                .points
+                .iter()
+                .map(|(_, v)| v.abs())
+                .fold(0.0f64, f64::max);
+            m[p.component] += p.value.abs() * amp;
+        }
+    }
+    (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt()
+}
+
+/// Plane-strain modulus `E / (1 - nu^2)` of the body owning node `n` (0 for a free node).
+fn plane_modulus(mesh: &Mesh, bodies: &[Body], n: usize) -> f64 {
+    match mesh.places[n] {
+        crate::mesh::NodePlace::Block { block, .. } => bodies
+            .iter()
+            .find(|b| b.block == block)
+            .map(|b| {
+                let p = b.material.params();
+                p[0] / (1.0 - p[1] * p[1])
+            })
+            .unwrap_or(0.0),
+        crate::mesh::NodePlace::Free(_) => 0.0,
+    }
+}
+
+/// The contact modulus of a pair: the hitting body's plane-strain modulus against a rigid
+/// target, `1 / (1 / E*_1 + 1 / E*_2)` against a deformable one.
+fn contact_modulus(mesh: &Mesh, bodies: &[Body], hitting: &[usize], target: &Target) -> f64 {
+    let e1 = plane_modulus(mesh, bodies, hitting[0]);
+    match target {
+        Target::Faces { faces } => {
+            let e2 = plane_modulus(mesh, bodies, faces[0][0]);
+            if e1 > 0.0 && e2 > 0.0 {
+                1.0 / (1.0 / e1 + 1.0 / e2)
+            } else {
+                e1.max(e2)
+            }
+        }
+        Target::Rigid { .. } => e1,
+    }
+}
+
 /// Validates and builds an amplitude, naming the field in errors.
 type AmplitudeBuilder<'a> = dyn Fn(&[(f64, f64)], &str) -> Result<Amplitude, SceneError> + 'a;
 
@@ -1287,7 +1422,9 @@ impl Scene {
         mesh: &Mesh,
         bodies: &[Body],
         springs: &[Spring],
+        prescribed: &[Prescribed],
         amplitude: &AmplitudeBuilder<'_>,
+        notes: &mut Vec<String>,
     ) -> Result<Vec<ContactPair>, SceneError> {
         let x = mesh.coordinates::<f64>(&mesh.block_geometry());
         let mut out = Vec::new();
@@ -1300,12 +1437,15 @@ impl Scene {
                 ));
             }
             // hitting nodes and their tributary areas
-            let (hitting, area) = if let Some(faces) = mesh.face_sets.get(&c.hitting) {
+            // per hitting node: tributary area, and the stiffness A_i / h_i of the element
+            // layer under it (none for a node set)
+            let (hitting, area, layer) = if let Some(faces) = mesh.face_sets.get(&c.hitting) {
                 let mut nodes: Vec<usize> = faces.iter().flatten().copied().collect();
                 nodes.sort();
                 nodes.dedup();
                 let area = tributary_areas(mesh, faces, &nodes);
-                (nodes, area)
+                let layer = layer_stiffness(mesh, &x, faces, &nodes, &area);
+                (nodes, area, layer)
             } else if let Some(nodes) = mesh.node_sets.get(&c.hitting) {
                 if nodes.is_empty() {
                     return Err(invalid(
@@ -1313,7 +1453,7 @@ impl Scene {
                         format!("node set '{}' is empty", c.hitting),
                     ));
                 }
-                (nodes.clone(), vec![1.0; nodes.len()])
+                (nodes.clone(), vec![1.0; nodes.len()], None)
             } else {
                 return Err(invalid(
                     &format!("{at}.hitting"),
@@ -1341,7 +1481,22 @@ impl Scene {
                         .iter()
                         .map(|f| (x[f[2]] - x[f[0]]).norm().max((x[f[3]] - x[f[1]]).norm()))
                         .fold(0.0f64, f64::max);
-                    let radius = c.search_radius.unwrap_or(3.0 * diag);
+                    // default: three face diagonals, plus how far the prescribed
+                    // displacements can move the two bodies against each other
+                    let radius = match c.search_radius {
+                        Some(r) => r,
+                        None => {
+                            let blocks = [block_of(mesh, hitting[0]), block_of(mesh, faces[0][0])];
+                            let travel = prescribed_travel(mesh, prescribed, &blocks);
+                            let r = 3.0 * diag + travel;
+                            notes.push(format!(
+                                "{at} '{}': search radius {r:.4e} (3 face diagonals {:.4e} + the bodies' largest prescribed travel {travel:.4e})",
+                                c.name,
+                                3.0 * diag
+                            ));
+                            r
+                        }
+                    };
                     positive(radius, &format!("{at}.search_radius"))?;
                     let mut candidates = Vec::new();
                     for &s in &hitting {
@@ -1422,18 +1577,57 @@ impl Scene {
                     )
                 }
             };
-            if let Target::Faces { .. } = target {
-                if let Some(k) = candidates.iter().position(|c| c.is_empty()) {
+            // hitting nodes with no target face within the search radius can never touch it:
+            // left out of the pair (all of them: an error)
+            let (hitting, area, layer, candidates) = if let Target::Faces { .. } = target {
+                let keep: Vec<bool> = candidates.iter().map(|c| !c.is_empty()).collect();
+                let dropped: Vec<usize> = hitting
+                    .iter()
+                    .zip(&keep)
+                    .filter(|(_, k)| !**k)
+                    .map(|(n, _)| *n)
+                    .collect();
+                if dropped.len() == hitting.len() {
                     return Err(invalid(
                         &format!("{at}.search_radius"),
                         format!(
-                            "hitting node {} has no target face within the search radius {:.3e} (largest face diagonal {diag:.3e})",
-                            hitting[k],
-                            c.search_radius.unwrap_or(3.0 * diag)
+                            "no target face is within the search radius of any hitting node (largest face diagonal {diag:.3e}): the pair can never touch"
                         ),
                     ));
                 }
-            }
+                if !dropped.is_empty() {
+                    let shown: Vec<String> =
+                        dropped.iter().take(8).map(|n| n.to_string()).collect();
+                    notes.push(format!(
+                        "{at} '{}': {} of {} hitting nodes have no target face within the search radius and are left out (they can never touch it): nodes {}{}",
+                        c.name,
+                        dropped.len(),
+                        hitting.len(),
+                        shown.join(", "),
+                        if dropped.len() > 8 { ", ..." } else { "" }
+                    ));
+                }
+                let pick = |v: Vec<f64>| -> Vec<f64> {
+                    v.into_iter()
+                        .zip(&keep)
+                        .filter(|(_, k)| **k)
+                        .map(|(x, _)| x)
+                        .collect()
+                };
+                (
+                    hitting
+                        .iter()
+                        .zip(&keep)
+                        .filter(|(_, k)| **k)
+                        .map(|(n, _)| *n)
+                        .collect::<Vec<usize>>(),
+                    pick(area),
+                    layer.map(pick),
+                    candidates.into_iter().filter(|c| !c.is_empty()).collect(),
+                )
+            } else {
+                (hitting, area, layer, candidates)
+            };
             let friction = match &c.friction {
                 None => None,
                 Some(FrictionSpec::Coulomb { mu }) => {
@@ -1482,11 +1676,19 @@ impl Scene {
                         .flat_map(|s| s.stiffness.iter().flatten().map(|v| v.abs()))
                         .fold(0.0f64, f64::max);
                     let k = if e > 0.0 { e * mean_area.sqrt() } else { ks };
-                    if k > 0.0 {
-                        k
-                    } else {
-                        1.0
+                    let k = if k > 0.0 { k } else { 1.0 };
+                    if c.normal == NormalLaw::Lagrange {
+                        notes.push(format!(
+                            "{at} '{}': constraint scale {k:.4e} (force per unit gap of the multiplier rows: {})",
+                            c.name,
+                            if e > 0.0 {
+                                "the largest E times the square root of the mean tributary area"
+                            } else {
+                                "the largest spring stiffness"
+                            }
+                        ));
                     }
+                    k
                 }
             };
             let activation = match c.activation {
@@ -1496,12 +1698,37 @@ impl Scene {
                 }
                 None => 1.0,
             };
-            let eps_t = match c.tangential_stiffness {
-                Some(k) => {
+            // the tangential penalty: given, or derived per node from the element layer
+            // under it (TANGENTIAL_STIFFNESS_FACTOR E* A_i / h_i)
+            let (eps_t, weight) = match (c.tangential_stiffness, &layer) {
+                (Some(k), _) => {
                     positive(k, &format!("{at}.tangential_stiffness"))?;
-                    k
+                    (k, vec![1.0; hitting.len()])
                 }
-                None => 100.0 * scale,
+                (None, Some(layer)) => {
+                    let e_star = contact_modulus(mesh, bodies, &hitting, &target);
+                    let per_node: Vec<f64> = layer
+                        .iter()
+                        .map(|l| tangential_factor() * e_star * l)
+                        .collect();
+                    let mean = per_node.iter().sum::<f64>() / per_node.len() as f64;
+                    if !(mean.is_finite() && mean > 0.0) {
+                        return Err(invalid(
+                            &format!("{at}.tangential_stiffness"),
+                            format!("no default from the surface elements (mean stiffness {mean}): give one"),
+                        ));
+                    }
+                    let (lo, hi) = per_node
+                        .iter()
+                        .fold((f64::INFINITY, 0.0f64), |(a, b), k| (a.min(*k), b.max(*k)));
+                    notes.push(format!(
+                        "{at} '{}': tangential stiffness {mean:.4e} per hitting node on average ({lo:.4e} to {hi:.4e}): {} E* A_i / h_i, with E* = {e_star:.4e} and A_i / h_i the node's area over the thickness of the element layer under it",
+                        c.name,
+                        tangential_factor()
+                    ));
+                    (mean, per_node.iter().map(|k| k / mean).collect())
+                }
+                (None, None) => (100.0 * scale, vec![1.0; hitting.len()]),
             };
             out.push(ContactPair {
                 name: c.name.clone(),
@@ -1511,6 +1738,7 @@ impl Scene {
                 normal: c.normal,
                 friction,
                 tangential_stiffness: eps_t,
+                tangential_weight: weight,
                 constraint_scale: scale,
                 activation,
                 candidates,
