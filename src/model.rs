@@ -186,6 +186,18 @@ pub struct SolverSettings {
     /// spring's first increment refined (`fricsens scaling-one --scene leaf-spring
     /// --refinement R`): R = 3, 63 -> 15; R = 4, 180 -> 57.
     pub active_set_solves: usize,
+    /// Shrink the next step by a quarter (to no less than a quarter of the user's increment)
+    /// after an increment that took more than this many Newton iterations, as CalculiX and
+    /// Abaqus do (their I_L is 10); 0: off, the default. Steps always grow back after an easy
+    /// increment (4 iterations or fewer) up to the user's increment, and are halved when an
+    /// attempt fails.
+    ///
+    /// Measured on the physics fuzzer's seeds 0-999 with default settings: 97.8 % of the
+    /// scenes complete with 12, 97.7 % without, and the slowest runs are as slow; an increment
+    /// that is hard at any size (an active set settling node by node) shrinks the steps to
+    /// the floor, and the solution then depends on the iteration counts (the coarse leaf
+    /// spring took 18 increments instead of 16 and moved by 1.7e-4 at t = 0.875). Hence off.
+    pub shrink_after: usize,
 }
 
 impl Default for SolverSettings {
@@ -197,6 +209,7 @@ impl Default for SolverSettings {
             max_cutbacks: 10,
             extrapolate: true,
             active_set_solves: 30,
+            shrink_after: 0,
         }
     }
 }

@@ -172,7 +172,7 @@ impl PrimalCost {
 #[non_exhaustive]
 pub enum AnalysisError {
     /// Newton did not converge within the allowed cutbacks (or the attempt budget).
-    #[error("increment {increment} (t = {time:.6}): Newton failed after {cutbacks} cutbacks, last step {step:.3e}; residual history of the last attempt: {residuals:?}; reason: {reason}")]
+    #[error("increment {increment} (t = {time:.6}): Newton failed ({cutbacks} failed attempts in this increment, the last with step {step:.3e}): {reason}; residual history of the last attempt: {residuals:?}")]
     Diverged {
         /// The increment that failed (counting converged sub-increments).
         increment: usize,
@@ -180,7 +180,7 @@ pub enum AnalysisError {
         time: f64,
         /// Pseudo-time step of the last attempt.
         step: f64,
-        /// Failed attempts (halvings of the step) before giving up.
+        /// Failed attempts within the user's increment, the last one included.
         cutbacks: usize,
         /// `|R_free|` at each iteration of the last attempt.
         residuals: Vec<f64>,
@@ -318,6 +318,15 @@ const YIELD_CROSSING_FLOOR: f64 = 0.125;
 /// A Newton iteration whose residual is above this fraction of the last one's stalls: the
 /// slip-reversal remedy acts only then.
 const STALL_RATIO: f64 = 0.5;
+
+/// Failed attempts allowed within one of the user's increments, per `max_cutbacks`.
+const FAILED_ATTEMPTS_PER_STEP: usize = 2;
+
+/// Factor of the step after an increment harder than `SolverSettings::shrink_after` (CalculiX's
+/// D_B), down to [`HARD_FLOOR`] of the user's increment.
+const HARD_SHRINK: f64 = 0.75;
+/// See [`HARD_SHRINK`].
+const HARD_FLOOR: f64 = 0.25;
 
 /// The energy and round-off convergence criteria accept a residual at most this many times
 /// the force tolerance (the leaf spring's round-off floor, the reason for the round-off
@@ -741,13 +750,17 @@ impl<'m> Solver<'m> {
         // the converged state before `z` and its time: the extrapolating predictor's
         let mut previous: Option<(Vec<f64>, f64)> = None;
         let mut index = 0;
+        // the step the last converged increment suggests for the next (halved after a hard
+        // one, doubled after an easy one), carried into the next of the user's increments
+        let mut suggested = f64::INFINITY;
         for &t_end in &model.times {
             let t_prev_nominal = t_prev;
-            let mut step = t_end - t_prev;
+            let nominal = t_end - t_prev;
+            let mut step = nominal.min(suggested);
             // the smallest sub-increment: max_cutbacks halvings of the nominal one (the
             // cutback counter restarts after every converged sub-increment, so without it a
             // run creeping towards a limit point halves its step down to round-off)
-            let min_step = step / 2f64.powi(model.solver.max_cutbacks as i32);
+            let min_step = nominal / 2f64.powi(model.solver.max_cutbacks as i32);
             let mut cutbacks = 0;
             // every attempt (converged or not) within this nominal increment; a budget keeps a
             // converge-grow-fail cycle from running forever
@@ -760,7 +773,11 @@ impl<'m> Solver<'m> {
             while t_prev < t_end - 1e-14 * t_end.abs().max(1.0) {
                 let t = (t_prev + step).min(t_end);
                 attempts += 1;
-                if attempts > 64 * (model.solver.max_cutbacks + 1) {
+                // a budget of failed attempts per increment: halving after halving, and
+                // sub-increments that converge only to fail again, end here rather than
+                // creeping on at the smallest step (the curved punch spent 11 minutes
+                // in 47-iteration attempts before the remedies)
+                if failed >= FAILED_ATTEMPTS_PER_STEP * model.solver.max_cutbacks.max(1) {
                     res.history = hist;
                     res.cost.wall_seconds = start.elapsed().as_secs_f64();
                     let (t_failed, residuals, why) = last_failure.take().unwrap_or_default();
@@ -771,7 +788,8 @@ impl<'m> Solver<'m> {
                         cutbacks: failed,
                         residuals,
                         reason: format!(
-                            "{attempts} attempts within the increment ending at t = {t_end} (sub-increments keep failing); the last failed attempt, to t = {t_failed:.9}: {why}"
+                            "{failed} failed attempts within the increment ending at t = {t_end} ({} sub-increments of it converged); the last failed attempt, to t = {t_failed:.9}: {why}",
+                            attempts - 1 - failed
                         ),
                         partial: Box::new(res),
                     });
@@ -910,15 +928,28 @@ impl<'m> Solver<'m> {
                         res.stresses.push(eval.cauchy.clone());
                         res.branches.push(eval.branches.clone());
                         let easy = record.iterations <= 4;
+                        let hard = model.solver.shrink_after > 0
+                            && record.iterations > model.solver.shrink_after;
                         self.force_history.0 += record.reference_force;
                         self.force_history.1 += 1;
                         res.records.push(record);
                         t_prev = t;
                         cutbacks = 0;
-                        // grow a cut-back step again after an easy increment
-                        if easy {
-                            step = (step * 2.0).min(t_end - t_prev_nominal);
-                        }
+                        // automatic incrementation, the user's increment the largest step:
+                        // grow a cut-back step again after an easy increment, shrink the next
+                        // step after a hard one (as CalculiX and Abaqus do)
+                        suggested = if easy {
+                            2.0 * step
+                        } else if hard {
+                            // by a quarter, and to no less than a quarter of the user's
+                            // increment: an increment that is hard at any size (an active set
+                            // settling node by node) would otherwise halve the steps without
+                            // end (fuzzer seed 240: 178 increments for 13)
+                            (HARD_SHRINK * step).max(nominal * HARD_FLOOR).min(step)
+                        } else {
+                            step
+                        };
+                        step = suggested.min(t_end - t_prev_nominal);
                     }
                     Err(AttemptFailure::TimeLimit) => {
                         res.history = hist;
@@ -934,19 +965,26 @@ impl<'m> Solver<'m> {
                         let at_minimum = step <= min_step * (1.0 + 1e-9);
                         if cutbacks >= model.solver.max_cutbacks || at_minimum {
                             let mut reason = why.to_string();
-                            if at_minimum {
-                                reason.push_str(&format!(
-                                    " (at the minimum increment {min_step:.3e}: the nominal one halved {} times)",
-                                    model.solver.max_cutbacks
-                                ));
-                            }
+                            reason.push_str(&format!(
+                                " ({} halvings in a row{}; {} failed attempts within the increment ending at t = {t_end})",
+                                cutbacks,
+                                if at_minimum {
+                                    format!(
+                                        ", down to the smallest step {min_step:.3e}: the nominal one halved {} times",
+                                        model.solver.max_cutbacks
+                                    )
+                                } else {
+                                    String::new()
+                                },
+                                failed + 1
+                            ));
                             res.history = hist;
                             res.cost.wall_seconds = start.elapsed().as_secs_f64();
                             return Err(AnalysisError::Diverged {
                                 increment: index + 1,
                                 time: t,
                                 step,
-                                cutbacks,
+                                cutbacks: failed + 1,
                                 residuals: record.residuals,
                                 reason,
                                 partial: Box::new(res),
@@ -1355,6 +1393,9 @@ impl<'m> Solver<'m> {
         let mut window: std::collections::VecDeque<(Vec<ContactChoice>, f64)> =
             std::collections::VecDeque::new();
         let mut best_before = f64::INFINITY;
+        // the target faces to keep (hysteresis, SEGMENT_KEEP): those the last Newton step was
+        // solved with, the converged ones at the first
+        let mut keep_faces = self.converged_choice.clone();
         loop {
             if self.deadline.is_some_and(|d| Instant::now() > d) {
                 return Err(AttemptFailure::TimeLimit);
@@ -1373,7 +1414,7 @@ impl<'m> Solver<'m> {
                     gauss: None,
                     contact: &[],
                     skip: None,
-                    keep_faces: Some(&self.converged_choice),
+                    keep_faces: Some(&keep_faces),
                     stick: (!forced.is_empty()).then_some(&forced[..]),
                 };
                 assemble(
@@ -1595,6 +1636,7 @@ impl<'m> Solver<'m> {
             self.newton_step(eval, &mut dz, cost)?;
             factored = true;
             forced.clear();
+            keep_faces.clone_from(&eval.contact.choice);
             if k == 0 && line_search {
                 let predictor =
                     predictor.get_or_insert_with(|| ActiveSetPredictor::new(&self.assembler));

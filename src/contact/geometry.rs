@@ -629,17 +629,18 @@ fn prefer(c: &Candidate, best: &Candidate, hint: Option<usize>) -> bool {
 }
 
 /// How far outside its segment (in `ξ`, whose range over a segment is 2) a hitting point may
-/// project and still keep the segment it had at the last converged state
-/// ([`closest_on_quads_keeping`]).
+/// project and still keep the segment it had at the last Newton iterate (the last converged
+/// state at an increment's first; [`closest_on_quads_keeping`]).
 ///
 /// Why: a node at the shared edge of two faceted segments whose normals differ projects onto
 /// one segment at one Newton iterate and onto the other at the next; the residual jumps with
 /// the normal and Newton cycles between the two with the active set unchanged (found by the
 /// physics fuzzer: a frictionless slider on a deformable base, residual 1.9e-6 <-> 2.1e-6 for
-/// 30 iterations at every cutback). With the segment kept across the edge by a twentieth of
-/// its width the residual is one smooth function within the increment; the gap to the
-/// extended segment differs from the gap to its neighbour by the edge's kink times at most
-/// that distance, and the node changes segment at the next increment when it is further out.
+/// 30 iterations at every cutback; in 3D a node at a vertex cycling between two faces neither
+/// of which it had converged on). With the segment kept across the edge by a twentieth of its
+/// width the residual is smooth from iterate to iterate; the gap to the extended segment
+/// differs from the gap to its neighbour by the edge's kink times at most that distance, and
+/// the node changes segment once it is further out.
 pub const SEGMENT_KEEP: f64 = 0.1;
 
 /// [`closest_on_quads`], except that segment `keep` is kept while `x` projects onto its
