@@ -222,6 +222,7 @@ pub fn evaluate<S: Scalar>(
             k: pair.constraint_scale,
             activation: pair.activation,
             area: 1.0,
+            elastic_stick: false,
         };
         for (i, &s) in pair.hitting.iter().enumerate() {
             let flat = layout.flat[p] + i;
@@ -300,13 +301,20 @@ pub fn evaluate<S: Scalar>(
             )
             .map_err(err)?;
             // a node the solver forces to stick: evaluated again on the stick branch (its
-            // normal state stays the free decision: slip implies closed), and the tangent
+            // normal state stays the free decision: slip implies closed) with the elastic
+            // predictor as its friction force (KernelParams::elastic_stick), and the tangent
             // and the history follow that branch
             let mut fz = fz;
+            let mut forced = false;
             if fz.is_none()
                 && ko.state == ContactState::Slip
                 && force_stick.and_then(|f| f.get(flat)).copied() == Some(true)
             {
+                forced = true;
+                let par = KernelParams {
+                    elastic_stick: true,
+                    ..par
+                };
                 ko = node_kernel(
                     &x_ref,
                     &u,
@@ -400,8 +408,10 @@ pub fn evaluate<S: Scalar>(
             };
             // ---- tangent by forward AD over the node's local unknowns ----
             if want_tangent {
-                let kt = local_tangent(model, layout, lifted, z, hist_old, time, p, i, face, fz)
-                    .map_err(err)?;
+                let kt = local_tangent(
+                    model, layout, lifted, z, hist_old, time, p, i, face, fz, forced,
+                )
+                .map_err(err)?;
                 tangents.push((block.pattern_block, kt));
             }
         }
@@ -436,6 +446,7 @@ fn local_tangent<S: Scalar>(
     i: usize,
     face: usize,
     fz: Option<ContactChoice>,
+    forced: bool,
 ) -> Result<LocalTangent, ContactFailure> {
     let pair = &model.contacts[p];
     let seeds = match &pair.target {
@@ -455,7 +466,9 @@ fn local_tangent<S: Scalar>(
         }
         Target::Rigid { .. } => 4,
     };
-    let args = (model, layout, lifted, z, hist_old, time, p, i, face, fz);
+    let args = (
+        model, layout, lifted, z, hist_old, time, p, i, face, fz, forced,
+    );
     if seeds <= 4 {
         local_tangent_n::<S, 4>(args)
     } else if seeds <= 16 {
@@ -477,11 +490,12 @@ type TangentArgs<'a, S> = (
     usize,
     usize,
     Option<ContactChoice>,
+    bool,
 );
 
 /// [`local_tangent`] with `N`-wide duals (`N` at least the number of seeds).
 fn local_tangent_n<S: Scalar, const N: usize>(
-    (model, layout, lifted, z, hist_old, time, p, i, face, fz): TangentArgs<'_, S>,
+    (model, layout, lifted, z, hist_old, time, p, i, face, fz, forced): TangentArgs<'_, S>,
 ) -> Result<LocalTangent, ContactFailure> {
     type Ad<const N: usize> = DualSVec64<N>;
     let pair = &model.contacts[p];
@@ -607,6 +621,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
         k: pair.constraint_scale,
         activation: pair.activation,
         area: pair.area[i],
+        elastic_stick: forced,
     };
     let ko = node_kernel(
         &xref(s),

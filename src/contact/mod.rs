@@ -412,6 +412,15 @@ pub struct KernelParams<'a, S: Scalar> {
     pub activation: f64,
     /// Tributary area of the hitting node (scales the penalty laws).
     pub area: f64,
+    /// The stick branch imposed by `frozen` is the elastic predictor, the friction force the
+    /// trial force `t_trial` whatever the law: the primal solver's forced stick (slip
+    /// reversal). Coulomb-type laws stick so anyway; a smooth law (regularised Coulomb) keeps
+    /// its force on either branch, so forcing its branch changed nothing but the anchor's
+    /// update, and Newton went on overshooting the saturated force (fuzzer seeds 393, 868,
+    /// 869: the same residual before and after every forcing, the friction forces of the
+    /// nodes reversing at every iterate). Off for SDM's frozen evaluations, which keep the
+    /// law.
+    pub elastic_stick: bool,
 }
 
 /// What the kernel returns for one hitting node.
@@ -528,7 +537,10 @@ pub fn node_kernel<S: Scalar>(
             Some(ContactState::Slip) => Some(FrictionBranch::Slip),
             _ => None,
         };
-        let upd = crate::with_friction!(law, f => f.return_map(par.friction_params, &t_trial, p_n, margin, fb));
+        let mut upd = crate::with_friction!(law, f => f.return_map(par.friction_params, &t_trial, p_n, margin, fb));
+        if par.elastic_stick && fb == Some(FrictionBranch::Stick) {
+            upd.traction = t_trial;
+        }
         slip_ratio = upd.slip_ratio;
         force += upd.traction;
         match upd.branch {
