@@ -156,11 +156,7 @@ fn missing_required_fields_are_named_by_their_path() {
     let text = replaced("contact-patch", "set = \"upper.zmin\"\n", "");
     rejects(&text, &["field `prescribed[3].set`:", "missing field"]);
     // a wrong type inside an array
-    let text = replaced(
-        "contact-patch",
-        "origin = [\n    0.0,",
-        "origin = [\n    \"0\",",
-    );
+    let text = replaced("contact-patch", "origin = [0.0,", "origin = [\"0\",");
     rejects(
         &text,
         &["field `bodies[0].origin[0]`:", "invalid type: string"],
@@ -369,26 +365,26 @@ fn nan_and_infinite_numbers_are_rejected_where_they_stand() {
         ),
         (
             "klarbring-2dof",
-            "stiffness = [\n    [\n    1.0",
-            "stiffness = [\n    [\n    inf",
+            "stiffness = [[1.0",
+            "stiffness = [[inf",
             "springs[0].stiffness",
         ),
         (
             "klarbring-2dof",
-            "x = [\n    0.0",
-            "x = [\n    nan",
+            "x = [0.0",
+            "x = [nan",
             "free_nodes[0].x[0]",
         ),
         (
             "klarbring-2dof",
-            "point = [\n    0.0",
-            "point = [\n    -inf",
+            "point = [0.0",
+            "point = [-inf",
             "contacts[0].target.surface.point",
         ),
         (
             "klarbring-2dof",
-            "normal = [\n    0.0",
-            "normal = [\n    nan",
+            "normal = [0.0",
+            "normal = [nan",
             "contacts[0].target.surface.normal",
         ),
         (

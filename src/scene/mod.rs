@@ -781,7 +781,7 @@ impl Scene {
 
     /// Serialise to TOML.
     pub fn to_toml(&self) -> String {
-        toml::to_string_pretty(self).expect("a scene always serialises")
+        toml::to_string(self).expect("a scene always serialises")
     }
 
     /// Node sets named `A & B` (e.g. `upper.xmax & upper.ymin`, an edge) are the intersection
@@ -1258,13 +1258,6 @@ fn tributary_areas(mesh: &Mesh, faces: &[[usize; 4]], nodes: &[usize]) -> Vec<f6
 /// stiffness no larger than the structure's next to it.
 pub const TANGENTIAL_STIFFNESS_FACTOR: f64 = 1.0;
 
-fn tangential_factor() -> f64 {
-    std::env::var("EPST")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(TANGENTIAL_STIFFNESS_FACTOR)
-}
-
 /// Per node of `nodes` (sorted, with tributary areas `area`) on the boundary faces `faces`:
 /// `A_i / h_i`, the node's area over the thickness of the element layer under it (the mean of
 /// twice the distance from each adjacent face's centre to its element's centre). `None` when a
@@ -1709,7 +1702,7 @@ impl Scene {
                     let e_star = contact_modulus(mesh, bodies, &hitting, &target);
                     let per_node: Vec<f64> = layer
                         .iter()
-                        .map(|l| tangential_factor() * e_star * l)
+                        .map(|l| TANGENTIAL_STIFFNESS_FACTOR * e_star * l)
                         .collect();
                     let mean = per_node.iter().sum::<f64>() / per_node.len() as f64;
                     if !(mean.is_finite() && mean > 0.0) {
@@ -1724,7 +1717,7 @@ impl Scene {
                     notes.push(format!(
                         "{at} '{}': tangential stiffness {mean:.4e} per hitting node on average ({lo:.4e} to {hi:.4e}): {} E* A_i / h_i, with E* = {e_star:.4e} and A_i / h_i the node's area over the thickness of the element layer under it",
                         c.name,
-                        tangential_factor()
+                        TANGENTIAL_STIFFNESS_FACTOR
                     ));
                     (mean, per_node.iter().map(|k| k / mean).collect())
                 }
