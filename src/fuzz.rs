@@ -979,7 +979,7 @@ fn first_words(s: &str) -> String {
 }
 
 /// The figures of a fuzzing campaign: what the report's robustness section tabulates.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Summary {
     /// Scenes tried.
     pub tried: usize,
@@ -994,10 +994,13 @@ pub struct Summary {
     /// Per size class (`unknowns` upper bound): scenes, median seconds, largest seconds, and
     /// the largest over the median.
     pub size_classes: Vec<SizeClass>,
+    /// Scenes that completed with a check failing (wrong answers).
+    #[serde(default)]
+    pub wrong: usize,
 }
 
 /// Wall times of the scenes of one size class.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct SizeClass {
     /// Unknowns below this bound (and at or above the previous class's).
     pub below: usize,
@@ -1009,6 +1012,12 @@ pub struct SizeClass {
     pub max_seconds: f64,
     /// Seed of the slowest scene.
     pub slowest_seed: u64,
+    /// Median wall time per increment the scene asks for, seconds.
+    #[serde(default)]
+    pub median_per_increment: f64,
+    /// Largest wall time per increment asked for, seconds, and its seed.
+    #[serde(default)]
+    pub max_per_increment: (f64, u64),
 }
 
 fn percentile(v: &mut [f64], q: f64) -> f64 {
@@ -1052,9 +1061,15 @@ impl Summary {
                 continue;
             }
             let mut t: Vec<f64> = members.iter().map(|o| o.seconds).collect();
+            let per = |o: &CaseOutcome| o.seconds / o.increments.max(1) as f64;
+            let mut t_inc: Vec<f64> = members.iter().map(|o| per(o)).collect();
             let slowest = members
                 .iter()
                 .max_by(|a, b| a.seconds.total_cmp(&b.seconds))
+                .expect("not empty");
+            let slowest_inc = members
+                .iter()
+                .max_by(|a, b| per(a).total_cmp(&per(b)))
                 .expect("not empty");
             size_classes.push(SizeClass {
                 below,
@@ -1062,6 +1077,8 @@ impl Summary {
                 median_seconds: percentile(&mut t, 0.5),
                 max_seconds: slowest.seconds,
                 slowest_seed: slowest.seed,
+                median_per_increment: percentile(&mut t_inc, 0.5),
+                max_per_increment: (per(slowest_inc), slowest_inc.seed),
             });
         }
         Summary {
@@ -1071,6 +1088,19 @@ impl Summary {
             median_iterations,
             p90_iterations,
             size_classes,
+            wrong: outcomes
+                .iter()
+                .filter(|o| {
+                    matches!(
+                        o.failure,
+                        Some(
+                            FailureClass::Equilibrium
+                                | FailureClass::Coulomb
+                                | FailureClass::Penetration
+                        )
+                    )
+                })
+                .count(),
         }
     }
 
@@ -1118,4 +1148,129 @@ impl Summary {
         }
         s
     }
+}
+
+/// The report's robustness section: the campaign `after` against the baseline `before` (the
+/// same seeds run with the solver and defaults before the robustness work), with the targets.
+pub fn report_section(after: &Summary, before: Option<&Summary>, notes: &str) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let pct = |x: &Summary| 100.0 * x.passed as f64 / x.tried.max(1) as f64;
+    let _ = writeln!(s, "## Robustness\n");
+    let _ = writeln!(
+        s,
+        "`fricsens fuzz` generates random valid contact scenes a user could write (`fricsens::fuzz::generate`: rigid cylinders, spheres, rounded punches and planes, or a second deformable block, pressed into graded blocks in plane strain or 3D; St Venant-Kirchhoff, Neo-Hookean and J2 bodies, E over six decades, nu up to 0.49, mu in [0, 1.5]; every normal and friction law; press, slide, unload and reload paths with random increment counts) and runs each with default settings. After every converged increment it checks global equilibrium (reactions, loads and rigid-target forces add up to zero, to 1e-6 of the largest force), the Coulomb inequality at every closed node (to 1e-6 of its slip limit), tension, and penetration of Lagrange pairs (1e-6 of the smallest element). A scene passes when its whole path completes with every check holding.\n"
+    );
+    let _ = writeln!(s, "| | before | after |\n|---|---|---|");
+    let b = |f: &dyn Fn(&Summary) -> String| before.map(f).unwrap_or_else(|| "-".into());
+    let _ = writeln!(
+        s,
+        "| scenes tried | {} | {} |",
+        b(&|x| x.tried.to_string()),
+        after.tried
+    );
+    let _ = writeln!(
+        s,
+        "| completed with every check holding | {} | {} ({:.1} %) |",
+        b(&|x| format!("{} ({:.1} %)", x.passed, pct(x))),
+        after.passed,
+        pct(after)
+    );
+    let _ = writeln!(
+        s,
+        "| completed with a wrong answer | {} | {} |",
+        b(&|x| x.wrong.to_string()),
+        after.wrong
+    );
+    let _ = writeln!(
+        s,
+        "| Newton iterations per converged increment, median / 90th percentile | {} | {} / {} |",
+        b(&|x| format!("{} / {}", x.median_iterations, x.p90_iterations)),
+        after.median_iterations,
+        after.p90_iterations
+    );
+    let mut classes: Vec<String> = after.classes.iter().map(|(c, _)| c.clone()).collect();
+    if let Some(bf) = before {
+        for (c, _) in &bf.classes {
+            if !classes.contains(c) {
+                classes.push(c.clone());
+            }
+        }
+    }
+    let count = |x: &Summary, c: &str| {
+        x.classes
+            .iter()
+            .find(|(k, _)| k == c)
+            .map(|(_, n)| *n)
+            .unwrap_or(0)
+    };
+    for c in &classes {
+        let _ = writeln!(
+            s,
+            "| failure: {c} | {} | {} |",
+            b(&|x| count(x, c).to_string()),
+            count(after, c)
+        );
+    }
+    let _ = writeln!(s, "\nWall time per size class, after (two scenes at a time on two cores; \"per increment\" divides by the increments the scene asks for):\n");
+    let _ = writeln!(s, "| unknowns | scenes | median (s) | largest (s) | largest / median | slowest seed | median per increment (s) | largest per increment / median | seed |\n|---|---|---|---|---|---|---|---|---|");
+    let mut lower = 0;
+    for c in &after.size_classes {
+        let range = if c.below == usize::MAX {
+            format!(">= {lower}")
+        } else {
+            format!("{lower} - {}", c.below)
+        };
+        lower = c.below;
+        let _ = writeln!(
+            s,
+            "| {range} | {} | {:.3} | {:.3} | {:.1} | {} | {:.4} | {:.1} | {} |",
+            c.scenes,
+            c.median_seconds,
+            c.max_seconds,
+            c.max_seconds / c.median_seconds.max(1e-9),
+            c.slowest_seed,
+            c.median_per_increment,
+            c.max_per_increment.0 / c.median_per_increment.max(1e-12),
+            c.max_per_increment.1
+        );
+    }
+    s.push('\n');
+    let ratio = after
+        .size_classes
+        .iter()
+        .map(|c| c.max_seconds / c.median_seconds.max(1e-9))
+        .fold(0.0f64, f64::max);
+    let ratio_inc = after
+        .size_classes
+        .iter()
+        .map(|c| c.max_per_increment.0 / c.median_per_increment.max(1e-12))
+        .fold(0.0f64, f64::max);
+    let met = |ok: bool| if ok { "met" } else { "**not met**" };
+    let _ = writeln!(s, "| target | measured | |\n|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| at least 99 % complete their whole path | {:.1} % | {} |",
+        pct(after),
+        met(pct(after) >= 99.0)
+    );
+    let _ = writeln!(
+        s,
+        "| none finishes with a wrong answer | {} | {} |",
+        after.wrong,
+        met(after.wrong == 0)
+    );
+    let _ = writeln!(
+        s,
+        "| median Newton iterations per increment at most 6 | {} | {} |",
+        after.median_iterations,
+        met(after.median_iterations <= 6.0)
+    );
+    let _ = writeln!(
+        s,
+        "| no run over 10 x the median time of its size class | {ratio:.1} x ({ratio_inc:.1} x per increment asked for) | {} |\n",
+        met(ratio <= 10.0)
+    );
+    s.push_str(notes);
+    s
 }

@@ -189,6 +189,12 @@ enum Command {
         /// Print the scene of this seed as TOML and exit.
         #[arg(long)]
         show: Option<u64>,
+        /// A baseline campaign's fuzz.json: the report section (robustness.md) compares with it.
+        #[arg(long)]
+        before: Option<PathBuf>,
+        /// Markdown appended to the report section (what changed, what is left).
+        #[arg(long)]
+        notes: Option<PathBuf>,
     },
     /// Primal analysis: history CSV, Newton records, VTK files.
     Run {
@@ -623,14 +629,34 @@ fn scaling(
     Ok(())
 }
 
+#[allow(clippy::too_many_arguments)]
 fn fuzz(
     seeds: Vec<u64>,
     scenes: Vec<String>,
     out: PathBuf,
     corpus: Option<PathBuf>,
     time_limit: f64,
+    before: Option<PathBuf>,
+    notes: Option<PathBuf>,
 ) -> Result<(), String> {
-    use fricsens::fuzz::{generate, run_case, Summary};
+    use fricsens::fuzz::{generate, report_section, run_case, Summary};
+    let read =
+        |p: &PathBuf| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
+    let before: Option<Summary> = match &before {
+        Some(p) => {
+            let v: serde_json::Value =
+                serde_json::from_str(&read(p)?).map_err(|e| format!("{}: {e}", p.display()))?;
+            Some(
+                serde_json::from_value(v["summary"].clone())
+                    .map_err(|e| format!("{}: summary: {e}", p.display()))?,
+            )
+        }
+        None => None,
+    };
+    let notes = match &notes {
+        Some(p) => read(p)?,
+        None => String::new(),
+    };
     use rayon::prelude::*;
     let given: Vec<Scene> = scenes
         .iter()
@@ -689,12 +715,40 @@ fn fuzz(
     let summary = Summary::of(&outcomes);
     let md = summary.markdown();
     std::fs::write(out.join("fuzz.md"), &md).map_err(|e| e.to_string())?;
+    let failures: Vec<_> = outcomes.iter().filter(|o| !o.passed).collect();
     let json = serde_json::to_string_pretty(&serde_json::json!({
         "summary": summary,
-        "outcomes": outcomes,
+        "failures": failures,
     }))
     .map_err(|e| e.to_string())?;
     std::fs::write(out.join("fuzz.json"), json).map_err(|e| e.to_string())?;
+    let mut csv = String::from(
+        "seed,unknowns,three_d,increments,converged,passed,seconds,iterations,cutbacks,failure\n",
+    );
+    for o in &outcomes {
+        csv.push_str(&format!(
+            "{},{},{},{},{},{},{:.4},{},{},\"{}\"\n",
+            o.seed,
+            o.unknowns,
+            o.three_d,
+            o.increments,
+            o.converged,
+            o.passed,
+            o.seconds,
+            o.iterations.iter().sum::<usize>(),
+            o.cutbacks,
+            o.failure
+                .as_ref()
+                .map(|f| f.to_string())
+                .unwrap_or_default()
+        ));
+    }
+    std::fs::write(out.join("fuzz.csv"), csv).map_err(|e| e.to_string())?;
+    std::fs::write(
+        out.join("robustness.md"),
+        report_section(&summary, before.as_ref(), &notes),
+    )
+    .map_err(|e| e.to_string())?;
     outp!("{md}");
     out!("written to {}", out.display());
     Ok(())
@@ -733,13 +787,15 @@ fn main() -> ExitCode {
             only,
             scenes,
             show: None,
+            before,
+            notes,
         } => {
             let list = if only.is_empty() {
                 (start..start + seeds).collect()
             } else {
                 only
             };
-            fuzz(list, scenes, out, corpus, time_limit)
+            fuzz(list, scenes, out, corpus, time_limit, before, notes)
         }
         Command::Run {
             scene,

@@ -1553,6 +1553,7 @@ fn report(
     // sections written by `fricsens scaling` and `fricsens ccx` (long, or needing CalculiX):
     // included as they were last generated
     for (file, what) in [
+        ("robustness/robustness.md", "fricsens fuzz"),
         ("scaling/scaling.md", "fricsens scaling"),
         ("ccx/ccx.md", "fricsens ccx"),
     ] {

@@ -145,10 +145,59 @@ component = "y"
 /// the third increment and differ from DDM's one-sided derivative by 1e-1 of it.
 #[test]
 fn default_ddm_matches_central_fdm_on_the_j2_beam() {
-    let model = j2_beam().build().unwrap();
-    let mut tight = j2_beam();
+    let (records, worst) = ddm_against_central_fdm(&j2_beam(), 3e-4, false);
+    assert_eq!(records.len(), 16, "no cutback on the beam");
+    println!("largest |DDM - FDM| over the FDM error estimate: {worst:.2}");
+}
+
+/// Sensitivities are exact along the steps actually taken: the J2 beam pushed to its tip
+/// deflection in one increment instead of 15, with at most 5 Newton iterations per attempt,
+/// needs cutbacks (the solver halves the step and carries the converged one on), and DDM along
+/// those sub-increments equals central finite differences of reruns that take the same
+/// sub-increments (checked: the same times), within the finite differences' error as in the
+/// test above. DDM runs here at the reruns' force tolerance, 1e-13, so that both linearise
+/// about the same converged states.
+#[test]
+fn ddm_is_exact_along_cut_back_increments() {
+    let mut scene = j2_beam();
+    scene.steps[0].increments = 1;
+    scene.solver.max_iterations = 5;
+    let (records, worst) = ddm_against_central_fdm(&scene, 3e-4, true);
+    let cut: usize = records.iter().map(|r| r.cutbacks).sum();
+    assert!(
+        records.len() > 3 && cut > 0,
+        "the 2-increment beam must be cut back: {} increments, {cut} cutbacks",
+        records.len()
+    );
+    let asked: usize = scene.steps.iter().map(|s| s.increments).sum();
+    println!(
+        "{} increments taken for {asked} asked, {cut} cutbacks; largest |DDM - FDM| over the FDM error estimate: {worst:.1e}",
+        records.len()
+    );
+}
+
+/// DDM with default settings on `scene` (the J2 beam's parameters `sigma_y` and `E`, response
+/// `tip-force`) against central FDM of reruns with steps `h` and `2h`: with steps h and 2h the
+/// truncation error of D(h) is |D(h) - D(2h)| / 3 (Richardson); the estimate takes the whole
+/// difference, and adds the round-off of reruns converged to a relative force residual of
+/// `force_tol`: `force_tol |f| / (h b)` for a response of size `|f|`. DDM runs with the
+/// default settings, the solver's included (force tolerance 1e-9); the reruns are converged to
+/// 1e-13, so that their round-off is below the truncation error the comparison estimates
+/// (`ddm_tight`: DDM too). Every rerun must take the increments DDM took (the same times). Returns DDM's increment
+/// records and the largest |DDM - FDM| over the estimate.
+fn ddm_against_central_fdm(
+    scene: &Scene,
+    h: f64,
+    ddm_tight: bool,
+) -> (Vec<fricsens::solver::IncrementRecord>, f64) {
+    let mut tight = scene.clone();
     tight.solver.force_tol = 1e-13;
     let tight = tight.build().unwrap();
+    let model = if ddm_tight {
+        tight.clone()
+    } else {
+        scene.build().unwrap()
+    };
     let force_tol = tight.solver.force_tol;
     let names = ["sigma_y", "E"];
     let params: Vec<Parameter> = names
@@ -156,7 +205,6 @@ fn default_ddm_matches_central_fdm_on_the_j2_beam() {
         .map(|n| Parameter::by_name(&model, n).unwrap())
         .collect();
     let (res, ddm) = run_sensitivity(&model, &params, &Settings::default()).unwrap();
-    assert_eq!(res.records.len(), 16, "no cutback on the beam");
     // the beam yields: the comparison is in the plastic range
     let plastic = res
         .branches
@@ -171,9 +219,17 @@ fn default_ddm_matches_central_fdm_on_the_j2_beam() {
             beta,
             ..Settings::default()
         };
-        run_sensitivity(&tight, &params, &s).unwrap().1
+        let (r, d) = run_sensitivity(&tight, &params, &s).unwrap();
+        let times = |rs: &[fricsens::solver::IncrementRecord]| -> Vec<f64> {
+            rs.iter().map(|r| r.time).collect()
+        };
+        assert_eq!(
+            times(&r.records),
+            times(&res.records),
+            "the rerun's increments"
+        );
+        d
     };
-    let h = 3e-4;
     let (d1, d2) = (fdm(h), fdm(2.0 * h));
     let mut worst: f64 = 0.0;
     for p in 0..names.len() {
@@ -197,7 +253,7 @@ fn default_ddm_matches_central_fdm_on_the_j2_beam() {
             );
         }
     }
-    println!("largest |DDM - FDM| over the FDM error estimate: {worst:.2}");
+    (res.records, worst)
 }
 
 /// `fricsens sensitivity SCENE` without `--param` differentiates with respect to the scene's
