@@ -1443,18 +1443,18 @@ const ESTIMATE_MARGIN: f64 = 0.1;
 
 /// A column's start residual whose part outside the basis falls below this fraction of its
 /// norm lies in the span of the other columns' (to the round-off of two Gram-Schmidt passes,
-/// 1e-16) and is left out of [`BlockArnoldi`]: the residual left behind is below any
+/// 1e-16) and is left out of the block Arnoldi basis: the residual left behind is below any
 /// tolerance asked. Products are left out only when exactly in the span: with a penalty of
 /// 1e9 in a Poisson matrix, leaving out a product's part of 1e-14 of its norm doubled the
 /// residual GMRES reached (9.7e-8 against the factorization's 4.5e-8).
-const DEFLATION: f64 = 1e-14;
+pub const DEFLATION: f64 = 1e-14;
 
 /// Normwise backward error `|b - a x| / | |a||x| + |b| |`, in ulps, that
 /// [`LinearSolver::gmres_multi`] accepts in place of its relative-residual tolerance: that of
 /// a backward-stable direct solve. faer's LU measured 0.39 to 0.46 eps on the stacked leaves'
 /// and the cantilever's converged tangents with the pseudo-load in `E` (relative residuals
 /// 5e-10 and 2.5e-9, where GMRES preconditioned with Newton's factor reached 0.27 to 0.32 eps).
-const BACKWARD_STABLE_ULPS: f64 = 1.0;
+pub const BACKWARD_STABLE_ULPS: f64 = 1.0;
 
 /// Outcome of [`LinearSolver::gmres_multi`].
 #[derive(Debug, Clone, Copy, PartialEq)]
