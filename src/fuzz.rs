@@ -478,15 +478,14 @@ pub fn generate(seed: u64) -> Scene {
                     component: c,
                 });
             }
-            let steps = phases
-                .iter()
-                .enumerate()
-                .map(|(k, p)| StepSpec {
-                    end: (k + 1) as f64,
-                    increments: p.increments,
-                })
-                .collect();
-            return finish(seed, bodies, prescribed, contacts, steps, responses);
+            return finish(
+                seed,
+                bodies,
+                prescribed,
+                contacts,
+                steps(&phases),
+                responses,
+            );
         }
         Indenter::Cylinder | Indenter::Sphere => {
             let radius = lx * r.log_uniform(0.15, 10.0);
@@ -563,15 +562,14 @@ pub fn generate(seed: u64) -> Scene {
             component: c,
         });
     }
-    let steps = phases
-        .iter()
-        .enumerate()
-        .map(|(k, p)| StepSpec {
-            end: (k + 1) as f64,
-            increments: p.increments,
-        })
-        .collect();
-    finish(seed, bodies, prescribed, contacts, steps, responses)
+    finish(
+        seed,
+        bodies,
+        prescribed,
+        contacts,
+        steps(&phases),
+        responses,
+    )
 }
 
 fn rigid_contact(
@@ -596,6 +594,18 @@ fn rigid_contact(
         activation: None,
         search_radius: None,
     }
+}
+
+/// One step per phase, phase `k` ending at pseudo-time `k + 1`.
+fn steps(phases: &[Phase]) -> Vec<StepSpec> {
+    phases
+        .iter()
+        .enumerate()
+        .map(|(k, p)| StepSpec {
+            end: (k + 1) as f64,
+            increments: p.increments,
+        })
+        .collect()
 }
 
 fn finish(
