@@ -1030,6 +1030,48 @@ pub struct SizeClass {
     pub max_per_increment: (f64, u64),
 }
 
+impl SizeClass {
+    /// The largest wall time over the median.
+    pub fn time_ratio(&self) -> f64 {
+        self.max_seconds / self.median_seconds.max(1e-9)
+    }
+
+    /// The largest wall time per increment asked for over the median.
+    pub fn time_ratio_per_increment(&self) -> f64 {
+        self.max_per_increment.0 / self.median_per_increment.max(1e-12)
+    }
+}
+
+/// Wall times per size class as a markdown table (totals and per increment asked for).
+fn size_class_table(classes: &[SizeClass]) -> String {
+    use std::fmt::Write;
+    let mut s = String::from(
+        "| unknowns | scenes | median (s) | largest (s) | largest / median | slowest seed | median per increment (s) | largest per increment / median | seed |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let mut lower = 0;
+    for c in classes {
+        let range = if c.below == usize::MAX {
+            format!(">= {lower}")
+        } else {
+            format!("{lower} - {}", c.below)
+        };
+        lower = c.below;
+        let _ = writeln!(
+            s,
+            "| {range} | {} | {:.3} | {:.3} | {:.1} | {} | {:.4} | {:.1} | {} |",
+            c.scenes,
+            c.median_seconds,
+            c.max_seconds,
+            c.time_ratio(),
+            c.slowest_seed,
+            c.median_per_increment,
+            c.time_ratio_per_increment(),
+            c.max_per_increment.1
+        );
+    }
+    s
+}
+
 fn percentile(v: &mut [f64], q: f64) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -1134,28 +1176,7 @@ impl Summary {
             }
             s.push('\n');
         }
-        let _ = writeln!(
-            s,
-            "| unknowns | scenes | median time (s) | largest (s) | largest / median | slowest seed |\n|---|---|---|---|---|---|"
-        );
-        let mut lower = 0;
-        for c in &self.size_classes {
-            let range = if c.below == usize::MAX {
-                format!(">= {lower}")
-            } else {
-                format!("{lower} - {}", c.below)
-            };
-            lower = c.below;
-            let _ = writeln!(
-                s,
-                "| {range} | {} | {:.3} | {:.3} | {:.1} | {} |",
-                c.scenes,
-                c.median_seconds,
-                c.max_seconds,
-                c.max_seconds / c.median_seconds.max(1e-9),
-                c.slowest_seed
-            );
-        }
+        s.push_str(&size_class_table(&self.size_classes));
         s
     }
 }
@@ -1223,39 +1244,11 @@ pub fn report_section(after: &Summary, before: Option<&Summary>, notes: &str) ->
         );
     }
     let _ = writeln!(s, "\nWall time per size class, after (two scenes at a time on two cores; \"per increment\" divides by the increments the scene asks for):\n");
-    let _ = writeln!(s, "| unknowns | scenes | median (s) | largest (s) | largest / median | slowest seed | median per increment (s) | largest per increment / median | seed |\n|---|---|---|---|---|---|---|---|---|");
-    let mut lower = 0;
-    for c in &after.size_classes {
-        let range = if c.below == usize::MAX {
-            format!(">= {lower}")
-        } else {
-            format!("{lower} - {}", c.below)
-        };
-        lower = c.below;
-        let _ = writeln!(
-            s,
-            "| {range} | {} | {:.3} | {:.3} | {:.1} | {} | {:.4} | {:.1} | {} |",
-            c.scenes,
-            c.median_seconds,
-            c.max_seconds,
-            c.max_seconds / c.median_seconds.max(1e-9),
-            c.slowest_seed,
-            c.median_per_increment,
-            c.max_per_increment.0 / c.median_per_increment.max(1e-12),
-            c.max_per_increment.1
-        );
-    }
+    s.push_str(&size_class_table(&after.size_classes));
     s.push('\n');
-    let ratio = after
-        .size_classes
-        .iter()
-        .map(|c| c.max_seconds / c.median_seconds.max(1e-9))
-        .fold(0.0f64, f64::max);
-    let ratio_inc = after
-        .size_classes
-        .iter()
-        .map(|c| c.max_per_increment.0 / c.median_per_increment.max(1e-12))
-        .fold(0.0f64, f64::max);
+    let worst = |f: fn(&SizeClass) -> f64| after.size_classes.iter().map(f).fold(0.0, f64::max);
+    let ratio = worst(SizeClass::time_ratio);
+    let ratio_inc = worst(SizeClass::time_ratio_per_increment);
     let met = |ok: bool| if ok { "met" } else { "**not met**" };
     let _ = writeln!(s, "| target | measured | |\n|---|---|---|");
     let _ = writeln!(

@@ -289,17 +289,20 @@ pub fn evaluate<S: Scalar>(
             } else {
                 None
             };
-            let mut ko = node_kernel(
-                &x_ref,
-                &u,
-                lambda,
-                lambda_bar,
-                &target,
-                anchor.as_ref(),
-                &par,
-                fz.map(|c| c.state),
-            )
-            .map_err(err)?;
+            let kernel = |par: &KernelParams<'_, S>, state| {
+                node_kernel(
+                    &x_ref,
+                    &u,
+                    lambda,
+                    lambda_bar,
+                    &target,
+                    anchor.as_ref(),
+                    par,
+                    state,
+                )
+                .map_err(err)
+            };
+            let mut ko = kernel(&par, fz.map(|c| c.state))?;
             // a node the solver forces to stick: evaluated again on the stick branch (its
             // normal state stays the free decision: slip implies closed) with the elastic
             // predictor as its friction force (KernelParams::elastic_stick), and the tangent
@@ -311,21 +314,11 @@ pub fn evaluate<S: Scalar>(
                 && force_stick.and_then(|f| f.get(flat)).copied() == Some(true)
             {
                 forced = true;
-                let par = KernelParams {
+                let stick = KernelParams {
                     elastic_stick: true,
                     ..par
                 };
-                ko = node_kernel(
-                    &x_ref,
-                    &u,
-                    lambda,
-                    lambda_bar,
-                    &target,
-                    anchor.as_ref(),
-                    &par,
-                    Some(ContactState::Stick),
-                )
-                .map_err(err)?;
+                ko = kernel(&stick, Some(ContactState::Stick))?;
                 fz = Some(ContactChoice {
                     state: ContactState::Stick,
                     face,
