@@ -33,23 +33,19 @@
 //! ```
 
 pub mod assembly;
-pub mod ccx;
-pub mod compare_laws;
 pub mod contact;
 pub mod element;
-pub mod fuzz;
 pub mod linalg;
 pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod output;
-pub mod plot;
 pub mod precheck;
 pub mod response;
 pub mod scalar;
-pub mod scaling;
 pub mod scene;
 pub mod sensitivity;
 pub mod solver;
+#[cfg(feature = "studies")]
+pub mod studies;
 pub mod symlu;
-pub mod validate;

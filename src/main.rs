@@ -389,7 +389,7 @@ fn merge_scaling(out: &std::path::Path, files: &[PathBuf]) -> Result<(), String>
         }
     }
     let n = added.len();
-    fricsens::scaling::merge_measurements(out, added).map_err(|e| e.to_string())?;
+    fricsens::studies::scaling::merge_measurements(out, added).map_err(|e| e.to_string())?;
     out!(
         "{n} measurement(s) merged into {}",
         out.join("scaling.json").display()
@@ -486,7 +486,9 @@ fn validate(
     beta_max: f64,
     beta_min: f64,
 ) -> Result<(), String> {
-    use fricsens::validate::{default_scenes, ValidateOptions};
+    use fricsens::studies::validate::{
+        default_scenes, validate_observed, ValidateOptions, ValidateProgress,
+    };
     if !(beta_max > 0.0 && beta_max < 1.0 && beta_min > 0.0 && beta_min <= beta_max) {
         return Err(format!(
             "--beta-max and --beta-min must satisfy 0 < beta-min <= beta-max < 1, got {beta_max:e} and {beta_min:e}"
@@ -513,7 +515,6 @@ fn validate(
     let opts = ValidateOptions {
         out: out.clone(),
         betas,
-        progress: std::io::IsTerminal::is_terminal(&std::io::stderr()),
         reduced_fdm: if full {
             Vec::new()
         } else {
@@ -521,7 +522,19 @@ fn validate(
         },
         ..ValidateOptions::default()
     };
-    let v = fricsens::validate::validate(&scenes, &opts).map_err(|e| e.to_string())?;
+    let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        ProgressBar::new(scenes.len() as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    let v = validate_observed(&scenes, &opts, &mut |p| match p {
+        ValidateProgress::Scene { index, name, .. } => {
+            bar.set_position(index as u64);
+            bar.set_message(name.to_string());
+        }
+        ValidateProgress::Report => bar.finish_and_clear(),
+    })
+    .map_err(|e| e.to_string())?;
     for s in &v.scenes {
         out!(
             "{:<18} {:>6} unknowns {:>4} increments  primal {:>7.2} s  DDM/primal {:.3}",
@@ -550,7 +563,7 @@ fn ccx(
     deck: Option<PathBuf>,
     keep: Option<PathBuf>,
 ) -> Result<(), String> {
-    use fricsens::ccx::{compare, export, find_ccx, CompareOptions, ExportOptions};
+    use fricsens::studies::ccx::{compare, export, find_ccx, CompareOptions, ExportOptions};
     let scene = Scene::load(scene_name).map_err(|e| e.to_string())?;
     let model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
     if let Some(path) = deck {
@@ -607,7 +620,7 @@ fn scaling(
     memory_budget_mib: f64,
     time_budget_seconds: f64,
 ) -> Result<(), String> {
-    use fricsens::scaling::{run_study, StudyOptions};
+    use fricsens::studies::scaling::{run_study, StudyOptions};
     let exe = std::env::current_exe().map_err(|e| format!("cannot locate fricsens itself: {e}"))?;
     let study = run_study(&StudyOptions {
         out: out.clone(),
@@ -639,7 +652,7 @@ fn fuzz(
     before: Option<PathBuf>,
     notes: Option<PathBuf>,
 ) -> Result<(), String> {
-    use fricsens::fuzz::{generate, report_section, run_case, Summary};
+    use fricsens::studies::fuzz::{generate, report_section, run_case, Summary};
     let read =
         |p: &PathBuf| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
     let before: Option<Summary> = match &before {
@@ -775,7 +788,7 @@ fn main() -> ExitCode {
         Command::Fuzz {
             show: Some(seed), ..
         } => {
-            outp!("{}", fricsens::fuzz::generate(seed).to_toml());
+            outp!("{}", fricsens::studies::fuzz::generate(seed).to_toml());
             Ok(())
         }
         Command::Fuzz {
@@ -838,11 +851,11 @@ fn main() -> ExitCode {
         } => merge_scaling(&out, &merge),
         Command::Scaling {
             out, rewrite: true, ..
-        } => fricsens::scaling::rewrite_outputs(&out)
+        } => fricsens::studies::scaling::rewrite_outputs(&out)
             .map(|_| out!("rewritten from {}", out.join("scaling.json").display()))
             .map_err(|e| e.to_string()),
         Command::ScalingOne { scene, refinement } => {
-            fricsens::scaling::measure_child(&scene, refinement)
+            fricsens::studies::scaling::measure_child(&scene, refinement)
                 .map(|line| out!("{line}"))
                 .map_err(|e| e.to_string())
         }

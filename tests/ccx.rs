@@ -4,12 +4,12 @@
 //! times and fricsens twice) and skips with a message when `ccx` is not on PATH:
 //! `cargo test --release --test ccx -- --ignored`.
 
-use fricsens::ccx::{
+use fricsens::element::Hex8Formulation;
+use fricsens::scene::indentation;
+use fricsens::studies::ccx::{
     compare, export, find_ccx, keyword_counts, parse_dat_forces, variation, CcxError,
     CompareOptions, ExportOptions,
 };
-use fricsens::element::Hex8Formulation;
-use fricsens::scene::indentation;
 use std::path::Path;
 
 /// Lines of the data block that follows the first line starting with `keyword`.

@@ -5,8 +5,8 @@
 //! pair), but those still listed in `OPEN`. And a few dozen fresh seeds, beyond the ones the
 //! solver was tuned on, run as the fuzzer runs them.
 
-use fricsens::fuzz::{generate, run_case, CaseOutcome, FailureClass};
 use fricsens::scene::Scene;
+use fricsens::studies::fuzz::{generate, run_case, CaseOutcome, FailureClass};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 

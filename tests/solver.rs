@@ -58,7 +58,7 @@ fn displacement_controlled_plastic_cantilever_needs_no_cutback() {
 /// default tolerance reaches.
 #[test]
 fn a_force_tolerance_below_the_round_off_floor_converges_at_the_floor() {
-    use fricsens::scaling::ScalingScene;
+    use fricsens::studies::scaling::ScalingScene;
     let model = ScalingScene::LeafSpring
         .scene(1.0)
         .unwrap()

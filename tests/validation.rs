@@ -2,7 +2,7 @@
 //! independent methods and the closed forms, and writes the report.
 
 use fricsens::scene::builtin;
-use fricsens::validate::{default_scenes, validate, ValidateOptions};
+use fricsens::studies::validate::{default_scenes, validate, ValidateOptions};
 
 #[test]
 fn reduced_validation_agrees_and_writes_the_report() {

@@ -428,3 +428,29 @@ pub fn stacked_leaves(s: &StackedLeavesSpec) -> Scene {
         },
     }
 }
+
+/// The closed-form checks of the `stacked-leaves` scene on its DDM run.
+pub(crate) fn stacked_leaves_oracles(ddm: &SensitivityResults, out: &mut Vec<OracleCheck>) {
+    let (r_of, p_of, at) = lookups(ddm);
+    let s = StackedLeavesSpec::default();
+    if let (Some(r), Some(p), Some(end)) = (r_of("delta"), p_of("mu"), at(1.0)) {
+        let mu = s.mu;
+        let d = s.thickness;
+        let expected =
+            -(s.deflection() * (1.0 - 3.0 * mu * d / (4.0 * s.length)) + 0.5 * s.clearance);
+        // beam theory: shear deformation and the tip's local flexibility (~(h/L))
+        out.push(row(
+            "delta at P (loading, slipping)",
+            expected,
+            end.values[r],
+            0.02,
+        ));
+        // oracles.md: compare d delta / d mu to 5-10 %
+        out.push(row(
+            "d delta / d mu at P (loading): + P d L^2 / (8 E I)",
+            s.deflection_mu_slope(),
+            end.derivatives[r][p],
+            0.10,
+        ));
+    }
+}

@@ -14,17 +14,16 @@
 //! increments that are not flagged as non-differentiable (a yield, contact or stick/slip
 //! transition at the converged state, where a finite perturbation may cross the kink).
 
-use crate::plot::{write_svg, Figure, PlotError, Style};
 use crate::response::ResponseKind;
 use crate::scene::{
     builtin, leaf_spring, stacked_leaves, LeafSpringSpec, Scene, SceneError, StackedLeavesSpec,
-    StripSpec,
 };
 use crate::sensitivity::{
     run_fdm_sweep, run_inline_sweep, Method, Parameter, SensitivityCost, SensitivityResults,
     Settings, TangentChoice,
 };
 use crate::solver::{AnalysisError, PrimalCost};
+use crate::studies::plot::{write_svg, Figure, PlotError, Style};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -39,13 +38,11 @@ pub struct ValidateOptions {
     pub floor: f64,
     /// Beta of the overlaid curves in the paper's figures.
     pub figure_beta: f64,
-    /// Show progress on the terminal.
-    pub progress: bool,
     /// Scenes whose finite-difference sweep (a full rerun per beta, parameter and sign) is
     /// thinned to [`REDUCED_FDM_BETAS`] (the in-line methods keep every beta).
     pub reduced_fdm: Vec<String>,
     /// Compare the shipped friction laws on the strip pull-out with this many elements
-    /// ([`crate::compare_laws`]); `None` leaves the section out.
+    /// ([`crate::studies::compare_laws`]); `None` leaves the section out.
     pub friction_laws: Option<usize>,
     /// Measure the batched cost on [`refined_leaf_spring`] too (one more primal run of about
     /// a minute) when the leaf spring is validated.
@@ -63,7 +60,6 @@ impl Default for ValidateOptions {
             betas: (1..=14).map(|k| 10f64.powi(-k)).collect(),
             floor: 1e-3,
             figure_beta: 1e-6,
-            progress: false,
             // primal ~20 s (leaf spring) and ~8 s on 21,000 unknowns (Hertz): 56 and 28
             // reruns for a full sweep
             reduced_fdm: vec!["leaf-spring".into(), "hertz".into()],
@@ -93,7 +89,7 @@ pub enum ValidateError {
     Plot(#[from] PlotError),
     /// The friction-law comparison failed.
     #[error(transparent)]
-    Laws(#[from] crate::compare_laws::CompareLawsError),
+    Laws(#[from] crate::studies::compare_laws::CompareLawsError),
     #[error("{path}: {source}")]
     /// A report file could not be written.
     Io {
@@ -685,266 +681,18 @@ fn write(path: &Path, text: &str) -> Result<(), ValidateError> {
 
 /// Closed-form checks on the DDM results of the oracle scenes.
 fn oracles(v: &SceneValidation) -> Vec<OracleRow> {
-    let mut out = Vec::new();
-    let row = |quantity: &str, expected: f64, got: f64, tolerance: f64| {
-        let rel = ((got - expected) / expected).abs();
-        OracleRow {
+    crate::scene::builtin::oracles(&v.scene, &v.ddm)
+        .into_iter()
+        .map(|c| OracleRow {
             scene: v.scene.clone(),
-            quantity: quantity.to_string(),
-            expected,
-            got,
-            rel_error: rel,
-            tolerance,
-            pass: rel <= tolerance,
-        }
-    };
-    let res = &v.ddm;
-    let r_of = |name: &str| res.responses.iter().position(|r| r == name);
-    let p_of = |name: &str| res.parameters.iter().position(|r| r == name);
-    let at = |t: f64| {
-        res.increments
-            .iter()
-            .find(|i| (i.time - t).abs() < 1e-9)
-            .cloned()
-    };
-    match v.scene.as_str() {
-        "stacked-leaves" => {
-            let s = StackedLeavesSpec::default();
-            if let (Some(r), Some(p), Some(end)) = (r_of("delta"), p_of("mu"), at(1.0)) {
-                let mu = s.mu;
-                let d = s.thickness;
-                let expected =
-                    -(s.deflection() * (1.0 - 3.0 * mu * d / (4.0 * s.length)) + 0.5 * s.clearance);
-                // beam theory: shear deformation and the tip's local flexibility (~(h/L))
-                out.push(row(
-                    "delta at P (loading, slipping)",
-                    expected,
-                    end.values[r],
-                    0.02,
-                ));
-                // oracles.md: compare d delta / d mu to 5-10 %
-                out.push(row(
-                    "d delta / d mu at P (loading): + P d L^2 / (8 E I)",
-                    s.deflection_mu_slope(),
-                    end.derivatives[r][p],
-                    0.10,
-                ));
-            }
-        }
-        "strip-pullout" => {
-            let s = StripSpec::default();
-            let k = s.young * s.thickness * s.width * s.mu * s.n;
-            if let (Some(r), Some(pm), Some(pe), Some(end)) =
-                (r_of("u0"), p_of("mu"), p_of("E"), at(1.0))
-            {
-                let u0 = s.force * s.force / (2.0 * k);
-                // oracles.md: 1-2 % with thickness / slip length < 0.05
-                out.push(row("u0 = F^2 / (2 K) at F1", u0, end.values[r], 0.02));
-                out.push(row(
-                    "du0/dmu = -u0/mu at F1",
-                    -u0 / s.mu,
-                    end.derivatives[r][pm],
-                    0.02,
-                ));
-                out.push(row(
-                    "du0/dE = -u0/E at F1",
-                    -u0 / s.young,
-                    end.derivatives[r][pe],
-                    0.02,
-                ));
-            }
-        }
-        "cantilever-small" => {
-            let c = crate::scene::CantileverSpec::small_deflection();
-            if let (Some(r), Some(p), Some(end)) = (
-                r_of("tip-deflection"),
-                p_of("E"),
-                res.increments.last().cloned(),
-            ) {
-                let delta = c.load() * c.length.powi(3) / (3.0 * c.young * c.inertia());
-                // Euler-Bernoulli: shear deflection adds ~ 3 E h^2 / (10 G L^2) = 0.2 %
-                out.push(row(
-                    "tip deflection P L^3 / (3 E I)",
-                    -delta,
-                    end.values[r],
-                    0.01,
-                ));
-                out.push(row(
-                    "d tip / d E = -tip / E",
-                    delta / c.young,
-                    end.derivatives[r][p],
-                    0.01,
-                ));
-            }
-        }
-        "uniaxial-j2" => {
-            // oracles.md section 1 at the end of the cycle (eps = -eps_a, reversed and
-            // yielding again), derivatives by dual numbers of the closed form
-            use num_dual::Dual64;
-            fn reversed(e: Dual64, sy: Dual64, h: Dual64, eps: f64, eps_a: f64) -> Dual64 {
-                let ep1 = (e * eps_a - sy) / (e + h);
-                e * (h * eps - sy - h * ep1 * 2.0) / (e + h)
-            }
-            let (e, sy, h) = (200e3, 250.0, 10e3);
-            let c = Dual64::from;
-            if let (Some(r), Some(end)) = (r_of("stress"), at(3.0)) {
-                let sigma = reversed(c(e), c(sy), c(h), -0.01, 0.01).re;
-                // radial return is exact on this path: solver tolerance
-                out.push(row("sigma at eps = -eps_a", sigma, end.values[r], 1e-8));
-                for (name, d) in [
-                    (
-                        "sigma_y",
-                        reversed(c(e), Dual64::new(sy, 1.0), c(h), -0.01, 0.01),
-                    ),
-                    ("H", reversed(c(e), c(sy), Dual64::new(h, 1.0), -0.01, 0.01)),
-                    ("E", reversed(Dual64::new(e, 1.0), c(sy), c(h), -0.01, 0.01)),
-                ] {
-                    if let Some(p) = p_of(name) {
-                        out.push(row(
-                            &format!("d sigma / d {name} at eps = -eps_a"),
-                            d.eps,
-                            end.derivatives[r][p],
-                            1e-8,
-                        ));
-                    }
-                }
-            }
-        }
-        "uniaxial-svk" => {
-            // oracles.md section 2: P11 = (E/2) lambda (lambda^2 - 1), exact for one hex8
-            if let (Some(r), Some(end)) = (r_of("stress"), res.increments.last()) {
-                let (e, lambda) = (1000.0, 1.5);
-                let p11 = 0.5 * e * lambda * (lambda * lambda - 1.0);
-                out.push(row("P11 at lambda = 1.5", p11, end.values[r], 1e-10));
-                if let Some(p) = p_of("E") {
-                    out.push(row(
-                        "d P11 / d E = lambda (lambda^2 - 1) / 2",
-                        p11 / e,
-                        end.derivatives[r][p],
-                        1e-10,
-                    ));
-                }
-            }
-        }
-        "klarbring-2dof" => {
-            // oracles.md section 6, slip in direction s; exact for the discrete system
-            let slip = |ft: f64, s: f64| {
-                let (k11, k12, fn_, mu) = (1.0, 0.5, -1.0, 0.3);
-                let den = k11 + s * mu * k12;
-                (
-                    (ft + s * mu * fn_) / den,
-                    s * (k11 * fn_ - k12 * ft) / (den * den),
-                )
-            };
-            if let (Some(r), Some(p)) = (r_of("u"), p_of("mu")) {
-                for (t, ft, s, what) in [
-                    (1.0, 0.6, 1.0, "first loading"),
-                    (3.0, -0.6, -1.0, "slipping back"),
-                    (4.0, 0.0, 1.0, "reloading"),
-                ] {
-                    if let Some(inc) = at(t) {
-                        let (u, du) = slip(ft, s);
-                        out.push(row(
-                            &format!("u at F_t = {ft} ({what})"),
-                            u,
-                            inc.values[r],
-                            1e-9,
-                        ));
-                        out.push(row(
-                            &format!("du/dmu at F_t = {ft} ({what})"),
-                            du,
-                            inc.derivatives[r][p],
-                            1e-8,
-                        ));
-                    }
-                }
-            }
-        }
-        "jenkins" => {
-            // oracles.md section 5 (k = 1, N = 1, mu = 0.3): slipping at the turning points,
-            // T = s mu N and dT/dmu = s N, exact to round-off
-            if let (Some(r), Some(p)) = (r_of("T"), p_of("mu")) {
-                for (t, s) in [(1.0, 1.0), (3.0, -1.0)] {
-                    if let Some(inc) = at(t) {
-                        out.push(row(
-                            &format!("T = s mu N at t = {t} (slipping)"),
-                            s * 0.3,
-                            inc.values[r],
-                            1e-10,
-                        ));
-                        out.push(row(
-                            &format!("dT/dmu = s N at t = {t}"),
-                            s,
-                            inc.derivatives[r][p],
-                            1e-10,
-                        ));
-                    }
-                }
-            }
-        }
-        "cantilever" => {
-            // oracles.md section 3, the elastica table (nu = 0, L/h = 50): w/L and
-            // dw/dE = -(alpha L / E) f'; 1-3 % expected for a bending-capable hex8
-            let c = crate::scene::CantileverSpec::large_deflection();
-            if let (Some(r), Some(p)) = (r_of("tip-deflection"), p_of("E")) {
-                for (alpha, w_l, fp) in [
-                    (1.0, 0.30172, 0.2489),
-                    (2.0, 0.49346, 0.1426),
-                    (5.0, 0.71379, 0.0362),
-                ] {
-                    if let Some(inc) = at(alpha / c.alpha) {
-                        out.push(row(
-                            &format!("w / L at alpha = {alpha}"),
-                            w_l,
-                            -inc.values[r] / c.length,
-                            0.03,
-                        ));
-                        out.push(row(
-                            &format!("dw/dE = -(alpha L / E) f' at alpha = {alpha}"),
-                            -(alpha * c.length / c.young) * fp,
-                            -inc.derivatives[r][p],
-                            0.03,
-                        ));
-                    }
-                }
-            }
-        }
-        "hertz" => {
-            // oracles.md section 4 at fixed P: p0 = 2 P / (pi a), dp0/dE = p0 / (2 E); p0
-            // within 2-4 % on this mesh (12 elements across a), its derivative likewise
-            let h = crate::scene::HertzSpec::default();
-            let last = res.increments.last();
-            let peak = last.and_then(|inc| {
-                res.responses
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, n)| n.starts_with("p["))
-                    .max_by(|a, b| inc.values[a.0].total_cmp(&inc.values[b.0]))
-                    .map(|(r, _)| r)
-            });
-            if let (Some(inc), Some(r)) = (last, peak) {
-                let p = h.load();
-                let a = (4.0 * p * h.radius / (std::f64::consts::PI * h.e_star())).sqrt();
-                let p0 = 2.0 * p / (std::f64::consts::PI * a);
-                out.push(row(
-                    "peak pressure p0 = 2 P / (pi a)",
-                    p0,
-                    inc.values[r],
-                    0.04,
-                ));
-                if let Some(pe) = p_of("E") {
-                    out.push(row(
-                        "d p0 / d E = p0 / (2 E)",
-                        p0 / (2.0 * h.young),
-                        inc.derivatives[r][pe],
-                        0.04,
-                    ));
-                }
-            }
-        }
-        _ => {}
-    }
-    out
+            rel_error: c.rel_error(),
+            pass: c.pass(),
+            quantity: c.quantity,
+            expected: c.expected,
+            got: c.got,
+            tolerance: c.tolerance,
+        })
+        .collect()
 }
 
 fn sweep_of(v: &SceneValidation, m: Method, beta: f64) -> Option<&SensitivityResults> {
@@ -1026,28 +774,52 @@ fn history_figure(
 
 /// Run the validation and write the report.
 pub fn validate(scenes: &[Scene], opts: &ValidateOptions) -> Result<Validation, ValidateError> {
+    validate_observed(scenes, opts, &mut |_| {})
+}
+
+/// Where [`validate_observed`] is.
+#[derive(Clone, Copy, Debug)]
+pub enum ValidateProgress<'a> {
+    /// Scene `index` (of `of`) named `name` starts.
+    Scene {
+        /// Its position in the list.
+        index: usize,
+        /// The number of scenes.
+        of: usize,
+        /// Its name.
+        name: &'a str,
+    },
+    /// Every scene is done; the report is being written.
+    Report,
+}
+
+/// [`validate`], telling `progress` where it is (the command line draws a progress bar with
+/// it; the library draws nothing).
+pub fn validate_observed(
+    scenes: &[Scene],
+    opts: &ValidateOptions,
+    progress: &mut dyn FnMut(ValidateProgress<'_>),
+) -> Result<Validation, ValidateError> {
     let start = std::time::Instant::now();
     let data = opts.out.join("data");
     let figs = opts.out.join("figures");
     for d in [&opts.out, &data, &figs] {
         std::fs::create_dir_all(d).map_err(io(d))?;
     }
-    let bar = if opts.progress {
-        indicatif::ProgressBar::new(scenes.len() as u64)
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
     let mut out = Vec::new();
     let mut oracle_rows = Vec::new();
-    for scene in scenes {
-        bar.set_message(scene.name.clone());
+    for (index, scene) in scenes.iter().enumerate() {
+        progress(ValidateProgress::Scene {
+            index,
+            of: scenes.len(),
+            name: &scene.name,
+        });
         let v = validate_scene(scene, opts)?;
         oracle_rows.extend(oracles(&v));
         write_scene_data(&v, &data, opts.figure_beta)?;
         out.push(v);
-        bar.inc(1);
     }
-    bar.finish_and_clear();
+    progress(ValidateProgress::Report);
     // the leaf spring without friction, for figure 7
     let leaf_mu0 = out.iter().find(|v| v.scene == "leaf-spring").and_then(|_| {
         let s = scenes.iter().find(|s| s.name == "leaf-spring")?;
@@ -1076,7 +848,7 @@ pub fn validate(scenes: &[Scene], opts: &ValidateOptions) -> Result<Validation, 
     });
     let laws = match opts.friction_laws {
         Some(elements) => {
-            let c = crate::compare_laws::compare_laws(elements)?;
+            let c = crate::studies::compare_laws::compare_laws(elements)?;
             c.write_figures(&figs)?;
             let json = serde_json::to_string_pretty(&c).expect("serialisable");
             write(&data.join("friction-laws.json"), &json)?;
@@ -1371,7 +1143,7 @@ fn report(
     val: &Validation,
     indentation: Option<&PressureProfile>,
     leaf_mu0: Option<&[(f64, f64)]>,
-    laws: Option<&crate::compare_laws::LawComparison>,
+    laws: Option<&crate::studies::compare_laws::LawComparison>,
     opts: &ValidateOptions,
 ) -> String {
     let mut s = String::new();

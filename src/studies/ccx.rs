@@ -90,7 +90,7 @@ pub enum CcxError {
     Analysis(#[from] crate::solver::AnalysisError),
     /// A figure could not be drawn.
     #[error("figure: {0}")]
-    Plot(#[from] crate::plot::PlotError),
+    Plot(#[from] crate::studies::plot::PlotError),
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> CcxError + '_ {
@@ -1096,8 +1096,8 @@ impl Comparison {
     }
 
     /// The figure: force histories and derivative histories of both codes (all in force units).
-    pub fn figure(&self) -> crate::plot::Figure {
-        use crate::plot::{Figure, Style};
+    pub fn figure(&self) -> crate::studies::plot::Figure {
+        use crate::studies::plot::{Figure, Style};
         let mut fig = Figure::new(
             format!(
                 "{}: force on the block and its derivative in mu, fricsens vs CalculiX",
@@ -1333,7 +1333,7 @@ impl Comparison {
         std::fs::create_dir_all(dir).map_err(io_err(dir))?;
         let p = dir.join("ccx.csv");
         std::fs::write(&p, self.csv()).map_err(io_err(&p))?;
-        crate::plot::write_svg(&self.figure(), &dir.join("ccx.svg"))?;
+        crate::studies::plot::write_svg(&self.figure(), &dir.join("ccx.svg"))?;
         let p = dir.join("ccx.md");
         std::fs::write(&p, self.markdown()).map_err(io_err(&p))?;
         Ok(())

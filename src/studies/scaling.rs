@@ -21,10 +21,10 @@
 //! [`crate::symlu::SymbolicSymLu::len_values`], but the study predates it); the peak memory
 //! stands in for it.
 
-use crate::plot::{write_svg_stack, Figure, PlotError, Style};
 use crate::scene::{indentation_refined, leaf_spring, LeafSpringSpec, Scene, SceneError, StepSpec};
 use crate::sensitivity::{run_inline_sweep, Method, Parameter, Settings};
 use crate::solver::AnalysisError;
+use crate::studies::plot::{write_svg_stack, Figure, PlotError, Style};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -15,13 +15,13 @@
 
 use crate::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCoulomb};
 use crate::contact::Friction;
-use crate::plot::{write_svg, Figure, PlotError, Style};
 use crate::scene::{strip_pullout, StripSpec};
 use crate::sensitivity::{
     run_inline_sweep, run_sensitivity, Method, Parameter, SensitivityResults, Settings,
     TangentChoice,
 };
 use crate::solver::AnalysisError;
+use crate::studies::plot::{write_svg, Figure, PlotError, Style};
 use std::fmt::Write as _;
 use std::path::Path;
 

@@ -1,0 +1,970 @@
+//! [`Scene::build`]: a scene validated and turned into a [`Model`] — the mesh from the blocks,
+//! bodies, loads, contact pairs with their derived defaults (tributary areas, constraint scales,
+//! search radius, tangential penalty), responses.
+
+use super::*;
+use crate::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCoulomb};
+use crate::contact::geometry::RigidSurface;
+use crate::contact::{ContactPair, Friction, NormalLaw, RigidMotion, Target};
+use crate::element::Spring;
+use crate::mesh::{Axis, Mesh};
+use crate::model::{Amplitude, Body, Model, NodalLoad, Prescribed};
+use crate::response::{Response, ResponseKind};
+
+impl Scene {
+    /// Node sets named `A & B` (e.g. `upper.xmax & upper.ymin`, an edge) are the intersection
+    /// of the named node sets: add every one the scene refers to.
+    fn add_intersections(&self, mesh: &mut Mesh) -> Result<(), SceneError> {
+        let mut names: Vec<(String, String)> = Vec::new();
+        for (i, p) in self.prescribed.iter().enumerate() {
+            names.push((p.set.clone(), format!("prescribed[{i}].set")));
+        }
+        for (i, l) in self.loads.iter().enumerate() {
+            names.push((l.set.clone(), format!("loads[{i}].set")));
+        }
+        for (i, c) in self.contacts.iter().enumerate() {
+            names.push((c.hitting.clone(), format!("contacts[{i}].hitting")));
+        }
+        for (i, r) in self.responses.iter().enumerate() {
+            if let ResponseSpec::Reaction { set, .. } | ResponseSpec::Displacement { set, .. } = r {
+                names.push((set.clone(), format!("responses[{i}].set")));
+            }
+        }
+        for (name, field) in names {
+            if !name.contains('&') || mesh.node_sets.contains_key(&name) {
+                continue;
+            }
+            let mut nodes: Option<Vec<usize>> = None;
+            for part in name.split('&').map(str::trim) {
+                let v = mesh.node_sets.get(part).ok_or_else(|| {
+                    invalid(&field, format!("no node set named '{part}' (in '{name}')"))
+                })?;
+                nodes = Some(match nodes {
+                    None => v.clone(),
+                    Some(n) => n.into_iter().filter(|k| v.contains(k)).collect(),
+                });
+            }
+            let nodes = nodes.unwrap_or_default();
+            if nodes.is_empty() {
+                return Err(invalid(
+                    &field,
+                    format!("the intersection '{name}' is empty"),
+                ));
+            }
+            mesh.node_sets.insert(name, nodes);
+        }
+        Ok(())
+    }
+
+    /// Validate and build the analysis model.
+    pub fn build(&self) -> Result<Model, SceneError> {
+        // sizes first: an absurd element count is an error, not an allocation attempt
+        let mut total_elements: usize = 0;
+        for (i, b) in self.bodies.iter().enumerate() {
+            let at = format!("bodies[{i}]");
+            let mut n: usize = 1;
+            let axes = [&b.block.x, &b.block.y, &b.block.z];
+            for (c, (label, axis)) in ["x", "y", "z"].iter().zip(axes).enumerate() {
+                let origin = b.block.origin[c];
+                finite(origin, &format!("{at}.origin[{c}]"))?;
+                n = n.saturating_mul(check_axis(axis, origin, &format!("{at}.{label}"))?);
+            }
+            total_elements = total_elements.saturating_add(n);
+            if total_elements > MAX_ELEMENTS {
+                return Err(invalid(
+                    &at,
+                    format!("the bodies have more than {MAX_ELEMENTS} elements in all"),
+                ));
+            }
+        }
+        let mut mesh = Mesh::default();
+        let mut bodies = Vec::new();
+        for (i, b) in self.bodies.iter().enumerate() {
+            let at = format!("bodies[{i}]");
+            b.material.check(&format!("{at}.material"))?;
+            let block = mesh
+                .add_block(b.block.clone())
+                .map_err(|e| invalid(&at, e.to_string()))?;
+            bodies.push(Body {
+                name: b.block.name.clone(),
+                block,
+                material: b.material.build(),
+                kinematics: b.kinematics,
+                formulation: b.formulation,
+            });
+        }
+        for (i, f) in self.free_nodes.iter().enumerate() {
+            for (c, v) in f.x.iter().enumerate() {
+                finite(*v, &format!("free_nodes[{i}].x[{c}]"))?;
+            }
+            if mesh.node_sets.contains_key(&f.name) {
+                return Err(invalid(
+                    &format!("free_nodes[{i}].name"),
+                    format!("set '{}' already exists", f.name),
+                ));
+            }
+            let n = mesh.add_free_node(f.x);
+            mesh.node_sets.insert(f.name.clone(), vec![n]);
+        }
+        self.add_intersections(&mut mesh)?;
+        let set = |name: &str, field: &str| -> Result<Vec<usize>, SceneError> {
+            match mesh.node_sets.get(name) {
+                Some(v) if !v.is_empty() => Ok(v.clone()),
+                Some(_) => Err(invalid(field, format!("node set '{name}' is empty"))),
+                None => Err(invalid(
+                    field,
+                    format!(
+                        "no node set named '{name}' (sets: {})",
+                        mesh.node_sets
+                            .keys()
+                            .cloned()
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                )),
+            }
+        };
+        let one = |name: &str, field: &str| -> Result<usize, SceneError> {
+            let v = set(name, field)?;
+            if v.len() != 1 {
+                return Err(invalid(
+                    field,
+                    format!("set '{name}' has {} nodes, a spring needs one", v.len()),
+                ));
+            }
+            Ok(v[0])
+        };
+        let mut springs = Vec::new();
+        for (i, s) in self.springs.iter().enumerate() {
+            let at = format!("springs[{i}]");
+            for r in s.stiffness.iter().flatten() {
+                finite(*r, &format!("{at}.stiffness"))?;
+            }
+            springs.push(Spring {
+                a: one(&s.a, &format!("{at}.a"))?,
+                b: match &s.b {
+                    Some(b) => Some(one(b, &format!("{at}.b"))?),
+                    None => None,
+                },
+                stiffness: s.stiffness,
+            });
+        }
+        let amplitude = |pts: &[(f64, f64)], field: &str| -> Result<Amplitude, SceneError> {
+            if pts.is_empty() {
+                return Err(invalid(field, "an amplitude needs at least one point"));
+            }
+            for (t, v) in pts {
+                finite(*t, field)?;
+                finite(*v, field)?;
+            }
+            if pts.windows(2).any(|w| w[1].0 < w[0].0) {
+                return Err(invalid(field, "amplitude times must not decrease"));
+            }
+            Ok(Amplitude {
+                points: pts.to_vec(),
+            })
+        };
+        let mut prescribed = Vec::new();
+        let mut seen = std::collections::HashMap::new();
+        for (i, p) in self.prescribed.iter().enumerate() {
+            let at = format!("prescribed[{i}]");
+            finite(p.value, &format!("{at}.value"))?;
+            let nodes = set(&p.set, &format!("{at}.set"))?;
+            let amp = amplitude(&p.amplitude, &format!("{at}.amplitude"))?;
+            if p.components.is_empty() {
+                return Err(invalid(&format!("{at}.components"), "no component given"));
+            }
+            for c in &p.components {
+                for &n in &nodes {
+                    if let Some(j) = seen.insert((n, c.index()), i) {
+                        return Err(invalid(
+                            &at,
+                            if j == i {
+                                format!("component {c:?} is listed twice in '{}'", p.name)
+                            } else {
+                                format!(
+                                    "node {n} component {c:?} is prescribed by both prescribed[{j}] ('{}') and prescribed[{i}] ('{}') (conflicting boundary conditions)",
+                                    self.prescribed[j].name, p.name
+                                )
+                            },
+                        ));
+                    }
+                }
+                prescribed.push(Prescribed {
+                    name: p.name.clone(),
+                    nodes: nodes.clone(),
+                    component: c.index(),
+                    value: p.value,
+                    amplitude: amp.clone(),
+                });
+            }
+        }
+        let mut loads = Vec::new();
+        for (i, l) in self.loads.iter().enumerate() {
+            let at = format!("loads[{i}]");
+            finite(l.value, &format!("{at}.value"))?;
+            let nodes = set(&l.set, &format!("{at}.set"))?;
+            let weights = match mesh.face_sets.get(&l.set) {
+                Some(faces) if !faces.is_empty() => {
+                    let area = tributary_areas(&mesh, faces, &nodes);
+                    let total: f64 = area.iter().sum();
+                    if !(total.is_finite() && total > 0.0) {
+                        return Err(invalid(
+                            &format!("{at}.set"),
+                            format!("the faces of '{}' have area {total}", l.set),
+                        ));
+                    }
+                    area.iter().map(|a| a / total).collect()
+                }
+                _ => vec![1.0 / nodes.len() as f64; nodes.len()],
+            };
+            loads.push(NodalLoad {
+                name: l.name.clone(),
+                nodes,
+                weights,
+                component: l.component.index(),
+                value: l.value,
+                amplitude: amplitude(&l.amplitude, &format!("{at}.amplitude"))?,
+            });
+        }
+        let mut times = Vec::new();
+        let mut t0 = 0.0;
+        if self.steps.is_empty() {
+            return Err(invalid("steps", "no load step"));
+        }
+        for (i, s) in self.steps.iter().enumerate() {
+            let at = format!("steps[{i}]");
+            finite(s.end, &format!("{at}.end"))?;
+            if s.end <= t0 {
+                return Err(invalid(
+                    &format!("{at}.end"),
+                    format!(
+                        "step ends at {} which is not after {t0} (zero or negative increment)",
+                        s.end
+                    ),
+                ));
+            }
+            if s.increments == 0 {
+                return Err(invalid(&format!("{at}.increments"), "must be at least 1"));
+            }
+            if s.increments > MAX_INCREMENTS - times.len() {
+                return Err(invalid(
+                    &format!("{at}.increments"),
+                    format!("more than {MAX_INCREMENTS} increments in all steps"),
+                ));
+            }
+            for k in 1..=s.increments {
+                times.push(t0 + (s.end - t0) * k as f64 / s.increments as f64);
+            }
+            t0 = s.end;
+        }
+        let mut notes = Vec::new();
+        let contacts = self.build_contacts(
+            &mesh,
+            &bodies,
+            &springs,
+            &prescribed,
+            &amplitude,
+            &mut notes,
+        )?;
+        let mut responses = Vec::new();
+        let mut history_refs: Vec<(usize, usize, usize, usize, usize)> = Vec::new();
+        for (i, r) in self.responses.iter().enumerate() {
+            let field = format!("responses[{i}].set");
+            let kind = match r {
+                ResponseSpec::Reaction {
+                    set: s, component, ..
+                } => ResponseKind::Reaction {
+                    nodes: set(s, &field)?,
+                    component: component.index(),
+                },
+                ResponseSpec::Displacement {
+                    set: s, component, ..
+                } => ResponseKind::Displacement {
+                    nodes: set(s, &field)?,
+                    component: component.index(),
+                },
+                ResponseSpec::TargetForce {
+                    pair, component, ..
+                } => ResponseKind::TargetForce {
+                    pair: contact_index(&contacts, pair, &format!("responses[{i}].pair"))?,
+                    component: component.index(),
+                },
+                ResponseSpec::PressureProfile { name, pair, along } => {
+                    let p = contact_index(&contacts, pair, &format!("responses[{i}].pair"))?;
+                    let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+                    let c = &contacts[p];
+                    let mut order: Vec<usize> = (0..c.hitting.len()).collect();
+                    order.sort_by(|a, b| {
+                        x[c.hitting[*a]][along.index()].total_cmp(&x[c.hitting[*b]][along.index()])
+                    });
+                    for (k, node) in order.iter().enumerate() {
+                        responses.push(Response {
+                            name: format!("{name}[{k}]"),
+                            kind: ResponseKind::ContactPressure {
+                                pair: p,
+                                node: *node,
+                                area: c.area[*node],
+                            },
+                        });
+                    }
+                    continue;
+                }
+                ResponseSpec::History {
+                    body,
+                    element,
+                    point,
+                    variable,
+                    ..
+                } => {
+                    let at = format!("responses[{i}]");
+                    let (bi, b) = bodies
+                        .iter()
+                        .enumerate()
+                        .find(|(_, b)| &b.name == body)
+                        .ok_or_else(|| {
+                            invalid(&format!("{at}.body"), format!("no body '{body}'"))
+                        })?;
+                    let names = b.material.history_names();
+                    let var = names.iter().position(|n| n == variable).ok_or_else(|| {
+                        invalid(
+                            &format!("{at}.variable"),
+                            format!("material '{}' has history {names:?}", b.material.name()),
+                        )
+                    })?;
+                    let elems = mesh.block_elements[b.block].clone();
+                    if *element >= elems.len() {
+                        return Err(invalid(
+                            &format!("{at}.element"),
+                            format!("body '{body}' has {} elements", elems.len()),
+                        ));
+                    }
+                    if *point >= 8 {
+                        return Err(invalid(&format!("{at}.point"), "Gauss points are 0-7"));
+                    }
+                    history_refs.push((responses.len(), bi, elems.start + element, *point, var));
+                    ResponseKind::History { index: usize::MAX }
+                }
+            };
+            responses.push(Response {
+                name: r.name().to_string(),
+                kind,
+            });
+        }
+        let sv = &self.solver;
+        positive(sv.force_tol, "solver.force_tol")?;
+        positive(sv.energy_tol, "solver.energy_tol")?;
+        if sv.max_iterations == 0 {
+            return Err(invalid("solver.max_iterations", "must be at least 1"));
+        }
+        if sv.max_cutbacks > MAX_CUTBACKS {
+            return Err(invalid(
+                "solver.max_cutbacks",
+                format!("at most {MAX_CUTBACKS} halvings of an increment"),
+            ));
+        }
+        let mut model = Model {
+            mesh,
+            bodies,
+            springs,
+            prescribed,
+            loads,
+            times,
+            contacts,
+            responses,
+            solver: self.solver.clone(),
+            notes,
+        };
+        if !history_refs.is_empty() {
+            let dofs = model.dof_map();
+            for (r, b, e, point, var) in history_refs {
+                let nh = model.bodies[b].material.history_len();
+                model.responses[r].kind = ResponseKind::History {
+                    index: dofs.history_offset[e] + point * nh + var,
+                };
+            }
+        }
+        if let Some(beta) = self.study.beta {
+            finite(beta, "study.beta")?;
+            if !(beta > 0.0 && beta < 1.0) {
+                return Err(invalid(
+                    "study.beta",
+                    format!("must lie in (0, 1), got {beta}"),
+                ));
+            }
+        }
+        for (i, name) in self.study.params.iter().enumerate() {
+            crate::sensitivity::Parameter::by_name(&model, name)
+                .map_err(|e| invalid(&format!("study.params[{i}]"), e.to_string()))?;
+        }
+        Ok(model)
+    }
+}
+
+/// Largest number of elements of a scene (all bodies).
+const MAX_ELEMENTS: usize = 10_000_000;
+/// Largest number of elements along one axis of a block.
+const MAX_AXIS_ELEMENTS: usize = 100_000;
+/// Largest number of load increments of a scene (all steps).
+const MAX_INCREMENTS: usize = 1_000_000;
+/// Largest number of halvings of an increment.
+const MAX_CUTBACKS: usize = 64;
+
+/// Checks one axis of a block (`at` is its TOML path, `origin` the block's origin along it)
+/// and returns its number of elements.
+fn check_axis(axis: &Axis, origin: f64, at: &str) -> Result<usize, SceneError> {
+    positive(axis.length, &format!("{at}.length"))?;
+    if !(origin + axis.length).is_finite() {
+        return Err(invalid(
+            &format!("{at}.length"),
+            format!(
+                "the block reaches {origin} + {} beyond the f64 range",
+                axis.length
+            ),
+        ));
+    }
+    if axis.zones.is_empty() {
+        return Err(invalid(
+            &format!("{at}.zones"),
+            "an axis needs at least one zone",
+        ));
+    }
+    let mut n: usize = 0;
+    for (k, z) in axis.zones.iter().enumerate() {
+        let zf = format!("{at}.zones[{k}]");
+        positive(z.fraction, &format!("{zf}.fraction"))?;
+        positive(z.ratio, &format!("{zf}.ratio"))?;
+        if z.elements == 0 {
+            return Err(invalid(&format!("{zf}.elements"), "must be at least 1"));
+        }
+        n = n
+            .checked_add(z.elements)
+            .filter(|n| *n <= MAX_AXIS_ELEMENTS)
+            .ok_or_else(|| {
+                invalid(
+                    &format!("{zf}.elements"),
+                    format!("more than {MAX_AXIS_ELEMENTS} elements along one axis"),
+                )
+            })?;
+    }
+    // the grading must give elements of positive size in f64
+    let t = axis.fractions();
+    if t.iter().any(|v| !v.is_finite()) || t.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(invalid(
+            &format!("{at}.zones"),
+            "the fractions and ratios give elements of zero or non-finite size",
+        ));
+    }
+    Ok(n)
+}
+
+/// Tributary area of each of `nodes` (sorted) over `faces`: a quarter of each face's area.
+fn tributary_areas(mesh: &Mesh, faces: &[[usize; 4]], nodes: &[usize]) -> Vec<f64> {
+    let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+    // position of each node in `nodes` (the first, as a linear search would find)
+    let mut index = std::collections::HashMap::with_capacity(nodes.len());
+    for (k, n) in nodes.iter().enumerate() {
+        index.entry(*n).or_insert(k);
+    }
+    let mut area = vec![0.0; nodes.len()];
+    for f in faces {
+        let a = (x[f[1]] - x[f[0]]).cross(&(x[f[3]] - x[f[0]])).norm() * 0.5
+            + (x[f[3]] - x[f[2]]).cross(&(x[f[1]] - x[f[2]])).norm() * 0.5;
+        for n in f {
+            if let Some(&k) = index.get(n) {
+                area[k] += a / 4.0;
+            }
+        }
+    }
+    area
+}
+
+/// Factor `c_T` of the default tangential penalty `c_T E* A_i / h_i`: the stiffness of the
+/// element layer under a hitting node times this. With it the elastic slip in stick,
+/// `mu p_n / eps_T = (mu sigma_n / (c_T E*)) h_i`, is a strain-sized fraction of the element
+/// (0.5 % of it at mu = 0.5 and a contact pressure of E* / 100), and Newton meets a stick
+/// stiffness no larger than the structure's next to it.
+pub const TANGENTIAL_STIFFNESS_FACTOR: f64 = 1.0;
+
+/// Per node of `nodes` (sorted, with tributary areas `area`) on the boundary faces `faces`:
+/// `A_i / h_i`, the node's area over the thickness of the element layer under it (the mean of
+/// twice the distance from each adjacent face's centre to its element's centre). `None` when a
+/// face belongs to no element.
+fn layer_stiffness(
+    mesh: &Mesh,
+    x: &[nalgebra::Vector3<f64>],
+    faces: &[[usize; 4]],
+    nodes: &[usize],
+    area: &[f64],
+) -> Option<Vec<f64>> {
+    use std::collections::{HashMap, HashSet};
+    let key = |f: &[usize]| {
+        let mut k = [f[0], f[1], f[2], f[3]];
+        k.sort_unstable();
+        k
+    };
+    let wanted: HashSet<[usize; 4]> = faces.iter().map(|f| key(f)).collect();
+    let mut element_of: HashMap<[usize; 4], usize> = HashMap::new();
+    for (e, conn) in mesh.elements.iter().enumerate() {
+        for f in crate::element::hex8::FACE_NODES {
+            let k = key(&f.map(|i| conn[i]));
+            if wanted.contains(&k) {
+                element_of.insert(k, e);
+            }
+        }
+    }
+    let index: HashMap<usize, usize> = nodes.iter().enumerate().map(|(k, n)| (*n, k)).collect();
+    let mut h = vec![0.0; nodes.len()];
+    let mut count = vec![0usize; nodes.len()];
+    for f in faces {
+        let e = *element_of.get(&key(f))?;
+        let centre_f = f.iter().map(|n| x[*n]).sum::<nalgebra::Vector3<f64>>() / 4.0;
+        let centre_e = mesh.elements[e]
+            .iter()
+            .map(|n| x[*n])
+            .sum::<nalgebra::Vector3<f64>>()
+            / 8.0;
+        let hf = 2.0 * (centre_e - centre_f).norm();
+        for n in f {
+            if let Some(&k) = index.get(n) {
+                h[k] += hf;
+                count[k] += 1;
+            }
+        }
+    }
+    Some(
+        area.iter()
+            .zip(h.iter().zip(&count))
+            .map(|(a, (h, c))| a / (h / (*c).max(1) as f64))
+            .collect(),
+    )
+}
+
+/// The generating block of node `n` (`None` for a free node).
+fn block_of(mesh: &Mesh, n: usize) -> Option<usize> {
+    match mesh.places[n] {
+        crate::mesh::NodePlace::Block { block, .. } => Some(block),
+        crate::mesh::NodePlace::Free(_) => None,
+    }
+}
+
+/// How far the prescribed displacements can move nodes of `blocks`: per component the sum of
+/// `|value| max |amplitude|` over the prescribed entries acting on them, as a vector norm.
+fn prescribed_travel(mesh: &Mesh, prescribed: &[Prescribed], blocks: &[Option<usize>]) -> f64 {
+    let mut m = [0.0f64; 3];
+    for p in prescribed {
+        if p.nodes.iter().any(|&n| blocks.contains(&block_of(mesh, n))) {
+            let amp = p
+                .amplitude
+                .points
+                .iter()
+                .map(|(_, v)| v.abs())
+                .fold(0.0f64, f64::max);
+            m[p.component] += p.value.abs() * amp;
+        }
+    }
+    (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt()
+}
+
+/// Plane-strain modulus `E / (1 - nu^2)` of the body owning node `n` (0 for a free node).
+fn plane_modulus(mesh: &Mesh, bodies: &[Body], n: usize) -> f64 {
+    match mesh.places[n] {
+        crate::mesh::NodePlace::Block { block, .. } => bodies
+            .iter()
+            .find(|b| b.block == block)
+            .map(|b| {
+                let p = b.material.params();
+                p[0] / (1.0 - p[1] * p[1])
+            })
+            .unwrap_or(0.0),
+        crate::mesh::NodePlace::Free(_) => 0.0,
+    }
+}
+
+/// The contact modulus of a pair: the hitting body's plane-strain modulus against a rigid
+/// target, `1 / (1 / E*_1 + 1 / E*_2)` against a deformable one.
+fn contact_modulus(mesh: &Mesh, bodies: &[Body], hitting: &[usize], target: &Target) -> f64 {
+    let e1 = plane_modulus(mesh, bodies, hitting[0]);
+    match target {
+        Target::Faces { faces } => {
+            let e2 = plane_modulus(mesh, bodies, faces[0][0]);
+            if e1 > 0.0 && e2 > 0.0 {
+                1.0 / (1.0 / e1 + 1.0 / e2)
+            } else {
+                e1.max(e2)
+            }
+        }
+        Target::Rigid { .. } => e1,
+    }
+}
+
+/// Validates and builds an amplitude, naming the field in errors.
+type AmplitudeBuilder<'a> = dyn Fn(&[(f64, f64)], &str) -> Result<Amplitude, SceneError> + 'a;
+
+fn contact_index(contacts: &[ContactPair], name: &str, field: &str) -> Result<usize, SceneError> {
+    contacts.iter().position(|c| c.name == name).ok_or_else(|| {
+        invalid(
+            field,
+            format!(
+                "no contact pair '{name}' (pairs: {})",
+                contacts
+                    .iter()
+                    .map(|c| c.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )
+    })
+}
+
+fn vec3(v: [f64; 3], field: &str) -> Result<nalgebra::Vector3<f64>, SceneError> {
+    for x in v {
+        finite(x, field)?;
+    }
+    Ok(nalgebra::Vector3::from(v))
+}
+
+/// A direction: finite, with a finite nonzero length.
+fn direction(v: [f64; 3], field: &str) -> Result<nalgebra::Vector3<f64>, SceneError> {
+    let d = vec3(v, field)?;
+    let n = d.norm();
+    if !(n.is_finite() && n > 0.0) {
+        return Err(invalid(
+            field,
+            format!("a direction needs a finite nonzero length, got {v:?}"),
+        ));
+    }
+    Ok(d)
+}
+
+impl Scene {
+    fn build_contacts(
+        &self,
+        mesh: &Mesh,
+        bodies: &[Body],
+        springs: &[Spring],
+        prescribed: &[Prescribed],
+        amplitude: &AmplitudeBuilder<'_>,
+        notes: &mut Vec<String>,
+    ) -> Result<Vec<ContactPair>, SceneError> {
+        let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+        let mut out = Vec::new();
+        for (ci, c) in self.contacts.iter().enumerate() {
+            let at = format!("contacts[{ci}]");
+            if self.contacts[..ci].iter().any(|o| o.name == c.name) {
+                return Err(invalid(
+                    &format!("{at}.name"),
+                    format!("pair '{}' defined twice", c.name),
+                ));
+            }
+            // hitting nodes and their tributary areas
+            // per hitting node: tributary area, and the stiffness A_i / h_i of the element
+            // layer under it (none for a node set)
+            let (hitting, area, layer) = if let Some(faces) = mesh.face_sets.get(&c.hitting) {
+                let mut nodes: Vec<usize> = faces.iter().flatten().copied().collect();
+                nodes.sort();
+                nodes.dedup();
+                let area = tributary_areas(mesh, faces, &nodes);
+                let layer = layer_stiffness(mesh, &x, faces, &nodes, &area);
+                (nodes, area, layer)
+            } else if let Some(nodes) = mesh.node_sets.get(&c.hitting) {
+                if nodes.is_empty() {
+                    return Err(invalid(
+                        &format!("{at}.hitting"),
+                        format!("node set '{}' is empty", c.hitting),
+                    ));
+                }
+                (nodes.clone(), vec![1.0; nodes.len()], None)
+            } else {
+                return Err(invalid(
+                    &format!("{at}.hitting"),
+                    format!("no face set or node set named '{}'", c.hitting),
+                ));
+            };
+            if let Some(r) = c.search_radius {
+                positive(r, &format!("{at}.search_radius"))?;
+            }
+            let (target, candidates, diag) = match &c.target {
+                TargetSpec::Faces(name) => {
+                    let faces = mesh.face_sets.get(name).ok_or_else(|| {
+                        invalid(
+                            &format!("{at}.target"),
+                            format!("no face set named '{name}'"),
+                        )
+                    })?;
+                    if faces.is_empty() {
+                        return Err(invalid(
+                            &format!("{at}.target"),
+                            format!("face set '{name}' is empty"),
+                        ));
+                    }
+                    let diag = faces
+                        .iter()
+                        .map(|f| (x[f[2]] - x[f[0]]).norm().max((x[f[3]] - x[f[1]]).norm()))
+                        .fold(0.0f64, f64::max);
+                    // default: three face diagonals, plus how far the prescribed
+                    // displacements can move the two bodies against each other
+                    let radius = match c.search_radius {
+                        Some(r) => r,
+                        None => {
+                            let blocks = [block_of(mesh, hitting[0]), block_of(mesh, faces[0][0])];
+                            let travel = prescribed_travel(mesh, prescribed, &blocks);
+                            let r = 3.0 * diag + travel;
+                            notes.push(format!(
+                                "{at} '{}': search radius {r:.4e} (3 face diagonals {:.4e} + the bodies' largest prescribed travel {travel:.4e})",
+                                c.name,
+                                3.0 * diag
+                            ));
+                            r
+                        }
+                    };
+                    positive(radius, &format!("{at}.search_radius"))?;
+                    let mut candidates = Vec::new();
+                    for &s in &hitting {
+                        let cands: Vec<usize> = faces
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, f)| {
+                                let centre = (x[f[0]] + x[f[1]] + x[f[2]] + x[f[3]]) / 4.0;
+                                (x[s] - centre).norm() <= radius && !f.contains(&s)
+                            })
+                            .map(|(k, _)| k)
+                            .collect();
+                        candidates.push(cands);
+                    }
+                    (
+                        Target::Faces {
+                            faces: faces.clone(),
+                        },
+                        candidates,
+                        diag,
+                    )
+                }
+                TargetSpec::Rigid { surface, motion } => {
+                    let sf = format!("{at}.target.surface");
+                    let surface = match surface {
+                        RigidSpec::Plane { point, normal } => RigidSurface::Plane {
+                            point: vec3(*point, &format!("{sf}.point"))?,
+                            normal: direction(*normal, &format!("{sf}.normal"))?,
+                        },
+                        RigidSpec::Cylinder {
+                            axis_point,
+                            axis,
+                            radius,
+                        } => {
+                            positive(*radius, &format!("{sf}.radius"))?;
+                            RigidSurface::Cylinder {
+                                axis_point: vec3(*axis_point, &format!("{sf}.axis_point"))?,
+                                axis: direction(*axis, &format!("{sf}.axis"))?,
+                                radius: *radius,
+                            }
+                        }
+                        RigidSpec::RoundedBox {
+                            center,
+                            half_extents,
+                            radius,
+                        } => {
+                            for h in half_extents {
+                                positive(*h, &format!("{sf}.half_extents"))?;
+                            }
+                            finite(*radius, &format!("{sf}.radius"))?;
+                            if *radius < 0.0 || half_extents.iter().any(|h| *radius > *h) {
+                                return Err(invalid(
+                                    &format!("{sf}.radius"),
+                                    "needs 0 <= radius <= every half extent",
+                                ));
+                            }
+                            RigidSurface::RoundedBox {
+                                center: vec3(*center, &format!("{sf}.center"))?,
+                                half_extents: vec3(*half_extents, &sf)?,
+                                radius: *radius,
+                            }
+                        }
+                    };
+                    let mut m = Vec::new();
+                    for (k, ms) in motion.iter().enumerate() {
+                        let f = format!("{at}.target.motion[{k}]");
+                        finite(ms.value, &format!("{f}.value"))?;
+                        m.push(RigidMotion {
+                            component: ms.component.index(),
+                            value: ms.value,
+                            amplitude: amplitude(&ms.amplitude, &format!("{f}.amplitude"))?,
+                        });
+                    }
+                    (
+                        Target::Rigid { surface, motion: m },
+                        vec![Vec::new(); hitting.len()],
+                        0.0,
+                    )
+                }
+            };
+            // hitting nodes with no target face within the search radius can never touch it:
+            // left out of the pair (all of them: an error)
+            let (hitting, area, layer, candidates) = if let Target::Faces { .. } = target {
+                let keep: Vec<bool> = candidates.iter().map(|c| !c.is_empty()).collect();
+                let dropped: Vec<usize> = hitting
+                    .iter()
+                    .zip(&keep)
+                    .filter(|(_, k)| !**k)
+                    .map(|(n, _)| *n)
+                    .collect();
+                if dropped.len() == hitting.len() {
+                    return Err(invalid(
+                        &format!("{at}.search_radius"),
+                        format!(
+                            "no target face is within the search radius of any hitting node (largest face diagonal {diag:.3e}): the pair can never touch"
+                        ),
+                    ));
+                }
+                if !dropped.is_empty() {
+                    let shown: Vec<String> =
+                        dropped.iter().take(8).map(|n| n.to_string()).collect();
+                    notes.push(format!(
+                        "{at} '{}': {} of {} hitting nodes have no target face within the search radius and are left out (they can never touch it): nodes {}{}",
+                        c.name,
+                        dropped.len(),
+                        hitting.len(),
+                        shown.join(", "),
+                        if dropped.len() > 8 { ", ..." } else { "" }
+                    ));
+                }
+                let pick = |v: Vec<f64>| -> Vec<f64> {
+                    v.into_iter()
+                        .zip(&keep)
+                        .filter(|(_, k)| **k)
+                        .map(|(x, _)| x)
+                        .collect()
+                };
+                (
+                    hitting
+                        .iter()
+                        .zip(&keep)
+                        .filter(|(_, k)| **k)
+                        .map(|(n, _)| *n)
+                        .collect::<Vec<usize>>(),
+                    pick(area),
+                    layer.map(pick),
+                    candidates.into_iter().filter(|c| !c.is_empty()).collect(),
+                )
+            } else {
+                (hitting, area, layer, candidates)
+            };
+            let friction = match &c.friction {
+                None => None,
+                Some(FrictionSpec::Coulomb { mu }) => {
+                    nonnegative(*mu, &format!("{at}.friction.mu"))?;
+                    Some(Friction::Coulomb(Coulomb::new(*mu)))
+                }
+                Some(FrictionSpec::RegularizedCoulomb { mu }) => {
+                    nonnegative(*mu, &format!("{at}.friction.mu"))?;
+                    Some(Friction::RegularizedCoulomb(RegularizedCoulomb::new(*mu)))
+                }
+                Some(FrictionSpec::PressureDependent { mu0, p0, n }) => {
+                    nonnegative(*mu0, &format!("{at}.friction.mu0"))?;
+                    positive(*p0, &format!("{at}.friction.p0"))?;
+                    finite(*n, &format!("{at}.friction.n"))?;
+                    Some(Friction::PressureDependent(PressureDependentCoulomb::new(
+                        *mu0, *p0, *n,
+                    )))
+                }
+            };
+            match c.normal {
+                NormalLaw::Penalty { stiffness } => {
+                    positive(stiffness, &format!("{at}.normal.stiffness"))?;
+                }
+                NormalLaw::Augmented {
+                    stiffness,
+                    tolerance,
+                } => {
+                    positive(stiffness, &format!("{at}.normal.stiffness"))?;
+                    positive(tolerance, &format!("{at}.normal.tolerance"))?;
+                }
+                NormalLaw::Lagrange => {}
+            }
+            let scale = match c.constraint_scale {
+                Some(k) => {
+                    positive(k, &format!("{at}.constraint_scale"))?;
+                    k
+                }
+                None => {
+                    let e = bodies
+                        .iter()
+                        .map(|b| b.material.params()[0])
+                        .fold(0.0f64, f64::max);
+                    let mean_area = area.iter().sum::<f64>() / area.len() as f64;
+                    let ks = springs
+                        .iter()
+                        .flat_map(|s| s.stiffness.iter().flatten().map(|v| v.abs()))
+                        .fold(0.0f64, f64::max);
+                    let k = if e > 0.0 { e * mean_area.sqrt() } else { ks };
+                    let k = if k > 0.0 { k } else { 1.0 };
+                    if c.normal == NormalLaw::Lagrange {
+                        notes.push(format!(
+                            "{at} '{}': constraint scale {k:.4e} (force per unit gap of the multiplier rows: {})",
+                            c.name,
+                            if e > 0.0 {
+                                "the largest E times the square root of the mean tributary area"
+                            } else {
+                                "the largest spring stiffness"
+                            }
+                        ));
+                    }
+                    k
+                }
+            };
+            let activation = match c.activation {
+                Some(a) => {
+                    positive(a, &format!("{at}.activation"))?;
+                    a
+                }
+                None => 1.0,
+            };
+            // the tangential penalty: given, or derived per node from the element layer
+            // under it (TANGENTIAL_STIFFNESS_FACTOR E* A_i / h_i)
+            let (eps_t, weight) = match (c.tangential_stiffness, &layer) {
+                (Some(k), _) => {
+                    positive(k, &format!("{at}.tangential_stiffness"))?;
+                    (k, vec![1.0; hitting.len()])
+                }
+                (None, Some(layer)) => {
+                    let e_star = contact_modulus(mesh, bodies, &hitting, &target);
+                    let per_node: Vec<f64> = layer
+                        .iter()
+                        .map(|l| TANGENTIAL_STIFFNESS_FACTOR * e_star * l)
+                        .collect();
+                    let mean = per_node.iter().sum::<f64>() / per_node.len() as f64;
+                    if !(mean.is_finite() && mean > 0.0) {
+                        return Err(invalid(
+                            &format!("{at}.tangential_stiffness"),
+                            format!("no default from the surface elements (mean stiffness {mean}): give one"),
+                        ));
+                    }
+                    let (lo, hi) = per_node
+                        .iter()
+                        .fold((f64::INFINITY, 0.0f64), |(a, b), k| (a.min(*k), b.max(*k)));
+                    notes.push(format!(
+                        "{at} '{}': tangential stiffness {mean:.4e} per hitting node on average ({lo:.4e} to {hi:.4e}): {} E* A_i / h_i, with E* = {e_star:.4e} and A_i / h_i the node's area over the thickness of the element layer under it",
+                        c.name,
+                        TANGENTIAL_STIFFNESS_FACTOR
+                    ));
+                    (mean, per_node.iter().map(|k| k / mean).collect())
+                }
+                (None, None) => (100.0 * scale, vec![1.0; hitting.len()]),
+            };
+            out.push(ContactPair {
+                name: c.name.clone(),
+                hitting,
+                area,
+                target,
+                normal: c.normal,
+                friction,
+                tangential_stiffness: eps_t,
+                tangential_weight: weight,
+                constraint_scale: scale,
+                activation,
+                candidates,
+            });
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,777 @@
+//! The scene schema: what a scene file says (serde types, read and written as TOML), its errors
+//! naming the field, and reading and writing scenes.
+
+use super::builtin;
+use crate::contact::NormalLaw;
+use crate::element::{Hex8Formulation, Kinematics};
+use crate::material::{J2Plasticity, NeoHookean, StVenantKirchhoff};
+use crate::mesh::{Axis, BlockSpec};
+use crate::model::{Material, SolverSettings};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// A Cartesian component.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Component {
+    /// x (index 0).
+    X,
+    /// y (index 1).
+    Y,
+    /// z (index 2).
+    Z,
+}
+
+impl Component {
+    /// Index 0, 1, 2.
+    pub fn index(self) -> usize {
+        match self {
+            Component::X => 0,
+            Component::Y => 1,
+            Component::Z => 2,
+        }
+    }
+}
+
+/// Material of a body, with named parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "law", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum MaterialSpec {
+    /// St Venant-Kirchhoff.
+    Svk {
+        /// Young's modulus `E` (stress).
+        #[serde(rename = "E")]
+        young: f64,
+        /// Poisson's ratio `nu`.
+        nu: f64,
+    },
+    /// J2 plasticity; linear hardening `sigma_y + H alpha`, plus the saturation term
+    /// `(sigma_inf - sigma_y)(1 - exp(-delta alpha))` when `sigma_inf` and `delta` are given.
+    J2 {
+        /// Young's modulus `E` (stress).
+        #[serde(rename = "E")]
+        young: f64,
+        /// Poisson's ratio `nu`.
+        nu: f64,
+        /// Initial yield stress `sigma_y`.
+        sigma_y: f64,
+        /// Linear hardening modulus `H` (stress per unit equivalent plastic strain).
+        #[serde(rename = "H")]
+        hardening: f64,
+        /// Saturation flow stress `sigma_inf` (with `delta`; `>= sigma_y`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sigma_inf: Option<f64>,
+        /// Saturation rate `delta` (per unit equivalent plastic strain; with `sigma_inf`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        delta: Option<f64>,
+    },
+    /// Compressible Neo-Hookean hyperelasticity (`E`, `nu` its small-strain constants).
+    NeoHookean {
+        /// Young's modulus `E` (stress).
+        #[serde(rename = "E")]
+        young: f64,
+        /// Poisson's ratio `nu`.
+        nu: f64,
+    },
+}
+
+impl MaterialSpec {
+    pub(crate) fn build(&self) -> Material {
+        match self {
+            MaterialSpec::Svk { young, nu } => Material::Svk(StVenantKirchhoff::new(*young, *nu)),
+            MaterialSpec::NeoHookean { young, nu } => {
+                Material::NeoHookean(NeoHookean::new(*young, *nu))
+            }
+            MaterialSpec::J2 {
+                young,
+                nu,
+                sigma_y,
+                hardening,
+                sigma_inf,
+                delta,
+            } => Material::J2(match (sigma_inf, delta) {
+                (Some(si), Some(d)) => {
+                    J2Plasticity::saturation(*young, *nu, *sigma_y, *hardening, *si, *d)
+                }
+                _ => J2Plasticity::linear(*young, *nu, *sigma_y, *hardening),
+            }),
+        }
+    }
+
+    pub(crate) fn check(&self, at: &str) -> Result<(), SceneError> {
+        match self {
+            MaterialSpec::Svk { young, nu } | MaterialSpec::NeoHookean { young, nu } => {
+                positive(*young, &format!("{at}.E"))?;
+                poisson(*nu, &format!("{at}.nu"))
+            }
+            MaterialSpec::J2 {
+                young,
+                nu,
+                sigma_y,
+                hardening,
+                sigma_inf,
+                delta,
+            } => {
+                positive(*young, &format!("{at}.E"))?;
+                poisson(*nu, &format!("{at}.nu"))?;
+                positive(*sigma_y, &format!("{at}.sigma_y"))?;
+                finite(*hardening, &format!("{at}.H"))?;
+                if *hardening < 0.0 {
+                    return Err(invalid(
+                        &format!("{at}.H"),
+                        "softening (H < 0) is not supported",
+                    ));
+                }
+                if sigma_inf.is_some() != delta.is_some() {
+                    return Err(invalid(
+                        &format!("{at}.sigma_inf"),
+                        "saturation hardening needs both sigma_inf and delta",
+                    ));
+                }
+                if let (Some(si), Some(d)) = (sigma_inf, delta) {
+                    finite(*si, &format!("{at}.sigma_inf"))?;
+                    finite(*d, &format!("{at}.delta"))?;
+                    if si < sigma_y || *d < 0.0 {
+                        return Err(invalid(
+                            &format!("{at}.sigma_inf"),
+                            "needs sigma_inf >= sigma_y and delta >= 0",
+                        ));
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// A deformable body: one generated block.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "BodyToml", into = "BodyToml")]
+pub struct BodySpec {
+    /// The generated block of hex8 elements (its name is the body's name).
+    pub block: BlockSpec,
+    /// Constitutive law.
+    pub material: MaterialSpec,
+    /// Small or large deformation (scene default: large).
+    pub kinematics: Kinematics,
+    /// Hex8 element formulation (scene default: incompatible modes).
+    pub formulation: Hex8Formulation,
+}
+
+/// The TOML table of a [`BodySpec`], with the block's fields inline. Spelled out rather than
+/// `#[serde(flatten)]`, which buffers the table: errors inside it (`bodies[0].x.length`
+/// missing) would point at `[[bodies]]` instead of the entry.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BodyToml {
+    name: String,
+    origin: [f64; 3],
+    x: Axis,
+    y: Axis,
+    z: Axis,
+    material: MaterialSpec,
+    #[serde(default = "large")]
+    kinematics: Kinematics,
+    #[serde(default = "incompatible")]
+    formulation: Hex8Formulation,
+}
+
+impl From<BodyToml> for BodySpec {
+    fn from(b: BodyToml) -> Self {
+        BodySpec {
+            block: BlockSpec {
+                name: b.name,
+                origin: b.origin,
+                x: b.x,
+                y: b.y,
+                z: b.z,
+            },
+            material: b.material,
+            kinematics: b.kinematics,
+            formulation: b.formulation,
+        }
+    }
+}
+
+impl From<BodySpec> for BodyToml {
+    fn from(b: BodySpec) -> Self {
+        BodyToml {
+            name: b.block.name,
+            origin: b.block.origin,
+            x: b.block.x,
+            y: b.block.y,
+            z: b.block.z,
+            material: b.material,
+            kinematics: b.kinematics,
+            formulation: b.formulation,
+        }
+    }
+}
+
+pub(crate) fn large() -> Kinematics {
+    Kinematics::Large
+}
+pub(crate) fn incompatible() -> Hex8Formulation {
+    Hex8Formulation::IncompatibleModes
+}
+
+/// A node outside every block (for discrete models).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FreeNodeSpec {
+    /// Name; the node forms the node set of that name.
+    pub name: String,
+    /// Reference position.
+    pub x: [f64; 3],
+}
+
+/// A spring between two node sets of one node each (or to the ground).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringSpec {
+    /// Node set of the first node.
+    pub a: String,
+    /// Node set of the second node; none ties `a` to the ground.
+    #[serde(default)]
+    pub b: Option<String>,
+    /// Row-major 3x3 stiffness.
+    pub stiffness: [[f64; 3]; 3],
+}
+
+/// A prescribed displacement `value * amplitude(t)` on every node of a set.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PrescribedSpec {
+    /// Name (for design parameters and messages).
+    pub name: String,
+    /// Node set.
+    pub set: String,
+    /// Constrained components, each given `value * amplitude(t)`.
+    pub components: Vec<Component>,
+    /// Magnitude of the displacement (a length; default 0, a fixed support).
+    #[serde(default)]
+    pub value: f64,
+    /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
+    #[serde(default = "ramp")]
+    pub amplitude: Vec<(f64, f64)>,
+}
+
+/// A total force `value * amplitude(t)` shared equally by the nodes of a set.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadSpec {
+    /// Name (for design parameters and messages).
+    pub name: String,
+    /// Node set.
+    pub set: String,
+    /// Force component.
+    pub component: Component,
+    /// Total force over the set.
+    pub value: f64,
+    /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
+    #[serde(default = "ramp")]
+    pub amplitude: Vec<(f64, f64)>,
+}
+
+pub(crate) fn ramp() -> Vec<(f64, f64)> {
+    vec![(0.0, 0.0), (1.0, 1.0)]
+}
+
+/// A stretch of the load history split into equal increments.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StepSpec {
+    /// Pseudo-time at the end of the step.
+    pub end: f64,
+    /// Number of equal increments.
+    pub increments: usize,
+}
+
+/// An analytic rigid surface (undisplaced position).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "shape", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum RigidSpec {
+    /// Plane through `point`, `normal` pointing out of the rigid body (towards the deformable
+    /// one).
+    Plane {
+        /// A point of the plane.
+        point: [f64; 3],
+        /// Normal, pointing out of the rigid body (any nonzero length; normalised on use).
+        normal: [f64; 3],
+    },
+    /// Cylinder (contact on its outside).
+    Cylinder {
+        /// A point of the axis.
+        axis_point: [f64; 3],
+        /// Direction of the axis (any nonzero length).
+        axis: [f64; 3],
+        /// Radius (a length).
+        radius: f64,
+    },
+    /// Box with rounded edges and corners.
+    RoundedBox {
+        /// Centre.
+        center: [f64; 3],
+        /// Half extents of the whole (rounded) box along x, y, z.
+        half_extents: [f64; 3],
+        /// Radius of the rounded edges and corners (`<= min(half_extents)`).
+        radius: f64,
+    },
+}
+
+/// One component of a rigid target's translation, `value * amplitude(t)`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSpec {
+    /// Translated component.
+    pub component: Component,
+    /// Magnitude of the translation (a length).
+    pub value: f64,
+    /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
+    #[serde(default = "ramp")]
+    pub amplitude: Vec<(f64, f64)>,
+}
+
+/// The target of a contact pair.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+pub enum TargetSpec {
+    /// A face set of a deformable body (e.g. `"upper.ymin"`).
+    Faces(String),
+    /// An analytic rigid surface and its prescribed translation.
+    Rigid {
+        /// The surface in its undisplaced position.
+        surface: RigidSpec,
+        /// Prescribed translation, one entry per moving component (default: fixed).
+        #[serde(default)]
+        motion: Vec<MotionSpec>,
+    },
+}
+
+/// A friction law with named parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "law", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum FrictionSpec {
+    /// Coulomb with penalty stick.
+    Coulomb {
+        /// Friction coefficient.
+        mu: f64,
+    },
+    /// Smooth (regularised) Coulomb: `t = t_trial / sqrt(1 + (|t_trial| / mu p_n)^2)`.
+    RegularizedCoulomb {
+        /// Friction coefficient.
+        mu: f64,
+    },
+    /// Pressure-dependent coefficient `mu0 (p_n / p0)^(-n)`.
+    PressureDependent {
+        /// Coefficient at the reference normal force.
+        mu0: f64,
+        /// Reference normal force (per hitting node).
+        p0: f64,
+        /// Exponent.
+        n: f64,
+    },
+}
+
+/// A contact pair.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// Name (for design parameters, responses and messages).
+    pub name: String,
+    /// Hitting nodes: a face set (tributary areas from its faces) or a node set (unit areas).
+    pub hitting: String,
+    /// What the hitting nodes touch.
+    pub target: TargetSpec,
+    /// Normal law; default Lagrange multipliers.
+    #[serde(default = "lagrange")]
+    pub normal: NormalLaw,
+    /// Friction law; none = frictionless.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<FrictionSpec>,
+    /// Tangential penalty stiffness per hitting node (force per length); default
+    /// 100 x the constraint scale.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tangential_stiffness: Option<f64>,
+    /// Scale of the multiplier rows (force per length); default E_max x sqrt(mean area), or
+    /// the largest spring stiffness for models without bodies.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub constraint_scale: Option<f64>,
+    /// Weight `c` of the gap in the active-set rule of Lagrange multipliers (a node is active
+    /// while `lambda - c k g >= 0`); default 1. Any `c > 0` gives the same solutions; a small
+    /// `c` keeps a loaded node active until its multiplier turns tensile, instead of releasing
+    /// it on the small positive gap a Newton step leaves on a curved target (see
+    /// [`crate::contact::ContactPair::activation`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub activation: Option<f64>,
+    /// Candidate target faces lie within this distance of a hitting node (reference
+    /// configuration); default 3 x the largest face diagonal.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub search_radius: Option<f64>,
+}
+
+pub(crate) fn lagrange() -> NormalLaw {
+    NormalLaw::Lagrange
+}
+
+/// A scalar response of the converged state.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ResponseSpec {
+    /// Sum of the reaction forces of a set in one component.
+    Reaction {
+        /// Response name.
+        name: String,
+        /// Node set.
+        set: String,
+        /// Force component.
+        component: Component,
+    },
+    /// Mean displacement of a set in one component.
+    Displacement {
+        /// Response name.
+        name: String,
+        /// Node set.
+        set: String,
+        /// Displacement component.
+        component: Component,
+    },
+    /// Force exerted on the target of a contact pair (the reaction of a rigid target).
+    TargetForce {
+        /// Response name.
+        name: String,
+        /// Contact pair name.
+        pair: String,
+        /// Force component.
+        component: Component,
+    },
+    /// Contact pressure (normal force / tributary area) at every hitting node of a pair: one
+    /// response per node, named `NAME[i]`, ordered along `along`.
+    PressureProfile {
+        /// Response name prefix.
+        name: String,
+        /// Contact pair name.
+        pair: String,
+        /// Coordinate the nodes are ordered by (reference configuration).
+        along: Component,
+    },
+    /// A history variable of one Gauss point: `element` counts within the body, `point` is
+    /// the Gauss point (0-7), `variable` names a history entry of the body's material
+    /// (for J2: `Ep11` ... `Ep13`, `alpha` = equivalent plastic strain).
+    History {
+        /// Response name.
+        name: String,
+        /// Body name.
+        body: String,
+        /// Element index within the body.
+        element: usize,
+        /// Gauss point (0-7).
+        point: usize,
+        /// History entry of the body's material.
+        variable: String,
+    },
+}
+
+impl ResponseSpec {
+    /// Name of the response.
+    pub fn name(&self) -> &str {
+        match self {
+            ResponseSpec::Reaction { name, .. }
+            | ResponseSpec::Displacement { name, .. }
+            | ResponseSpec::TargetForce { name, .. }
+            | ResponseSpec::PressureProfile { name, .. }
+            | ResponseSpec::History { name, .. } => name,
+        }
+    }
+}
+
+/// A complete analysis.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Scene name.
+    pub name: String,
+    /// What the scene is (one paragraph).
+    #[serde(default)]
+    pub description: String,
+    /// Deformable bodies.
+    #[serde(default)]
+    pub bodies: Vec<BodySpec>,
+    /// Nodes outside every body.
+    #[serde(default)]
+    pub free_nodes: Vec<FreeNodeSpec>,
+    /// Linear springs.
+    #[serde(default)]
+    pub springs: Vec<SpringSpec>,
+    /// Prescribed displacements.
+    #[serde(default)]
+    pub prescribed: Vec<PrescribedSpec>,
+    /// Loads.
+    #[serde(default)]
+    pub loads: Vec<LoadSpec>,
+    /// Contact pairs.
+    #[serde(default)]
+    pub contacts: Vec<ContactSpec>,
+    /// The load history: steps of equal increments.
+    pub steps: Vec<StepSpec>,
+    /// Responses recorded at every increment.
+    #[serde(default)]
+    pub responses: Vec<ResponseSpec>,
+    /// Newton-Raphson settings.
+    #[serde(default)]
+    pub solver: SolverSettings,
+    /// The design parameters the scene is studied with, and its default perturbation size.
+    #[serde(default, skip_serializing_if = "StudySpec::is_empty")]
+    pub study: StudySpec,
+}
+
+/// The design parameters a scene is studied with (`fricsens validate`, and `fricsens
+/// sensitivity` without `--param`) and the default perturbation size of the finite-perturbation
+/// methods.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudySpec {
+    /// Parameter names as `fricsens sensitivity --param` takes them (`mu`, `E`,
+    /// `upper.length.x`, ...).
+    #[serde(default)]
+    pub params: Vec<String>,
+    /// Default relative perturbation size beta of SDM and FDM (default 1e-6).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f64>,
+}
+
+impl StudySpec {
+    fn is_empty(&self) -> bool {
+        self.params.is_empty() && self.beta.is_none()
+    }
+
+    /// The default perturbation size.
+    pub fn beta(&self) -> f64 {
+        self.beta.unwrap_or(1e-6)
+    }
+}
+
+/// What is wrong with a scene, and where.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SceneError {
+    /// The TOML text does not parse as a scene.
+    #[error("{file}: {message}")]
+    Parse {
+        /// The file (or source name).
+        file: String,
+        /// The parser's message, with the field's path when known.
+        message: String,
+    },
+    /// A scene file could not be read.
+    #[error("{file}: {source}")]
+    Io {
+        /// The file.
+        file: String,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A field has an invalid value.
+    #[error("field `{field}`: {problem}")]
+    Invalid {
+        /// Path of the field (`contacts[0].friction.mu`).
+        field: String,
+        /// What is wrong with it.
+        problem: String,
+    },
+    /// Neither a built-in scene nor a scene file.
+    #[error("unknown built-in scene '{0}' (see `fricsens scenes`)")]
+    UnknownScene(String),
+    /// An error in a scene file, found when it was built.
+    #[error("{file}: {source}")]
+    InFile {
+        /// The file.
+        file: String,
+        /// The error.
+        #[source]
+        source: Box<SceneError>,
+    },
+}
+
+pub(crate) fn invalid(field: &str, problem: impl Into<String>) -> SceneError {
+    SceneError::Invalid {
+        field: field.to_string(),
+        problem: problem.into(),
+    }
+}
+
+pub(crate) fn finite(v: f64, field: &str) -> Result<(), SceneError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("{v} is not a finite number")))
+    }
+}
+
+pub(crate) fn positive(v: f64, field: &str) -> Result<(), SceneError> {
+    finite(v, field)?;
+    if v > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("must be > 0, got {v}")))
+    }
+}
+
+pub(crate) fn nonnegative(v: f64, field: &str) -> Result<(), SceneError> {
+    finite(v, field)?;
+    if v >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("must be >= 0, got {v}")))
+    }
+}
+
+pub(crate) fn poisson(v: f64, field: &str) -> Result<(), SceneError> {
+    finite(v, field)?;
+    if v > -1.0 && v < 0.5 {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("must lie in (-1, 0.5), got {v}")))
+    }
+}
+
+/// The TOML path (`bodies[0].material.E`) of the entry a deserialization error points at, with
+/// the name of a missing or unknown field appended; `None` for syntax errors (the message gives
+/// the line), errors without a position, and positions no single entry owns.
+pub(crate) fn toml_path(text: &str, err: &toml::de::Error) -> Option<String> {
+    use toml::de::{DeTable, DeValue};
+    type Span = std::ops::Range<usize>;
+    /// The entry with the smallest span containing the error's start, the deepest among equal
+    /// spans; `ambiguous` when two different entries tie.
+    struct Best {
+        at: usize,
+        found: Option<(usize, usize, String)>,
+        ambiguous: bool,
+    }
+    impl Best {
+        fn consider(&mut self, span: Span, depth: usize, path: &str) {
+            if !span.contains(&self.at) {
+                return;
+            }
+            let key = (span.len(), usize::MAX - depth);
+            match &self.found {
+                Some((len, d, p)) if key == (*len, usize::MAX - *d) => {
+                    self.ambiguous |= p != path;
+                }
+                Some((len, d, _)) if key > (*len, usize::MAX - *d) => {}
+                _ => {
+                    self.found = Some((span.len(), depth, path.to_string()));
+                    self.ambiguous = false;
+                }
+            }
+        }
+        fn value(&mut self, v: &DeValue, span: Span, depth: usize, path: &str) {
+            self.consider(span, depth, path);
+            match v {
+                DeValue::Table(t) => self.table(t, depth, path),
+                DeValue::Array(a) => {
+                    for (i, e) in a.iter().enumerate() {
+                        self.value(e.get_ref(), e.span(), depth + 1, &format!("{path}[{i}]"));
+                    }
+                }
+                _ => {}
+            }
+        }
+        fn table(&mut self, t: &DeTable, depth: usize, path: &str) {
+            for (k, v) in t.iter() {
+                let p = if path.is_empty() {
+                    k.get_ref().to_string()
+                } else {
+                    format!("{path}.{}", k.get_ref())
+                };
+                self.consider(k.span(), depth + 1, &p);
+                self.value(v.get_ref(), v.span(), depth + 1, &p);
+            }
+        }
+    }
+    let span = err.span()?;
+    let mut path = if span.is_empty() {
+        // the document itself (the toml crate's position for errors of the root table)
+        if span.start != 0 {
+            return None;
+        }
+        String::new()
+    } else {
+        let doc = DeTable::parse(text).ok()?;
+        let mut best = Best {
+            at: span.start,
+            found: None,
+            ambiguous: false,
+        };
+        best.table(doc.get_ref(), 0, "");
+        match best.found {
+            Some((_, _, p)) if !best.ambiguous => p,
+            _ => return None,
+        }
+    };
+    let msg = err.message();
+    let field = ["missing field `", "unknown field `"]
+        .iter()
+        .find_map(|p| msg.strip_prefix(p))
+        .and_then(|rest| rest.split('`').next());
+    if let Some(f) = field {
+        if path.rsplit('.').next() != Some(f) {
+            path = if path.is_empty() {
+                f.to_string()
+            } else {
+                format!("{path}.{f}")
+            };
+        }
+    }
+    (!path.is_empty()).then_some(path)
+}
+
+impl Scene {
+    /// Parse a scene from TOML text; `file` names the source in errors.
+    pub fn from_toml(text: &str, file: &str) -> Result<Scene, SceneError> {
+        toml::from_str(text).map_err(|e| {
+            let message = e.to_string().trim_end().to_string();
+            SceneError::Parse {
+                file: file.to_string(),
+                message: match toml_path(text, &e) {
+                    Some(path) => format!("field `{path}`: {message}"),
+                    None => message,
+                },
+            }
+        })
+    }
+
+    /// Read a scene file.
+    pub fn from_file(path: &Path) -> Result<Scene, SceneError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        Self::from_toml(&text, &file)
+    }
+
+    /// A built-in scene by name, or a scene file by path.
+    pub fn load(name_or_path: &str) -> Result<Scene, SceneError> {
+        if let Some(s) = builtin(name_or_path) {
+            return Ok(s);
+        }
+        let p = Path::new(name_or_path);
+        if p.exists() || name_or_path.ends_with(".toml") {
+            let s = Self::from_file(p)?;
+            // validate now so errors name the file
+            s.build().map_err(|e| SceneError::InFile {
+                file: p.display().to_string(),
+                source: Box::new(e),
+            })?;
+            return Ok(s);
+        }
+        Err(SceneError::UnknownScene(name_or_path.to_string()))
+    }
+
+    /// Serialise to TOML.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("a scene always serialises")
+    }
+}
