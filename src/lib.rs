@@ -48,4 +48,3 @@ pub mod sensitivity;
 pub mod solver;
 #[cfg(feature = "studies")]
 pub mod studies;
-pub mod symlu;

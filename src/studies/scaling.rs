@@ -18,7 +18,7 @@
 //!   prescribed, incompatible-mode unknowns, contact multipliers).
 //!
 //! The LU factor's size is not recorded (the symmetric-pattern LU knows it,
-//! [`crate::symlu::SymbolicSymLu::len_values`], but the study predates it); the peak memory
+//! [`crate::linalg::symlu::SymbolicSymLu::len_values`], but the study predates it); the peak memory
 //! stands in for it.
 
 use crate::scene::{indentation_refined, leaf_spring, LeafSpringSpec, Scene, SceneError, StepSpec};

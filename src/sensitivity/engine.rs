@@ -1,0 +1,542 @@
+//! The in-line engine: an observer of the primal solver that, after each converged increment,
+//! assembles the pseudo-loads of SDM or DDM and solves them with the tangent of its choice
+//! ([`super::TangentChoice`]), carrying the derivative of the history to the next increment.
+
+use super::*;
+use crate::assembly::Frozen;
+use crate::contact::{ContactChoice, ContactState};
+use crate::linalg::LinearSolver;
+use crate::material::Branch;
+use crate::model::{DesignParam, Lifted, Model};
+use crate::scalar::Scalar;
+use crate::solver::{AnalysisError, Converged, Observer};
+use num_dual::Dual64;
+use std::time::Instant;
+
+/// What one in-line method computes at an increment.
+pub(super) struct Step {
+    /// `[r][p]`: total derivative of each response.
+    pub(super) dresp: Vec<Vec<f64>>,
+    /// `dh_n/db`, parameter-major.
+    pub(super) dhist: Vec<f64>,
+    /// `dz_n/db` per parameter.
+    pub(super) dz: Vec<Vec<f64>>,
+    /// Round-off dominated, `[r][p]` (SDM; empty for DDM).
+    pub(super) roundoff: Vec<Vec<bool>>,
+}
+
+/// DDM's pseudo-loads at one increment, with what the update after the solve reuses.
+#[derive(Clone)]
+pub(super) struct PseudoLoads {
+    /// `-dR/db` at fixed state, column-major per parameter (0 at prescribed unknowns).
+    pub(super) rhs: Vec<f64>,
+    /// Derivative of the prescribed unknowns, per parameter.
+    pub(super) dzc: Vec<Vec<f64>>,
+    /// The design seeded along each parameter.
+    pub(super) designs: Vec<Lifted<Dual64>>,
+    /// The committed history carrying its derivative, per parameter.
+    pub(super) hists: Vec<Vec<Dual64>>,
+}
+
+/// Per element: whether the Gauss-point branches of `a` and `b` agree on all its points
+/// (`None` when either leaves them free: every element counts as changed).
+pub(super) fn unchanged_elements(a: &Frozen<'_>, b: &Frozen<'_>) -> Option<Vec<bool>> {
+    let (a, b) = (a.gauss?, b.gauss?);
+    Some(a.chunks(8).zip(b.chunks(8)).map(|(a, b)| a == b).collect())
+}
+
+/// The branches of the converged state, frozen, over all elements.
+pub(super) fn converged_frozen<'c>(c: &'c Converged<'_>) -> Frozen<'c> {
+    Frozen {
+        gauss: Some(&c.eval.branches),
+        contact: &c.eval.contact.choice,
+        skip: None,
+        ..Frozen::default()
+    }
+}
+
+/// The total derivative of the unknowns for parameter `k`: the solved column of `rhs` on the
+/// free unknowns, the prescribed derivative `dzc` on the constrained ones.
+pub(super) fn total_dz(c: &Converged<'_>, rhs: &[f64], dzc: &[f64], k: usize) -> Vec<f64> {
+    let n = c.z.len();
+    (0..n)
+        .map(|i| {
+            if c.constrained[i] {
+                dzc[i]
+            } else {
+                rhs[k * n + i]
+            }
+        })
+        .collect()
+}
+
+/// Relative residual the correction solves of [`refine_extended`] ask of GMRES: each step of
+/// the refinement then shrinks the error by about this factor. Loose, so that the usual
+/// correction is one solve with the factor at hand and one product (GMRES stops at its
+/// start).
+pub(super) const CORRECTION_TOL: f64 = 1e-3;
+
+/// [`refine_extended`] stops when every column's correction is below this fraction of the
+/// column: three orders of magnitude below the accuracy the default DDM is tested to (1e-10
+/// of each sensitivity's scale against a fresh factorization).
+pub(super) const REFINED_TO: f64 = 1e-13;
+
+/// Steps of [`refine_extended`] at most (two reach working precision wherever the first
+/// solve kept a few digits; a third only guards a slow correction).
+pub(super) const EXTENDED_REFINEMENT_STEPS: usize = 3;
+
+/// Solves `k d = r` in place for [`refine_extended`]'s corrections, adding its work to the
+/// cost.
+type CorrectionSolve<'a> =
+    dyn FnMut(&mut [f64], &mut SensitivityCost) -> Result<(), crate::linalg::LinalgError> + 'a;
+
+/// Iterative refinement of the solution `x` of `k x = b` (`ncols` column-major columns) with
+/// residuals in double-double arithmetic ([`crate::linalg::SparseMatrix::residual_extended`]),
+/// each correction solved by `correct` (with the factor or GMRES that solved `x`), until every
+/// column's correction is below [`REFINED_TO`] of the column (or
+/// [`EXTENDED_REFINEMENT_STEPS`]).
+///
+/// Why: a backward-stable solve (a factorization, or GMRES accepted at a direct solve's
+/// backward error) leaves a forward error of up to `cond(k) eps`, and two such solves (DDM
+/// by GMRES and by a fresh factorization) differ by that much. Where the pseudo-load is small
+/// against `|k| |x|` (a slender beam's load in `E`: relative residual 2e-9 at a backward
+/// error of 0.3 eps) that was 1.7e-10 of the derivative's scale on the elastica cantilever.
+/// With the residual computed to twice the working precision, refinement converges to the
+/// solution rounded to working precision, whichever solve started it (Moler 1967; Higham,
+/// *Accuracy and Stability of Numerical Algorithms*, section 12.1).
+pub(super) fn refine_extended(
+    k: &crate::linalg::SparseMatrix,
+    b: &[f64],
+    x: &mut [f64],
+    ncols: usize,
+    cost: &mut SensitivityCost,
+    correct: &mut CorrectionSolve<'_>,
+) -> Result<(), crate::linalg::LinalgError> {
+    let n = k.n();
+    let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+    let mut r = vec![0.0; n * ncols];
+    for _ in 0..EXTENDED_REFINEMENT_STEPS {
+        for c in 0..ncols {
+            let cols = c * n..(c + 1) * n;
+            k.residual_extended(&x[cols.clone()], &b[cols.clone()], &mut r[cols])?;
+        }
+        correct(&mut r, cost)?;
+        let mut done = true;
+        for c in 0..ncols {
+            let cols = c * n..(c + 1) * n;
+            let (d, xc) = (norm(&r[cols.clone()]), norm(&x[cols.clone()]));
+            done &= d <= REFINED_TO * xc;
+            for (xi, di) in x[cols.clone()].iter_mut().zip(&r[cols]) {
+                *xi += di;
+            }
+        }
+        if done {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// Add the wall time of `f` to `slot`.
+pub(super) fn timed<T>(slot: &mut f64, f: impl FnOnce() -> T) -> T {
+    let t = Instant::now();
+    let out = f();
+    *slot += t.elapsed().as_secs_f64();
+    out
+}
+
+/// The in-line engine (SDM and DDM) run as an observer of the primal solver.
+pub struct Engine<'a> {
+    pub(super) params: &'a [Parameter],
+    pub(super) settings: Settings,
+    pub(super) keep_state_derivative: bool,
+    /// `dh/db`, parameter-major: `dhist[p * n_history + i]`.
+    pub(super) dhist: Vec<f64>,
+    pub(super) exact: Option<LinearSolver>,
+    /// Increment whose converged tangent `exact` holds factored (`None`: a forced tangent,
+    /// or nothing yet).
+    pub(super) exact_holds: Option<usize>,
+    /// Tangent to solve with instead of the Newton one (one-sided derivatives: the tangent of
+    /// the forced branches).
+    pub(super) forced_tangent: Option<crate::linalg::SparseMatrix>,
+    /// What the engine has computed so far.
+    pub results: SensitivityResults,
+}
+
+impl<'a> Engine<'a> {
+    /// An engine for `params` with `settings`, before the first increment (`dh/db = 0`; the
+    /// initial history's derivative is set at the first converged increment).
+    pub fn new(model: &Model, params: &'a [Parameter], settings: Settings) -> Self {
+        let nh = model.dof_map().n_history;
+        Engine {
+            params,
+            keep_state_derivative: false,
+            dhist: vec![0.0; nh * params.len()],
+            exact: None,
+            exact_holds: None,
+            forced_tangent: None,
+            results: SensitivityResults {
+                method: Some(settings.method),
+                beta: settings.beta,
+                parameters: params.iter().map(|p| p.name.clone()).collect(),
+                responses: model.responses.iter().map(|r| r.name.clone()).collect(),
+                ..Default::default()
+            },
+            settings,
+        }
+    }
+
+    /// Also keep `dz/db` of every increment.
+    pub fn keep_state_derivative(mut self, yes: bool) -> Self {
+        self.keep_state_derivative = yes;
+        self
+    }
+
+    pub(super) fn overrides<S: Scalar>(
+        &self,
+        value: impl Fn(usize, f64) -> S,
+    ) -> Vec<(DesignParam, S)> {
+        let mut v = Vec::new();
+        for (k, p) in self.params.iter().enumerate() {
+            let s = value(k, p.value);
+            for t in &p.targets {
+                v.push((*t, s));
+            }
+        }
+        v
+    }
+
+    /// `dh_0/db`: the history at t = 0 is not zero for frictional contact (each hitting
+    /// node's anchor is the projection of its reference position), and a shape parameter
+    /// moves it. Evaluated by dual numbers on the same routine the solver starts from.
+    pub(super) fn initial_history_derivative(
+        &mut self,
+        c: &Converged<'_>,
+    ) -> Result<(), AnalysisError> {
+        let nh = c.hist_prev.len();
+        for k in 0..self.params.len() {
+            let lifted: Lifted<Dual64> = c
+                .model
+                .lifted(&self.overrides(|j, v| Dual64::new(v, if j == k { 1.0 } else { 0.0 })));
+            let h0 = crate::contact::assembly::initial_history(c.model, c.assembler, &lifted)
+                .map_err(|e| AnalysisError::Model(e.to_string()))?;
+            for (i, h) in h0.iter().enumerate().take(nh) {
+                self.dhist[k * nh + i] = h.eps;
+            }
+        }
+        Ok(())
+    }
+
+    /// Derivative of the prescribed unknowns with respect to parameter `k`.
+    pub(super) fn prescribed_derivative(&self, c: &Converged<'_>, k: usize, out: &mut [f64]) {
+        for (i, p) in c.model.prescribed.iter().enumerate() {
+            let hit = self.params[k]
+                .targets
+                .contains(&DesignParam::Prescribed { index: i });
+            if hit {
+                let a = p.amplitude.at(c.time);
+                for &n in &p.nodes {
+                    out[3 * n + p.component] += a;
+                }
+            }
+        }
+    }
+
+    /// Whether flat hitting node `k` belongs to a pair with friction.
+    pub(super) fn friction_at(&self, c: &Converged<'_>, k: usize) -> bool {
+        let l = &c.assembler.contact;
+        (0..l.flat.len())
+            .rev()
+            .find(|p| l.flat[*p] <= k)
+            .map(|p| c.model.contacts[p].friction.is_some())
+            .unwrap_or(false)
+    }
+    /// Solve `K X = RHS` (columns stored column-major) with the chosen tangent.
+    pub(super) fn solve(
+        &mut self,
+        c: &Converged<'_>,
+        rhs: &mut [f64],
+        ncols: usize,
+    ) -> Result<(), AnalysisError> {
+        // the prescribed unknowns' identity rows, as in Newton's factored tangent
+        let prescribed = |mut k: crate::linalg::SparseMatrix| {
+            for (d, fixed) in c.constrained.iter().enumerate() {
+                if *fixed {
+                    k.set_identity_row_col(d).expect("in range");
+                }
+            }
+            k
+        };
+        let converged_k = || prescribed(c.tangent.clone());
+        // the last Newton factorization is the converged tangent only if it was assembled on
+        // the converged branches (see `Converged::factor_matches`)
+        let use_exact = self.settings.tangent == TangentChoice::Exact
+            || c.last_factor.is_none()
+            || !c.factor_matches
+            || self.forced_tangent.is_some();
+        if use_exact {
+            let forced = self.forced_tangent.is_some();
+            let k = match self.forced_tangent.take() {
+                Some(k) => prescribed(k),
+                None => converged_k(),
+            };
+            let cost = &mut self.results.cost;
+            // the factor closest to `k` at hand: the converged tangent's (a forced tangent
+            // after the converged one was factored at this increment), else Newton's last.
+            // (A forced tangent that is singular, e.g. a rigid mode left by a node forced
+            // open, factors as singular; GMRES may instead return one of its solutions.)
+            let at_hand = if self.exact_holds == Some(c.index) {
+                self.exact.as_ref()
+            } else {
+                c.last_factor
+            };
+            if let (true, Some(m)) = (self.settings.krylov, at_hand) {
+                let b = rhs.to_vec();
+                // an error of the solves counts as not converged: the factorization may work
+                let report = timed(&mut cost.solve_seconds, || {
+                    m.gmres_multi(&k, rhs, ncols, KRYLOV_TOL, KRYLOV_MAX_ITER)
+                })
+                .unwrap_or(crate::linalg::KrylovReport {
+                    iterations: 0,
+                    solve_columns: 0,
+                    relative_residual: f64::NAN,
+                    backward_error: f64::NAN,
+                    converged: false,
+                });
+                if std::env::var_os("FRICSENS_TRACE").is_some() {
+                    eprintln!(
+                        "  sensitivity GMRES ({}): {} steps, |K x - b| / |b| = {:.2e}, backward error {:.2} eps{}",
+                        if forced {
+                            "forced tangent"
+                        } else {
+                            "converged tangent"
+                        },
+                        report.iterations,
+                        report.relative_residual,
+                        report.backward_error / f64::EPSILON,
+                        if report.converged {
+                            ""
+                        } else {
+                            ": not converged, factoring"
+                        }
+                    );
+                }
+                cost.solve_columns += report.solve_columns;
+                if report.converged {
+                    cost.krylov_solves += 1;
+                    cost.krylov_iterations += report.iterations;
+                    let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
+                        let rep = m.gmres_multi(&k, r, ncols, CORRECTION_TOL, KRYLOV_MAX_ITER)?;
+                        cost.solve_columns += rep.solve_columns;
+                        cost.krylov_iterations += rep.iterations;
+                        Ok(())
+                    };
+                    let t = Instant::now();
+                    refine_extended(&k, &b, rhs, ncols, cost, &mut correct)?;
+                    cost.solve_seconds += t.elapsed().as_secs_f64();
+                    return Ok(());
+                }
+                rhs.copy_from_slice(&b);
+            }
+            if self.exact.is_none() {
+                self.exact = Some(LinearSolver::new(c.assembler.pattern.clone())?);
+            }
+            let s = self.exact.as_mut().expect("just created");
+            self.exact_holds = None;
+            timed(&mut cost.factor_seconds, || s.factor(&k))?;
+            cost.factorizations += 1;
+            if !forced {
+                self.exact_holds = Some(c.index);
+            }
+            let b = rhs.to_vec();
+            let s = &*s;
+            let t = Instant::now();
+            s.solve_multi_in_place(rhs, ncols)?;
+            let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
+                cost.solve_columns += ncols;
+                s.solve_multi_in_place(r, ncols)
+            };
+            refine_extended(&k, &b, rhs, ncols, cost, &mut correct)?;
+            cost.solve_seconds += t.elapsed().as_secs_f64();
+        } else {
+            let last = c.last_factor.expect("checked above");
+            let b = rhs.to_vec();
+            let cost = &mut self.results.cost;
+            timed(&mut cost.solve_seconds, || {
+                last.solve_multi_in_place(rhs, ncols)
+            })?;
+            if self.settings.tangent == TangentChoice::Refined {
+                let k = converged_k();
+                timed(&mut cost.solve_seconds, || {
+                    last.refine_multi(&k, &b, rhs, ncols, self.settings.refine_steps)
+                })?;
+                cost.solve_columns += ncols * self.settings.refine_steps;
+            }
+        }
+        self.results.cost.solve_columns += ncols;
+        Ok(())
+    }
+}
+
+impl Observer for Engine<'_> {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        if self.settings.probe_floor {
+            self.probe_floor(c)?;
+        }
+        let t0 = Instant::now();
+        if self.results.increments.is_empty() && !c.model.contacts.is_empty() {
+            self.initial_history_derivative(c)?;
+        }
+        let kinks = self.kinks(c);
+        // DDM's pseudo-loads on the converged branches, which the one-sided derivatives move
+        let mut pseudo = None;
+        let Step {
+            dresp,
+            dhist,
+            dz,
+            roundoff,
+        } =
+            match self.settings.method {
+                Method::Ddm => {
+                    let frozen = converged_frozen(c);
+                    let p = self.pseudo_loads(c, &frozen)?;
+                    let step = self.ddm(c, &frozen, &p)?;
+                    pseudo = Some(p);
+                    step
+                }
+                Method::Sdm => self.sdm(c, false)?,
+                Method::SdmCentral => self.sdm(c, true)?,
+                Method::Fdm | Method::FdmCentral => return Err(AnalysisError::Sensitivity(
+                    "finite differences of reruns are not an in-line method (use run_sensitivity)"
+                        .into(),
+                )),
+            };
+        // one-sided derivatives at flagged points (DDM): force the flagged points on each branch
+        let one_sided = if !kinks.is_empty() && self.settings.method == Method::Ddm {
+            // whether the derivative just computed solved with the converged tangent (the
+            // forced tangent of the side the converged state is on)
+            let exact_solve = self.settings.tangent == TangentChoice::Exact
+                || c.last_factor.is_none()
+                || !c.factor_matches;
+            let mut sides = Vec::new();
+            for side in [0, 1] {
+                let mut gauss = c.eval.branches.clone();
+                let mut contact: Vec<ContactChoice> = c.eval.contact.choice.clone();
+                for k in &kinks {
+                    match k.kind {
+                        "yield" => {
+                            gauss[8 * k.at + k.point] = [Branch::Elastic, Branch::Plastic][side];
+                        }
+                        "friction" => {
+                            contact[k.at].state = [ContactState::Stick, ContactState::Slip][side];
+                        }
+                        _ => {
+                            let closed = if c.eval.contact.choice[k.at].state == ContactState::Open
+                            {
+                                // closing: stick is the state a node enters
+                                if self.friction_at(c, k.at) {
+                                    ContactState::Stick
+                                } else {
+                                    ContactState::Closed
+                                }
+                            } else {
+                                c.eval.contact.choice[k.at].state
+                            };
+                            contact[k.at].state = [ContactState::Open, closed][side];
+                        }
+                    }
+                }
+                if exact_solve && gauss == c.eval.branches && contact == c.eval.contact.choice {
+                    // the converged state is on this side of every flagged point, and the
+                    // derivative just computed solved with its tangent: that derivative is
+                    // this side's
+                    sides.push(dresp.clone());
+                    continue;
+                }
+                let frozen = Frozen {
+                    gauss: Some(&gauss),
+                    contact: &contact,
+                    skip: None,
+                    ..Frozen::default()
+                };
+                self.forced_tangent = Some(self.forced_tangent_at(c, &frozen)?);
+                let base = pseudo.as_ref().expect("DDM keeps its pseudo-loads");
+                let p = self.forced_pseudo_loads(c, base, &frozen)?;
+                sides.push(self.ddm(c, &frozen, &p)?.dresp);
+            }
+            let upper = sides.pop().expect("two sides");
+            let lower = sides.pop().expect("two sides");
+            Some(OneSided { lower, upper })
+        } else {
+            None
+        };
+        self.dhist = dhist;
+        let values = c
+            .model
+            .responses
+            .iter()
+            .map(|r| r.value(&c.eval.response_input(c.z, c.assembler)))
+            .collect();
+        self.results.increments.push(IncrementSensitivity {
+            increment: c.index,
+            time: c.time,
+            values,
+            derivatives: dresp,
+            kinks,
+            one_sided,
+            rerun_substeps: Vec::new(),
+            roundoff,
+            state_derivative: if self.keep_state_derivative {
+                Some(dz)
+            } else {
+                None
+            },
+        });
+        self.results.cost.wall_seconds += t0.elapsed().as_secs_f64();
+        Ok(())
+    }
+}
+
+/// What a design perturbation changes in the model an element sees: which nodes move and
+/// which material parameters of each body change.
+pub(super) struct Reach {
+    pub(super) moved: Vec<bool>,
+    pub(super) material: Vec<Vec<bool>>,
+}
+
+impl Reach {
+    /// The changes from design `base` to design `other` (SDM's finite perturbation).
+    pub(super) fn between(other: &Lifted<f64>, base: &Lifted<f64>) -> Self {
+        Reach {
+            moved: other
+                .coords
+                .iter()
+                .zip(&base.coords)
+                .map(|(a, b)| a != b)
+                .collect(),
+            material: other
+                .material
+                .iter()
+                .zip(&base.material)
+                .map(|(p, q)| p.iter().zip(q).map(|(a, b)| a != b).collect())
+                .collect(),
+        }
+    }
+
+    /// The quantities of a seeded design with a nonzero derivative (DDM).
+    pub(super) fn seeded(lifted: &Lifted<Dual64>) -> Self {
+        let carries = |x: &Dual64| x.eps != 0.0;
+        Reach {
+            moved: lifted
+                .coords
+                .iter()
+                .map(|x| x.iter().any(carries))
+                .collect(),
+            material: lifted
+                .material
+                .iter()
+                .map(|p| p.iter().map(carries).collect())
+                .collect(),
+        }
+    }
+}

@@ -1,0 +1,270 @@
+//! FDM: finite differences of complete reruns, and the sweeps of every method across
+//! perturbation sizes that the validation harness runs.
+
+use super::*;
+use crate::model::Model;
+use crate::solver::{AnalysisError, Converged, NoObserver, Observer, Results, RunOptions, Solver};
+use std::time::Instant;
+
+/// Primal run of a model with parameter `k` set to `b_0 + db`.
+pub(super) fn rerun(model: &Model, p: &Parameter, db: f64) -> Result<Results, AnalysisError> {
+    let mut m = model.clone();
+    for t in &p.targets {
+        m.set_param(*t, p.value + db);
+    }
+    let mut solver = Solver::new(&m)?;
+    solver.run(&RunOptions::default(), &mut NoObserver)
+}
+
+/// Response values at the nominal increment times of a run (cutback sub-increments skipped).
+pub(super) fn responses_at(
+    model: &Model,
+    res: &Results,
+    times: &[f64],
+) -> Result<Vec<Vec<f64>>, AnalysisError> {
+    let mut out = Vec::with_capacity(times.len());
+    for t in times {
+        let k = res.increment_at(*t).ok_or_else(|| {
+            AnalysisError::Sensitivity(format!("rerun has no increment at t = {t}"))
+        })?;
+        out.push(
+            (0..model.responses.len())
+                .map(|r| res.response_value(model, r, k))
+                .collect(),
+        );
+    }
+    Ok(out)
+}
+
+/// Several in-line engines observing one primal run. An engine that fails (e.g. an SDM
+/// perturbation so large that the perturbed geometry is degenerate) is stopped and its error
+/// kept; the primal run and the other engines go on.
+pub(super) struct Engines<'a> {
+    engines: Vec<Engine<'a>>,
+    errors: Vec<Option<AnalysisError>>,
+}
+
+impl Observer for Engines<'_> {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        for (e, err) in self.engines.iter_mut().zip(&mut self.errors) {
+            if err.is_none() {
+                if let Err(x) = e.converged(c) {
+                    e.results.failure =
+                        Some(format!("increment {} (t = {}): {x}", c.index, c.time));
+                    *err = Some(x);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// In-line methods (SDM, SDM central, DDM) at several settings — a perturbation sweep — on
+/// one primal run: each engine does its own work after every converged increment and keeps
+/// its own cost; `primal_seconds` of every result is the primal run alone.
+pub fn run_inline_sweep(
+    model: &Model,
+    params: &[Parameter],
+    settings: &[Settings],
+) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
+    if let Some(s) = settings.iter().find(|s| !s.method.is_inline()) {
+        return Err(AnalysisError::Sensitivity(format!(
+            "{} is not an in-line method",
+            s.method.name()
+        )));
+    }
+    let (res, out, _) = inline_sweep(model, params, settings)?;
+    Ok((res, out))
+}
+
+/// [`run_inline_sweep`] with each engine's error, if it failed.
+#[allow(clippy::type_complexity)]
+pub(super) fn inline_sweep(
+    model: &Model,
+    params: &[Parameter],
+    settings: &[Settings],
+) -> Result<(Results, Vec<SensitivityResults>, Vec<Option<AnalysisError>>), AnalysisError> {
+    let mut engines = Engines {
+        engines: settings
+            .iter()
+            .map(|s| Engine::new(model, params, s.clone()))
+            .collect(),
+        errors: settings.iter().map(|_| None).collect(),
+    };
+    let mut solver = Solver::new(model)?;
+    let res = solver.run(&RunOptions::default(), &mut engines)?;
+    // the engines' own work and their floor probes are not the primal run's
+    let inline: f64 = engines
+        .engines
+        .iter()
+        .map(|e| e.results.cost.wall_seconds + e.results.cost.floor_seconds)
+        .sum();
+    let out = engines
+        .engines
+        .into_iter()
+        .map(|e| {
+            let mut s = e.results;
+            s.primal_seconds = res.cost.wall_seconds - inline;
+            s
+        })
+        .collect();
+    Ok((res, out, engines.errors))
+}
+
+/// Finite differences at several perturbation sizes from one nominal run: the reruns at
+/// `b + db` serve forward and central differences, those at `b - db` central ones; they run
+/// in parallel. Returns `[forward, central]` per beta when `central` is set, else forward only.
+/// A rerun that fails fails only the differences that need it: their `failure` says why.
+pub fn run_fdm_sweep(
+    model: &Model,
+    params: &[Parameter],
+    betas: &[f64],
+    central: bool,
+) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
+    use rayon::prelude::*;
+    let t0 = Instant::now();
+    let mut solver = Solver::new(model)?;
+    let nominal = solver.run(&RunOptions::default(), &mut NoObserver)?;
+    let primal_seconds = t0.elapsed().as_secs_f64();
+    let times: Vec<f64> = nominal.times[1..].to_vec();
+    let base = responses_at(model, &nominal, &times)?;
+    // the reruns follow the nominal run's increments, cut-back ones included, so that every
+    // difference is taken between states of the same load level
+    let mut model = model.clone();
+    model.times = times.clone();
+    let model = &model;
+    let signs: &[f64] = if central { &[1.0, -1.0] } else { &[1.0] };
+    let jobs: Vec<(usize, usize, f64)> = (0..betas.len())
+        .flat_map(|b| (0..params.len()).flat_map(move |k| signs.iter().map(move |s| (b, k, *s))))
+        .collect();
+    let runs: Vec<Result<Rerun, AnalysisError>> = jobs
+        .par_iter()
+        .map(|&(b, k, sign)| {
+            let t = Instant::now();
+            let p = &params[k];
+            let r = rerun(model, p, sign * p.step(betas[b]))?;
+            // the first time the rerun needed a sub-increment the nominal run did not take
+            let substep_from = r.times[1..]
+                .iter()
+                .find(|t| {
+                    !times
+                        .iter()
+                        .any(|n| (*n - **t).abs() <= 1e-12 * n.abs().max(1.0))
+                })
+                .copied();
+            Ok(Rerun {
+                values: responses_at(model, &r, &times)?,
+                seconds: t.elapsed().as_secs_f64(),
+                substep_from,
+            })
+        })
+        .collect();
+    // reruns[b][k][0: plus, 1: minus]; a rerun that fails (a perturbed design that does not
+    // converge, or whose geometry is degenerate) fails only the differences that need it
+    let mut reruns: Vec<Vec<[RerunSlot; 2]>> = vec![vec![[None, None]; params.len()]; betas.len()];
+    for (&(b, k, sign), r) in jobs.iter().zip(runs) {
+        let side = usize::from(sign < 0.0);
+        reruns[b][k][side] = Some(r.map_err(|e| {
+            format!(
+                "rerun with {} {} beta: {e}",
+                params[k].name,
+                ["+", "-"][side]
+            )
+        }));
+    }
+    let nr = model.responses.len();
+    let np = params.len();
+    let size: Vec<f64> = (0..nr)
+        .map(|r| base.iter().map(|v| v[r].abs()).fold(0.0, f64::max))
+        .collect();
+    let mut out = Vec::new();
+    for (b, &beta) in betas.iter().enumerate() {
+        let variants: &[bool] = if central { &[false, true] } else { &[false] };
+        for &is_central in variants {
+            let mut derivs = vec![vec![vec![f64::NAN; np]; nr]; times.len()];
+            let mut roundoff = vec![vec![vec![false; np]; nr]; times.len()];
+            let mut substep_from = vec![f64::INFINITY; np];
+            let mut failures = Vec::new();
+            let mut seconds = 0.0;
+            let mut count = 0;
+            for (k, p) in params.iter().enumerate() {
+                let db = p.step(beta);
+                let sides: &[usize] = if is_central { &[0, 1] } else { &[0] };
+                let mut used = Vec::new();
+                for &side in sides {
+                    match reruns[b][k][side].as_ref().expect("every rerun ran") {
+                        Ok(r) => used.push(r),
+                        Err(why) => failures.push(why.clone()),
+                    }
+                }
+                if used.len() < sides.len() {
+                    continue; // this parameter's derivatives stay NaN
+                }
+                for r in &used {
+                    seconds += r.seconds;
+                    count += 1;
+                    substep_from[k] = substep_from[k].min(r.substep_from.unwrap_or(f64::INFINITY));
+                }
+                for i in 0..times.len() {
+                    for r in 0..nr {
+                        let delta = if is_central {
+                            used[0].values[i][r] - used[1].values[i][r]
+                        } else {
+                            used[0].values[i][r] - base[i][r]
+                        };
+                        derivs[i][r][k] = delta / if is_central { 2.0 * db } else { db };
+                        // each rerun's response is converged to the Newton tolerance relative
+                        // to the response's size over the history (in practice much better:
+                        // the last Newton steps are quadratic), so a difference below that
+                        // tolerance itself is indistinguishable from convergence noise
+                        roundoff[i][r][k] = (delta != 0.0
+                            && delta.abs() < model.solver.force_tol * size[r])
+                            || roundoff_dominated(db, p.value, f64::EPSILON);
+                    }
+                }
+            }
+            out.push(SensitivityResults {
+                method: Some(if is_central {
+                    Method::FdmCentral
+                } else {
+                    Method::Fdm
+                }),
+                beta,
+                parameters: params.iter().map(|p| p.name.clone()).collect(),
+                responses: model.responses.iter().map(|r| r.name.clone()).collect(),
+                increments: times
+                    .iter()
+                    .enumerate()
+                    .map(|(i, t)| IncrementSensitivity {
+                        increment: i + 1,
+                        time: *t,
+                        values: base[i].clone(),
+                        derivatives: derivs[i].clone(),
+                        rerun_substeps: substep_from.iter().map(|f| *t >= *f).collect(),
+                        roundoff: roundoff[i].clone(),
+                        ..Default::default()
+                    })
+                    .collect(),
+                cost: SensitivityCost {
+                    wall_seconds: seconds,
+                    primal_reruns: count,
+                    ..Default::default()
+                },
+                primal_seconds,
+                failure: (!failures.is_empty()).then(|| failures.join("; ")),
+            });
+        }
+    }
+    Ok((nominal, out))
+}
+
+/// A rerun of the FDM sweep once run: its responses, or why it failed.
+type RerunSlot = Option<Result<Rerun, String>>;
+
+/// One finite-difference rerun: responses at the nominal times.
+#[derive(Clone)]
+pub(super) struct Rerun {
+    values: Vec<Vec<f64>>,
+    seconds: f64,
+    substep_from: Option<f64>,
+}

@@ -1,0 +1,89 @@
+//! Non-differentiable points: where a state sits on a transition (yield onset, contact
+//! opening or closing, stick and slip) the derivative is one-sided, and these are flagged.
+
+use super::*;
+use crate::contact::ContactState;
+use crate::solver::Converged;
+
+/// Significant digits a difference must keep above its noise for its finite-difference
+/// derivative not to be flagged round-off dominated (`IncrementSensitivity::roundoff`):
+/// three digits, i.e. a relative error of the difference below about 1e-3.
+pub const ROUNDOFF_DIGITS: f64 = 3.0;
+
+/// Whether a difference `delta` of quantities of size `size`, each known to `noise`
+/// (relative), keeps fewer than [`ROUNDOFF_DIGITS`] digits.
+pub(super) fn roundoff_dominated(delta: f64, size: f64, noise: f64) -> bool {
+    delta.abs() < 10f64.powf(ROUNDOFF_DIGITS) * noise * size.abs()
+}
+
+/// A point where the converged state sits on a transition.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Kink {
+    /// What kind of transition.
+    pub kind: &'static str,
+    /// Element (or node) number.
+    pub at: usize,
+    /// Gauss point (or 0).
+    pub point: usize,
+    /// Distance to the transition (trial yield ratio).
+    pub distance: f64,
+}
+
+/// Derivatives `[r][p]` with every flagged point forced onto each side of its transition.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct OneSided {
+    /// Elastic / stick / open side.
+    pub lower: Vec<Vec<f64>>,
+    /// Plastic / slip / closed side.
+    pub upper: Vec<Vec<f64>>,
+}
+
+impl Engine<'_> {
+    /// Points sitting on a transition: yield onset, contact opening/closing, stick/slip.
+    pub(super) fn kinks(&self, c: &Converged<'_>) -> Vec<Kink> {
+        let mut v = Vec::new();
+        let tol = self.settings.kink_tol;
+        // contact: normal distance relative to the largest normal force (closed) or to the
+        // pair's characteristic length (open); slip ratio for friction
+        let fmax = c
+            .eval
+            .contact
+            .normal_force
+            .iter()
+            .fold(0.0f64, |m, f| m.max(f.abs()));
+        for (k, (nd, sr)) in c.eval.contact.distance.iter().enumerate() {
+            let closed = c.eval.contact.choice[k].state != ContactState::Open;
+            let rel = if closed {
+                c.eval.contact.normal_force[k].abs() / fmax.max(f64::MIN_POSITIVE)
+            } else {
+                nd.abs() / c.model.characteristic_length()
+            };
+            if rel < tol {
+                v.push(Kink {
+                    kind: "contact",
+                    at: k,
+                    point: 0,
+                    distance: rel,
+                });
+            } else if closed && sr.abs() < tol {
+                v.push(Kink {
+                    kind: "friction",
+                    at: k,
+                    point: 0,
+                    distance: *sr,
+                });
+            }
+        }
+        for (i, r) in c.eval.yield_ratio.iter().enumerate() {
+            if *r != -1.0 && r.abs() < self.settings.kink_tol {
+                v.push(Kink {
+                    kind: "yield",
+                    at: i / 8,
+                    point: i % 8,
+                    distance: *r,
+                });
+            }
+        }
+        v
+    }
+}

@@ -1,0 +1,322 @@
+//! Design sensitivities along the whole load path: SDM, DDM and FDM behind one interface.
+//!
+//! ## Equations (shared/design.md section 3; the paper's eqs. 46-48, 53-56)
+//! State after increment `n`: unknowns `z_n`, history `h_n`. At convergence
+//! `R(z_n, h_{n-1}, b) = 0` and `h_n = H(z_n, h_{n-1}, b)`. Differentiating,
+//!
+//! ```text
+//! K dz_n/db = -( dR/db + dR/dh_{n-1} dh_{n-1}/db )     =: -r      (the pseudo-load)
+//! dh_n/db   =  dH/dz dz_n/db + dH/dh dh_{n-1}/db + dH/db
+//! ```
+//!
+//! * **DDM**: `R` evaluated with `z_n` real, `h_{n-1}` carrying its derivative and `b` seeded
+//!   (dual numbers): the derivative part is exactly `r`. After the solve, the same evaluation with
+//!   `z_n` carrying `dz_n/db` gives `dh_n/db` and the total derivative of every response.
+//!   Each parameter is seeded alone in a `Dual64`; the pseudo-loads of all of them go through
+//!   one multi-column solve.
+//! * **SDM**: `r ~ [R(z_n, h_{n-1} + db dh_{n-1}/db, b + db) - R(z_n, h_{n-1}, b)] / db` with the
+//!   `f64` kernels, branches frozen at the converged state; central SDM uses `b +- db`.
+//!   `db = beta b_0` (the paper's relative perturbation; `db = beta` where `b_0 = 0`).
+//! * **FDM**: complete reruns of the load history at `b_0 (1 +- beta)`.
+//!
+//! Prescribed unknowns are not solved for: their derivative is known (non-zero only for the
+//! magnitude of a prescribed displacement) and enters `r` through the coupling terms.
+//!
+//! ## Tangent of the sensitivity solve
+//! * `exact` (the default): the converged tangent, to a relative residual of [`KRYLOV_TOL`] (or, where
+//!   `|K||x|` is far above `|b|` and no solve reaches that, to the backward error of a
+//!   backward-stable direct solve): by GMRES
+//!   preconditioned with Newton's last factorization (a few solves: the two matrices differ by
+//!   Newton's last correction and any branches it switched), factored afresh where GMRES
+//!   does not converge in [`KRYLOV_MAX_ITER`] steps or `Settings::krylov` is off; then refined
+//!   with residuals in double-double arithmetic until the correction is below 1e-13 of the
+//!   solution (`refine_extended`), so that the result no longer depends on which solve
+//!   produced it (two backward-stable solves differ by up to `cond(K) eps`: 2e-10 of the leaf
+//!   spring's d(force)/d(length)). DDM is then the exact derivative of the discrete
+//!   incremental solution to about 1e-13, and SDM's error is its own finite-difference error
+//!   alone;
+//! * `last`: the last Newton factorization, of the iterate before convergence (the paper's
+//!   choice; no extra solve). It is the tangent of a state one Newton correction away from the
+//!   converged one, so every in-line method inherits an error of the order of that correction
+//!   (1.2e-2 relative on the leaf spring, 8.8e-5 on the indentation: the report's cost table);
+//! * `refined`: the last factorization plus `Settings::refine_steps` steps of iterative
+//!   refinement against the converged tangent (between the two in cost and accuracy).
+//!
+//! DDM's one-sided derivatives solve with forced tangents the same way (preconditioned with
+//! the converged tangent's factorization where one was made at that increment).
+//!
+//! ## Non-differentiable points
+//! A Gauss point whose trial yield ratio lies within `kink_tol` of zero sits on the
+//! elastic/plastic transition: the increment is flagged, and for DDM the derivative is also
+//! computed with that point forced onto each branch — the one-sided derivatives.
+
+use crate::model::Model;
+use crate::solver::{AnalysisError, Results};
+
+mod ddm;
+mod engine;
+mod fdm;
+mod kinks;
+mod parameter;
+mod sdm;
+
+pub use engine::Engine;
+use engine::*;
+pub use fdm::*;
+pub use kinks::*;
+pub use parameter::Parameter;
+
+/// A sensitivity method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Semi-analytical, forward perturbation.
+    Sdm,
+    /// Semi-analytical, central perturbation.
+    SdmCentral,
+    /// Direct differentiation with dual numbers.
+    Ddm,
+    /// Forward finite differences of reruns.
+    Fdm,
+    /// Central finite differences of reruns.
+    FdmCentral,
+}
+
+impl Method {
+    /// All methods.
+    pub const ALL: [Method; 5] = [
+        Method::Sdm,
+        Method::SdmCentral,
+        Method::Ddm,
+        Method::Fdm,
+        Method::FdmCentral,
+    ];
+
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Sdm => "sdm",
+            Method::SdmCentral => "sdm-central",
+            Method::Ddm => "ddm",
+            Method::Fdm => "fdm",
+            Method::FdmCentral => "fdm-central",
+        }
+    }
+
+    /// Whether the method needs a perturbation size.
+    pub fn uses_beta(self) -> bool {
+        !matches!(self, Method::Ddm)
+    }
+
+    /// Whether the method runs in line with the primal analysis (SDM, DDM), rather than as
+    /// reruns of it (FDM).
+    pub fn is_inline(self) -> bool {
+        matches!(self, Method::Sdm | Method::SdmCentral | Method::Ddm)
+    }
+}
+
+/// Which tangent the sensitivity solve uses (the module docs compare their accuracy and cost).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TangentChoice {
+    /// Newton's last factorization, of the iterate before convergence (the paper's choice; no
+    /// extra factorization). Like `Refined`, falls back to the exact tangent where Newton did
+    /// not factor or its last factorization belongs to other branches than the converged
+    /// state's.
+    Last,
+    /// The last factorization plus `Settings::refine_steps` steps of iterative refinement
+    /// against the converged tangent.
+    Refined,
+    /// The tangent at the converged state, solved to a relative residual of [`KRYLOV_TOL`]:
+    /// by GMRES preconditioned with Newton's last factorization, or factored afresh (see
+    /// `Settings::krylov`), and refined with double-double residuals to 1e-13 of the
+    /// solution. The default.
+    Exact,
+}
+
+/// Settings of a sensitivity run.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    /// The method.
+    pub method: Method,
+    /// Relative perturbation (SDM, FDM).
+    pub beta: f64,
+    /// Tangent of the sensitivity solve (SDM, DDM); default [`TangentChoice::Exact`].
+    pub tangent: TangentChoice,
+    /// Refinement steps for `TangentChoice::Refined`.
+    pub refine_steps: usize,
+    /// Freeze branches at the converged state in SDM's perturbed evaluations.
+    pub freeze_branches: bool,
+    /// |trial yield ratio| below which a Gauss point is taken to sit on a transition.
+    pub kink_tol: f64,
+    /// Evaluate each pseudo-load (SDM's unbalance, DDM's derivative part) over only the
+    /// elements the parameter reaches (forward SDM: only where they are fewer than half, as
+    /// it then evaluates the nominal state over them too), and DDM's forced tangents and
+    /// pseudo-loads at flagged increments as the converged ones changed over the elements
+    /// whose branches are forced; off: everything over all elements.
+    pub restrict: bool,
+    /// Measure the floor (`SensitivityCost::floor_seconds`) at every increment, outside the
+    /// method's own wall time.
+    pub probe_floor: bool,
+    /// Solve with the converged tangent (`TangentChoice::Exact`, or Newton's last factor on
+    /// other branches) or a forced one (DDM's one-sided derivatives: the flagged points forced
+    /// onto one branch) by GMRES preconditioned with a factorization at hand instead of
+    /// factoring it: Newton's last factor differs from the converged tangent by Newton's last
+    /// correction and a few switched branches, the forced tangent from the converged one by a
+    /// few rows, so GMRES converges in a few solves. A factorization is the fallback when
+    /// GMRES does not reach [`KRYLOV_TOL`] (or a direct solve's backward error) in
+    /// [`KRYLOV_MAX_ITER`] steps, and the only way
+    /// when this is off.
+    pub krylov: bool,
+}
+
+/// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
+/// iterate): about what the direct solves reach on the paper's scenes (`FRICSENS_TRACE`
+/// prints theirs).
+pub const KRYLOV_TOL: f64 = 1e-13;
+
+/// GMRES steps before the tangent is factored instead (each step is one solve with the
+/// factor at hand and one product; a factorization of the leaf spring's tangent costs about
+/// 50 solves).
+pub const KRYLOV_MAX_ITER: usize = 30;
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            method: Method::Ddm,
+            beta: 1e-6,
+            tangent: TangentChoice::Exact,
+            refine_steps: 2,
+            freeze_branches: true,
+            kink_tol: 1e-6,
+            restrict: true,
+            probe_floor: false,
+            krylov: true,
+        }
+    }
+}
+
+/// Sensitivities at one converged increment.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct IncrementSensitivity {
+    /// Increment number of the nominal run (1-based, counting cut-back sub-increments).
+    pub increment: usize,
+    /// Pseudo-time at the end of the increment.
+    pub time: f64,
+    /// `values[r]`: response `r`.
+    pub values: Vec<f64>,
+    /// `derivatives[r][p]`: d response r / d parameter p.
+    pub derivatives: Vec<Vec<f64>>,
+    /// Flagged non-differentiable points.
+    pub kinks: Vec<Kink>,
+    /// One-sided derivatives where kinks were flagged (DDM).
+    pub one_sided: Option<OneSided>,
+    /// Finite differences, per parameter: a rerun behind this value needed sub-increments
+    /// (cutbacks) the nominal run did not take, at or before this increment. The incremental
+    /// solution of a path-dependent problem depends on the step sequence, so the difference
+    /// then carries that change (of the order of the discretisation error) divided by the
+    /// perturbation. Empty for the in-line methods.
+    pub rerun_substeps: Vec<bool>,
+    /// SDM and FDM, `[r][p]` like `derivatives`: the difference behind this value kept fewer than
+    /// [`ROUNDOFF_DIGITS`] significant digits above its noise (machine precision times the
+    /// size of the cancelling terms for SDM, the Newton tolerance for FDM's reruns): the
+    /// value is round-off dominated and a larger beta should be used.
+    pub roundoff: Vec<Vec<bool>>,
+    /// `dz/db` for every parameter (only when requested).
+    #[serde(skip)]
+    pub state_derivative: Option<Vec<Vec<f64>>>,
+}
+
+/// Work done by a sensitivity computation.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SensitivityCost {
+    /// Wall time of the method's own work, seconds: the in-line engine's time after each
+    /// increment (SDM, DDM), or the sum of the reruns' times (FDM; they may run in parallel).
+    pub wall_seconds: f64,
+    /// Residual evaluations beyond the primal run's: SDM's perturbed and nominal ones, DDM's
+    /// dual ones (two per parameter and increment), the updates after the solve, and the
+    /// assemblies of forced tangents (one-sided derivatives).
+    pub residual_evaluations: usize,
+    /// Of those, the pseudo-loads evaluated over only the elements a parameter reaches (SDM's
+    /// unbalance and its nominal, DDM's derivative part: contact and the elements with a
+    /// history derivative for a friction parameter, ...).
+    pub partial_evaluations: usize,
+    /// Factorizations beyond Newton's (the converged tangent, forced branches).
+    pub factorizations: usize,
+    /// Solves with the converged or a forced tangent done by GMRES instead of a
+    /// factorization (`Settings::krylov`); their solve columns are in `solve_columns`.
+    pub krylov_solves: usize,
+    /// GMRES steps over all `krylov_solves`.
+    pub krylov_iterations: usize,
+    /// Right-hand-side columns solved (refinement steps included).
+    pub solve_columns: usize,
+    /// Complete primal reruns (FDM).
+    pub primal_reruns: usize,
+    /// Of the wall time: residual evaluations (perturbed, nominal, dual, the updates of the
+    /// history and the responses after the solve, forced tangents).
+    pub evaluation_seconds: f64,
+    /// Of the wall time: numeric factorizations.
+    pub factor_seconds: f64,
+    /// Of the wall time: triangular solves (refinement steps included).
+    pub solve_seconds: f64,
+    /// The floor of one parameter (`Settings::probe_floor`), not part of the wall time: at
+    /// every increment, one f64 residual evaluation over all elements at the converged state
+    /// and one single-column solve with Newton's last factorization (none at an increment
+    /// Newton did not factor), timed together. The in-line sweep takes it out of the primal
+    /// run's time as well.
+    pub floor_seconds: f64,
+}
+
+impl SensitivityCost {
+    /// The wall time outside evaluations, factorizations and solves (building designs and
+    /// masks, copies, kink detection, forced tangents' copies, the first symbolic analysis).
+    pub fn rest_seconds(&self) -> f64 {
+        self.wall_seconds - self.evaluation_seconds - self.factor_seconds - self.solve_seconds
+    }
+}
+
+/// Everything a sensitivity run produces.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SensitivityResults {
+    /// The method that produced these results.
+    pub method: Option<Method>,
+    /// Relative perturbation (0 or unused for DDM).
+    pub beta: f64,
+    /// Parameter names, in the order of the derivative columns.
+    pub parameters: Vec<String>,
+    /// Response names, in the order of the rows.
+    pub responses: Vec<String>,
+    /// Per converged increment of the nominal run.
+    pub increments: Vec<IncrementSensitivity>,
+    /// The method's work.
+    pub cost: SensitivityCost,
+    /// Cost of the nominal primal run (with the inline sensitivity work excluded).
+    pub primal_seconds: f64,
+    /// Why this method stopped before the end of the run (a sweep keeps the other methods
+    /// going): `increments` holds what it computed before.
+    pub failure: Option<String>,
+}
+
+/// Run the primal analysis with in-line SDM or DDM, or the reruns of FDM.
+pub fn run_sensitivity(
+    model: &Model,
+    params: &[Parameter],
+    settings: &Settings,
+) -> Result<(Results, SensitivityResults), AnalysisError> {
+    let (res, mut out) = if settings.method.is_inline() {
+        let (res, out, mut errors) = inline_sweep(model, params, std::slice::from_ref(settings))?;
+        if let Some(e) = errors.pop().flatten() {
+            return Err(e);
+        }
+        (res, out)
+    } else {
+        let central = settings.method == Method::FdmCentral;
+        run_fdm_sweep(model, params, &[settings.beta], central)?
+    };
+    // the sweep of one beta gives [forward] or [forward, central]: the requested one is last
+    let s = out.pop().expect("one result per setting");
+    if let Some(why) = &s.failure {
+        return Err(AnalysisError::Sensitivity(why.clone()));
+    }
+    Ok((res, s))
+}
