@@ -64,40 +64,10 @@ pub struct Frozen<'a> {
     /// parts included). For evaluations that want only the updated history and responses
     /// that do not read its residual: an element whose Gauss points are all frozen elastic
     /// keeps its history, so the sensitivity update of the history (DDM's second evaluation,
-    /// SDM's perturbed update) need not evaluate it ([`Frozen::history_unchanged`]). And
+    /// SDM's perturbed update) need not evaluate it (`crate::sensitivity`'s element mask). And
     /// an element the design perturbation does not reach contributes the same residual to
     /// both evaluations of SDM's unbalance, so both may leave it out.
     pub skip: Option<&'a [bool]>,
-}
-
-impl Frozen<'_> {
-    /// The elements whose history an evaluation with Gauss-point branches `gauss` leaves
-    /// unchanged and whose residual no response reads: all eight points frozen elastic (no
-    /// history at all counts as elastic), and no node of a reaction response among its nodes.
-    pub fn history_unchanged(model: &Model, gauss: &[Branch]) -> Vec<bool> {
-        let mut reaction_node = vec![false; model.mesh.n_nodes()];
-        for r in &model.responses {
-            if let crate::response::ResponseKind::Reaction { nodes, .. } = &r.kind {
-                for &n in nodes {
-                    if let Some(f) = reaction_node.get_mut(n) {
-                        *f = true;
-                    }
-                }
-            }
-        }
-        model
-            .mesh
-            .elements
-            .iter()
-            .enumerate()
-            .map(|(e, conn)| {
-                gauss[8 * e..8 * e + 8]
-                    .iter()
-                    .all(|b| *b == Branch::Elastic)
-                    && !conn.iter().any(|&n| reaction_node[n])
-            })
-            .collect()
-    }
 }
 
 /// What failed during assembly, and where.

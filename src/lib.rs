@@ -36,6 +36,7 @@ pub mod assembly;
 pub mod contact;
 pub mod element;
 pub mod linalg;
+pub mod load;
 pub mod material;
 pub mod mesh;
 pub mod model;

@@ -6,7 +6,7 @@
 //! responses are differentiated with the same machinery as the residual, never by differencing
 //! printed numbers.
 
-use crate::contact::assembly::ContactEval;
+use crate::contact::eval::ContactEval;
 use crate::scalar::Scalar;
 
 /// The converged state a response is evaluated at.
@@ -64,6 +64,46 @@ pub enum ResponseKind {
         /// Index in the global history vector.
         index: usize,
     },
+}
+
+/// What a response reads of a converged state. The sensitivity engine derives from it which
+/// elements an evaluation may leave out (those whose residual and history nothing reads and
+/// whose state the design does not change), so a response kind that reads something must say so
+/// here, or its sensitivities would be silently wrong.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Reads<'a> {
+    /// Nodes whose residual rows (reactions) it sums: every element around them is evaluated.
+    pub residual_nodes: &'a [usize],
+    /// It reads the unknowns `z` (always evaluated).
+    pub state: bool,
+    /// It reads the committed history.
+    pub history: bool,
+    /// It reads the contact results.
+    pub contact: bool,
+}
+
+impl ResponseKind {
+    /// What this response reads ([`Reads`]).
+    pub fn reads(&self) -> Reads<'_> {
+        match self {
+            ResponseKind::Reaction { nodes, .. } => Reads {
+                residual_nodes: nodes,
+                ..Reads::default()
+            },
+            ResponseKind::Displacement { .. } => Reads {
+                state: true,
+                ..Reads::default()
+            },
+            ResponseKind::TargetForce { .. } | ResponseKind::ContactPressure { .. } => Reads {
+                contact: true,
+                ..Reads::default()
+            },
+            ResponseKind::History { .. } => Reads {
+                history: true,
+                ..Reads::default()
+            },
+        }
+    }
 }
 
 /// A named response.

@@ -7,12 +7,12 @@
 //! reference configuration) and its multiplier. The block never changes during a run, so the
 //! symbolic factorization is done once however far the node slides over its candidates.
 
+pub use super::eval::ContactEval;
 use super::geometry::{closest_on_quads, closest_on_quads_keeping};
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
     KernelParams, Target, TargetGeom,
 };
-use crate::assembly::Assembler;
 use crate::model::{Lifted, Model};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
@@ -85,42 +85,6 @@ impl ContactLayout {
         }
         l.n_hitting = flat;
         l
-    }
-}
-
-/// Per-evaluation contact results.
-#[derive(Clone, Debug)]
-pub struct ContactEval<S: Scalar> {
-    /// Branch decisions per hitting node (flat over pairs).
-    pub choice: Vec<ContactChoice>,
-    /// Normal force per hitting node.
-    pub normal_force: Vec<S>,
-    /// Total contact force on each pair's target (minus the sum of the forces on its
-    /// hitting nodes): the reaction of a rigid target.
-    pub pair_force: Vec<Vector3<S>>,
-    /// Contact force per hitting node (real parts), for output.
-    pub force: Vec<Vector3<f64>>,
-    /// Tangential (friction) force per hitting node (real parts): the slip direction.
-    pub traction: Vec<Vector3<f64>>,
-    /// `(normal_distance, slip_ratio)` per hitting node.
-    pub distance: Vec<(f64, f64)>,
-    /// Gap per hitting node (real part; negative = penetration).
-    pub gap: Vec<f64>,
-}
-
-impl<S: Scalar> ContactEval<S> {
-    /// Empty results for `n_hitting` hitting nodes over `n_pairs` pairs: every node open,
-    /// no force, distances and gaps infinite.
-    pub fn new(n_hitting: usize, n_pairs: usize) -> Self {
-        ContactEval {
-            choice: vec![ContactChoice::default(); n_hitting],
-            normal_force: vec![S::zero(); n_hitting],
-            pair_force: vec![Vector3::zeros(); n_pairs],
-            force: vec![Vector3::zeros(); n_hitting],
-            traction: vec![Vector3::zeros(); n_hitting],
-            distance: vec![(f64::INFINITY, f64::INFINITY); n_hitting],
-            gap: vec![f64::INFINITY; n_hitting],
-        }
     }
 }
 
@@ -663,11 +627,11 @@ fn local_tangent_n<S: Scalar, const N: usize>(
 /// the reference position carry into the anchor's sensitivity).
 pub fn initial_history<S: Scalar>(
     model: &Model,
-    asm: &Assembler,
+    layout: &ContactLayout,
+    n_history: usize,
     lifted: &Lifted<S>,
 ) -> Result<Vec<S>, ContactError> {
-    let layout = &asm.contact;
-    let mut h = vec![S::zero(); asm.dofs.n_history];
+    let mut h = vec![S::zero(); n_history];
     for (p, pair) in model.contacts.iter().enumerate() {
         if pair.anchor_len() == 0 {
             continue;

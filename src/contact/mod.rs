@@ -45,10 +45,11 @@
 //! Which face is closest is a branch decision taken on real parts, like stick/slip.
 
 pub mod assembly;
+pub mod eval;
 pub mod friction;
 pub mod geometry;
 
-use crate::model::Amplitude;
+use crate::load::Amplitude;
 use crate::scalar::Scalar;
 use friction::{
     Coulomb, FrictionBranch, FrictionLaw, PressureDependentCoulomb, RegularizedCoulomb,

@@ -116,7 +116,7 @@ impl Engine<'_> {
         self.solve(c, &mut rhs, np)?;
         // total derivatives: evaluate with z carrying dz/db. The update wants only the history
         // and the responses: elements frozen elastic keep their history and are skipped.
-        let skip = frozen.gauss.map(|g| Frozen::history_unchanged(c.model, g));
+        let skip = frozen.gauss.map(|g| history_unchanged(c.model, g));
         let update = Frozen {
             skip: skip.as_deref(),
             ..*frozen

@@ -218,8 +218,13 @@ impl<'a> Engine<'a> {
             let lifted: Lifted<Dual64> = c
                 .model
                 .lifted(&self.overrides(|j, v| Dual64::new(v, if j == k { 1.0 } else { 0.0 })));
-            let h0 = crate::contact::assembly::initial_history(c.model, c.assembler, &lifted)
-                .map_err(|e| AnalysisError::Model(e.to_string()))?;
+            let h0 = crate::contact::assembly::initial_history(
+                c.model,
+                &c.assembler.contact,
+                c.assembler.dofs.n_history,
+                &lifted,
+            )
+            .map_err(|e| AnalysisError::Model(e.to_string()))?;
             for (i, h) in h0.iter().enumerate().take(nh) {
                 self.dhist[k * nh + i] = h.eps;
             }
@@ -539,4 +544,31 @@ impl Reach {
                 .collect(),
         }
     }
+}
+
+/// The elements whose history an evaluation with Gauss-point branches `gauss` leaves
+/// unchanged and whose residual no response reads: all eight points frozen elastic (no
+/// history at all counts as elastic), and none of its nodes among the residual rows a response
+/// declares it reads ([`crate::response::ResponseKind::reads`]).
+pub(super) fn history_unchanged(model: &Model, gauss: &[Branch]) -> Vec<bool> {
+    let mut reaction_node = vec![false; model.mesh.n_nodes()];
+    for r in &model.responses {
+        for &n in r.kind.reads().residual_nodes {
+            if let Some(f) = reaction_node.get_mut(n) {
+                *f = true;
+            }
+        }
+    }
+    model
+        .mesh
+        .elements
+        .iter()
+        .enumerate()
+        .map(|(e, conn)| {
+            gauss[8 * e..8 * e + 8]
+                .iter()
+                .all(|b| *b == Branch::Elastic)
+                && !conn.iter().any(|&n| reaction_node[n])
+        })
+        .collect()
 }

@@ -299,7 +299,7 @@ impl Engine<'_> {
         // keep their history and are skipped (free branches: nothing is skipped)
         let skip = frozen
             .and_then(|f| f.gauss)
-            .map(|g| Frozen::history_unchanged(c.model, g));
+            .map(|g| history_unchanged(c.model, g));
         let update = frozen.map(|f| Frozen {
             skip: skip.as_deref(),
             ..*f

@@ -102,8 +102,13 @@ impl<'m> Solver<'m> {
         if !model.contacts.is_empty() {
             let mut eval = Evaluation::<f64>::new(&assembler, model.mesh.elements.len());
             let z = vec![0.0; n];
-            let hist = crate::contact::assembly::initial_history(model, &assembler, &lifted)
-                .map_err(|e| AnalysisError::Model(e.to_string()))?;
+            let hist = crate::contact::assembly::initial_history(
+                model,
+                &assembler.contact,
+                assembler.dofs.n_history,
+                &lifted,
+            )
+            .map_err(|e| AnalysisError::Model(e.to_string()))?;
             if assembler
                 .evaluate(model, &lifted, &z, &hist, 0.0, None, None, &mut eval)
                 .is_ok()
@@ -193,9 +198,13 @@ impl<'m> Solver<'m> {
         let ne = model.mesh.elements.len();
         let mut res = Results::default();
         let mut z = vec![0.0; n];
-        let mut hist =
-            crate::contact::assembly::initial_history(model, &self.assembler, &self.lifted)
-                .map_err(|e| AnalysisError::Model(e.to_string()))?;
+        let mut hist = crate::contact::assembly::initial_history(
+            model,
+            &self.assembler.contact,
+            self.assembler.dofs.n_history,
+            &self.lifted,
+        )
+        .map_err(|e| AnalysisError::Model(e.to_string()))?;
         let mut eval = Evaluation::<f64>::new(&self.assembler, ne);
         // the contact states of the start state: the first increment's active-set predictor
         self.converged_choice.clear();

@@ -139,7 +139,7 @@ pub struct Results {
     /// Newton records of the converged increments.
     pub records: Vec<IncrementRecord>,
     /// Contact results per increment (index 0: empty).
-    pub contact: Vec<crate::contact::assembly::ContactEval<f64>>,
+    pub contact: Vec<crate::contact::eval::ContactEval<f64>>,
     /// First flat hitting-node index of each contact pair.
     pub contact_flat: Vec<usize>,
     /// Committed history after the last converged increment.

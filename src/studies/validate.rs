@@ -1074,7 +1074,7 @@ fn write_figures(
                 .and_then(|s| s.contacts.iter().find(|c| c.name == "block"))
                 .and_then(|c| match &c.target {
                     crate::scene::TargetSpec::Rigid { motion, .. } => motion.first().map(|m| {
-                        let a = crate::model::Amplitude {
+                        let a = crate::load::Amplitude {
                             points: m.amplitude.clone(),
                         };
                         -m.value * a.at(t)

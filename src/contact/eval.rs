@@ -1,0 +1,41 @@
+//! What one contact evaluation produces: states, forces and gaps per hitting node.
+
+use super::ContactChoice;
+use crate::scalar::Scalar;
+use nalgebra::Vector3;
+
+/// Per-evaluation contact results.
+#[derive(Clone, Debug)]
+pub struct ContactEval<S: Scalar> {
+    /// Branch decisions per hitting node (flat over pairs).
+    pub choice: Vec<ContactChoice>,
+    /// Normal force per hitting node.
+    pub normal_force: Vec<S>,
+    /// Total contact force on each pair's target (minus the sum of the forces on its
+    /// hitting nodes): the reaction of a rigid target.
+    pub pair_force: Vec<Vector3<S>>,
+    /// Contact force per hitting node (real parts), for output.
+    pub force: Vec<Vector3<f64>>,
+    /// Tangential (friction) force per hitting node (real parts): the slip direction.
+    pub traction: Vec<Vector3<f64>>,
+    /// `(normal_distance, slip_ratio)` per hitting node.
+    pub distance: Vec<(f64, f64)>,
+    /// Gap per hitting node (real part; negative = penetration).
+    pub gap: Vec<f64>,
+}
+
+impl<S: Scalar> ContactEval<S> {
+    /// Empty results for `n_hitting` hitting nodes over `n_pairs` pairs: every node open,
+    /// no force, distances and gaps infinite.
+    pub fn new(n_hitting: usize, n_pairs: usize) -> Self {
+        ContactEval {
+            choice: vec![ContactChoice::default(); n_hitting],
+            normal_force: vec![S::zero(); n_hitting],
+            pair_force: vec![Vector3::zeros(); n_pairs],
+            force: vec![Vector3::zeros(); n_hitting],
+            traction: vec![Vector3::zeros(); n_hitting],
+            distance: vec![(f64::INFINITY, f64::INFINITY); n_hitting],
+            gap: vec![f64::INFINITY; n_hitting],
+        }
+    }
+}
