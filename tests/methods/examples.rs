@@ -7,21 +7,21 @@
 //! `main` asserts that the three agree.
 //!
 //! The indentation study (about 40 s on two cores) is ignored by default:
-//! `cargo test --release --test examples -- --ignored`.
+//! `cargo test --release --test methods -- --ignored examples::`.
 
 #[allow(dead_code)]
-#[path = "../examples/choose_your_beta.rs"]
+#[path = "../../examples/choose_your_beta.rs"]
 mod choose_your_beta;
 
 #[allow(dead_code)]
-#[path = "../examples/leaf_spring.rs"]
+#[path = "../../examples/leaf_spring.rs"]
 mod leaf_spring;
 
 #[allow(dead_code)]
-#[path = "../examples/indentation_study.rs"]
+#[path = "../../examples/indentation_study.rs"]
 mod indentation_study;
 
-#[path = "../examples/own_friction_law.rs"]
+#[path = "../../examples/own_friction_law.rs"]
 mod own_friction_law;
 
 #[test]

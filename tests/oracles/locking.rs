@@ -6,8 +6,7 @@
 // Index loops over responses, parameters and unknowns read like the formulas they check.
 #![allow(clippy::needless_range_loop)]
 
-mod common;
-use common::{block, boundary_nodes, distorted_mesh, element, one_body_model, unit_cube};
+use crate::common::{block, boundary_nodes, distorted_mesh, element, one_body_model, unit_cube};
 
 use fricsens::assembly::{Assembler, Evaluation};
 use fricsens::element::hex8::{self, Hex8Input, Hex8Output};
@@ -43,7 +42,7 @@ fn serde_name_is_f_bar() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Patch test (helpers as in tests/element.rs)
+// Patch test (helpers as in tests/oracles/element.rs)
 
 /// A 3x3x3 block of unit cubes with every node moved by a pseudo-random offset of up to 0.2 in
 /// each direction: general distorted hexes, no symmetry between neighbours. (The mesh above

@@ -5,8 +5,7 @@
 // Index loops over responses, parameters and unknowns read like the formulas they check.
 #![allow(clippy::needless_range_loop)]
 
-mod common;
-use common::{block, boundary_nodes, distorted_mesh, element, one_body_model, unit_cube};
+use crate::common::{block, boundary_nodes, distorted_mesh, element, one_body_model, unit_cube};
 
 use approx::assert_relative_eq;
 use fricsens::assembly::{Assembler, Evaluation};

@@ -5,7 +5,7 @@
 //! central finite differences of complete reruns for each of its parameters along the whole
 //! path (which exercises the history sensitivities of J2 and of the stick anchors).
 
-mod common;
+use crate::common;
 
 use fricsens::element::Kinematics;
 use fricsens::model::Model;

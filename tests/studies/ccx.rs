@@ -2,7 +2,7 @@
 //!
 //! The deck tests need no CalculiX. The comparison itself is `#[ignore]`d (it runs `ccx` three
 //! times and fricsens twice) and skips with a message when `ccx` is not on PATH:
-//! `cargo test --release --test ccx -- --ignored`.
+//! `cargo test --release --test studies -- --ignored ccx::`.
 
 use fricsens::ccx::{
     compare, export, find_ccx, keyword_counts, parse_dat_forces, variation, CcxError,

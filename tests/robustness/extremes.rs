@@ -399,7 +399,7 @@ fn ring_model(formulation: Hex8Formulation, young: f64, nu: f64, nr: usize, nt: 
     model
 }
 
-/// tests/locking.rs checks F-bar on plastic incompressibility (Prandtl's punch) and in
+/// tests/oracles/locking.rs checks F-bar on plastic incompressibility (Prandtl's punch) and in
 /// bending, but has no nearly incompressible elastic problem with a closed form. Here: Lame's
 /// thick cylinder (a = 1, b = 2, plane strain, load control) at nu = 0.499 with F-bar, and its
 /// sensitivities to E and nu: DDM against central FDM, against the invariant du/dE = -u/E
@@ -680,7 +680,7 @@ fn tiny_and_huge_increments() {
                 assert_eq!(res.times.last(), model.times.last());
                 // both end sliding: the pull (block, N = 1) and the spring force (slider,
                 // N = 1) equal mu N = 0.3, the block's up to the slope of the bent base
-                // (~1e-3, tests/sliding.rs)
+                // (~1e-3, tests/robustness/sliding.rs)
                 let tol = if name == "jenkins" { 1e-9 } else { 1e-2 };
                 assert!(
                     (values[0].abs() / 0.3 - 1.0).abs() < tol,
@@ -1029,7 +1029,7 @@ fn closing_node() -> Scene {
 
 /// Non-smooth points reached exactly at an increment end are flagged (`kinks`) and carry the
 /// one-sided derivatives (`one_sided`), which match the closed-form left and right derivatives
-/// (the stick/slip onset is tests/contact_oracles.rs's Klarbring test):
+/// (the stick/slip onset is tests/oracles/contact_oracles.rs's Klarbring test):
 /// * yield onset: one J2 hex8 in uniaxial stress, 8 increments per unit, the first ending at
 ///   eps = sigma_y / E. Elastic side: dsigma/dE = eps, dsigma/dsigma_y = dsigma/dH = 0,
 ///   d alpha = 0; plastic side (oracles.md 1): dsigma/dsigma_y = E/(E+H),

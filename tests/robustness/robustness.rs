@@ -1319,7 +1319,7 @@ fn mutated_builtin_scenes_never_panic() {
 }
 
 /// The closing-note campaign: `FRICSENS_FUZZ_CASES` cases (default 100 000) of each strategy,
-/// `cargo test --release -j 1 --test robustness -- --ignored --nocapture large_fuzz`
+/// `cargo test --release -j 1 --test robustness -- --ignored --nocapture robustness::large_fuzz`
 /// (4 x 100 000 cases: 15 s in release on one core).
 #[test]
 #[ignore]
