@@ -231,10 +231,7 @@ fn coarse_leaf_spring(
         .unwrap()
         .build()
         .unwrap();
-    let params = names
-        .iter()
-        .map(|n| fricsens::sensitivity::Parameter::by_name(&model, n).unwrap())
-        .collect();
+    let params = common::params(&model, names);
     (model, params)
 }
 
