@@ -155,7 +155,8 @@ proptest! {
         for (k, xa) in x.iter_mut().enumerate() {
             for i in 0..3 { xa[i] += jiggle[3 * k + i]; }
         }
-        let (f, s) = rigid_motion_force(Hex8Formulation::FBar, x, *q.matrix(), Vector3::from(shift));
+        let (f, s) =
+            rigid_motion_force(Hex8Formulation::FBar, x, *q.matrix(), Vector3::from(shift));
         prop_assert!(f < 1e-10 * 2.0e5, "force {}", f);
         prop_assert!(s < 1e-10 * 2.0e5, "stress {}", s);
     }
