@@ -3,18 +3,14 @@
 // Index loops over responses, parameters and unknowns read like the formulas they check.
 #![allow(clippy::needless_range_loop)]
 
+use crate::common::solve_scene;
+
 use fricsens::element::{Hex8Formulation, Kinematics};
 use fricsens::scene::{cantilever, CantileverSpec};
-use fricsens::solver::{NoObserver, Results, RunOptions, Solver};
+use fricsens::solver::Results;
 
 fn run(spec: &CantileverSpec) -> (fricsens::model::Model, Results) {
-    let model = cantilever(spec).build().expect("scene builds");
-    let res = {
-        let mut s = Solver::new(&model).expect("solver");
-        s.run(&RunOptions::default(), &mut NoObserver)
-            .expect("converges")
-    };
-    (model, res)
+    solve_scene(cantilever(spec))
 }
 
 fn response(model: &fricsens::model::Model, res: &Results, name: &str, inc: usize) -> f64 {

@@ -1,8 +1,9 @@
 //! Scenes: every built-in scene round-trips through TOML, bad files name the field, and the
 //! paper's indentation example behaves as the physics says.
 
+use crate::common::solve;
+
 use fricsens::scene::{builtin, builtin_list, indentation, Scene};
-use fricsens::solver::{NoObserver, RunOptions, Solver};
 
 #[test]
 fn every_builtin_scene_round_trips_through_toml() {
@@ -55,8 +56,7 @@ fn malformed_scene_files_name_the_file_and_the_field() {
 #[test]
 fn indentation_slides_at_the_coulomb_limit_with_an_asymmetric_pressure() {
     let model = indentation(2, 4).build().unwrap();
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     let fx = model
         .responses
         .iter()

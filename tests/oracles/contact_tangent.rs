@@ -5,23 +5,20 @@
 // Index loops over responses, parameters and unknowns read like the formulas they check.
 #![allow(clippy::needless_range_loop)]
 
+use crate::common::{directional, solve, Directional};
+
 use fricsens::assembly::{Assembler, Evaluation};
 use fricsens::contact::ContactState;
 use fricsens::linalg::SparseMatrix;
 use fricsens::model::Model;
 use fricsens::scene::{contact_patch, strip_pullout, StripSpec};
-use fricsens::solver::{NoObserver, RunOptions, Solver};
-use num_dual::Dual64;
 
 /// Check K v against d/de R(z + e v) at state `z` and committed history `hist`.
 fn check(model: &Model, z: &[f64], hist: &[f64], t: f64) -> (usize, usize) {
-    let asm = Assembler::new(model, &[]).unwrap();
-    let ne = model.mesh.elements.len();
-    let lifted = model.lifted::<f64>(&[]);
-    let mut k = SparseMatrix::new(asm.pattern.clone());
-    let mut ev = Evaluation::<f64>::new(&asm, ne);
-    asm.evaluate(model, &lifted, z, hist, t, None, Some(&mut k), &mut ev)
-        .unwrap();
+    let v: Vec<f64> = (0..z.len())
+        .map(|i| 1e-3 * ((i as f64) * 0.77).sin())
+        .collect();
+    let Directional { ev, dual: evd, kv } = directional(model, z, hist, t, &v);
     let stick = ev
         .contact
         .choice
@@ -34,27 +31,8 @@ fn check(model: &Model, z: &[f64], hist: &[f64], t: f64) -> (usize, usize) {
         .iter()
         .filter(|c| c.state == ContactState::Slip)
         .count();
-    let v: Vec<f64> = (0..z.len())
-        .map(|i| 1e-3 * ((i as f64) * 0.77).sin())
-        .collect();
-    let zd: Vec<Dual64> = z.iter().zip(&v).map(|(a, b)| Dual64::new(*a, *b)).collect();
-    let hd: Vec<Dual64> = hist.iter().map(|h| Dual64::from(*h)).collect();
-    let mut evd = Evaluation::<Dual64>::new(&asm, ne);
-    asm.evaluate(
-        model,
-        &model.lifted::<Dual64>(&[]),
-        &zd,
-        &hd,
-        t,
-        None,
-        None,
-        &mut evd,
-    )
-    .unwrap();
     // the branches of the dual evaluation are those of the f64 one (decided on real parts)
     assert_eq!(evd.contact.choice, ev.contact.choice);
-    let mut kv = vec![0.0; z.len()];
-    k.mul_vec(&v, &mut kv).unwrap();
     let scale = kv.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     for i in 0..z.len() {
         let d = evd.residual[i].eps;
@@ -75,8 +53,7 @@ fn contact_tangent_on_a_rigid_target_in_stick_and_slip() {
     };
     let mut model = strip_pullout(&s).build().unwrap();
     model.times.retain(|t| *t <= 0.5 + 1e-12);
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     // partial slip at t = 0.5 (slip zone near the pulled end)
     let k = res.increment_at(0.5).unwrap();
     let (stick, slip) = check(&model, &res.states[k], &res.histories[k - 1], 0.5);
@@ -90,8 +67,7 @@ fn contact_tangent_on_a_rigid_target_in_stick_and_slip() {
 #[test]
 fn contact_tangent_on_a_deformable_target() {
     let model = contact_patch(Some(0.3)).build().unwrap();
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     // step off the converged state tangentially so the interface slips somewhere
     let mut z = res.states[1].clone();
     for n in &model.contacts[0].hitting {
@@ -110,8 +86,7 @@ fn contact_tangent_on_a_deformable_target() {
 fn contact_tangent_with_the_anchor_on_another_face() {
     use fricsens::contact::Target;
     let model = contact_patch(Some(0.3)).build().unwrap();
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     let pair = &model.contacts[0];
     let Target::Faces { faces } = &pair.target else {
         panic!("the patch's target is deformable")

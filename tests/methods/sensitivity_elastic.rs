@@ -4,11 +4,11 @@
 // Index loops over responses, parameters and unknowns read like the formulas they check.
 #![allow(clippy::needless_range_loop)]
 
+use crate::common::sens_tangent;
+
 use fricsens::model::Model;
 use fricsens::scene::{cantilever, CantileverSpec};
-use fricsens::sensitivity::{
-    run_sensitivity, Method, Parameter, SensitivityResults, Settings, TangentChoice,
-};
+use fricsens::sensitivity::{Method, TangentChoice};
 
 fn model(nu: f64) -> (CantileverSpec, Model) {
     let spec = CantileverSpec {
@@ -22,34 +22,14 @@ fn model(nu: f64) -> (CantileverSpec, Model) {
     (spec, m)
 }
 
-fn sens(
-    m: &Model,
-    names: &[&str],
-    method: Method,
-    beta: f64,
-    tangent: TangentChoice,
-) -> SensitivityResults {
-    let params: Vec<Parameter> = names
-        .iter()
-        .map(|n| Parameter::by_name(m, n).unwrap())
-        .collect();
-    let settings = Settings {
-        method,
-        beta,
-        tangent,
-        ..Settings::default()
-    };
-    run_sensitivity(m, &params, &settings).unwrap().1
-}
-
 const W: usize = 0; // tip-deflection response
 
 #[test]
 fn ddm_matches_central_fdm_for_e_length_and_nu() {
     let (_, m) = model(0.2);
     let names = ["E", "beam.length.x", "nu"];
-    let ddm = sens(&m, &names, Method::Ddm, 0.0, TangentChoice::Exact);
-    let fdm = sens(&m, &names, Method::FdmCentral, 1e-5, TangentChoice::Exact);
+    let ddm = sens_tangent(&m, &names, Method::Ddm, 0.0, TangentChoice::Exact);
+    let fdm = sens_tangent(&m, &names, Method::FdmCentral, 1e-5, TangentChoice::Exact);
     for (a, b) in ddm.increments.iter().zip(&fdm.increments) {
         for p in 0..names.len() {
             let (x, y) = (a.derivatives[W][p], b.derivatives[W][p]);
@@ -69,7 +49,7 @@ fn ddm_matches_central_fdm_for_e_length_and_nu() {
 fn ddm_tip_deflection_derivative_in_e_matches_the_elastica() {
     // dw/dE = -(alpha L / E) f'(alpha), f' from oracles.md section 3 (nu = 0)
     let (spec, m) = model(0.0);
-    let ddm = sens(&m, &["E"], Method::Ddm, 0.0, TangentChoice::Last);
+    let ddm = sens_tangent(&m, &["E"], Method::Ddm, 0.0, TangentChoice::Last);
     for (alpha, fp) in [(1.0, 0.2489), (2.0, 0.1426)] {
         let inc = ddm
             .increments
@@ -91,11 +71,11 @@ fn sdm_converges_with_order_one_and_two_in_beta_and_stays_bounded() {
     // truncation error in E and only round-off would show.
     let (_, m) = model(0.0);
     let p = "beam.length.x";
-    let exact = sens(&m, &[p], Method::Ddm, 0.0, TangentChoice::Exact);
+    let exact = sens_tangent(&m, &[p], Method::Ddm, 0.0, TangentChoice::Exact);
     let last = exact.increments.len() - 1;
     let reference = exact.increments[last].derivatives[W][0];
     let err = |method, beta| {
-        let s = sens(&m, &[p], method, beta, TangentChoice::Exact);
+        let s = sens_tangent(&m, &[p], method, beta, TangentChoice::Exact);
         let v = s.increments[last].derivatives[W][0];
         assert!(v.is_finite(), "{method:?} beta {beta}: not finite");
         (v - reference).abs() / reference.abs()
@@ -140,9 +120,9 @@ fn sdm_converges_with_order_one_and_two_in_beta_and_stays_bounded() {
 fn tangent_options_agree() {
     let (_, m) = model(0.0);
     let names = ["E", "beam.length.x"];
-    let exact = sens(&m, &names, Method::Ddm, 0.0, TangentChoice::Exact);
-    let last = sens(&m, &names, Method::Ddm, 0.0, TangentChoice::Last);
-    let refined = sens(&m, &names, Method::Ddm, 0.0, TangentChoice::Refined);
+    let exact = sens_tangent(&m, &names, Method::Ddm, 0.0, TangentChoice::Exact);
+    let last = sens_tangent(&m, &names, Method::Ddm, 0.0, TangentChoice::Last);
+    let refined = sens_tangent(&m, &names, Method::Ddm, 0.0, TangentChoice::Refined);
     for i in 0..exact.increments.len() {
         for p in 0..2 {
             let e = exact.increments[i].derivatives[W][p];

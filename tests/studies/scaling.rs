@@ -2,13 +2,10 @@
 //! sizes per scene, each in its own child process), the power-law fits against synthetic
 //! laws (oracle), and bad input. The study itself is `fricsens scaling` (tens of minutes).
 
+use crate::common::{fricsens, scratch_path};
+
 use fricsens::studies::scaling::{fit_all, Measurement, ScalingScene, Study, QUANTITIES};
 use std::path::PathBuf;
-use std::process::Command;
-
-fn fricsens() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_fricsens"))
-}
 
 #[test]
 fn quick_study_writes_csv_svg_and_markdown_with_finite_exponents() {
@@ -111,7 +108,7 @@ fn synthetic(scene: ScalingScene, dofs: usize) -> Measurement {
 #[test]
 fn a_size_measured_on_its_own_replaces_its_not_measured_entry() {
     use fricsens::studies::scaling::{merge_measurements, write_outputs, Skipped};
-    let dir = std::env::temp_dir().join(format!("fricsens-merge-{}", std::process::id()));
+    let dir = scratch_path("merge");
     let _ = std::fs::remove_dir_all(&dir);
     let rows: Vec<Measurement> = [1_000usize, 4_000, 16_000]
         .iter()

@@ -5,7 +5,7 @@
 //! central finite differences of complete reruns for each of its parameters along the whole
 //! path (which exercises the history sensitivities of J2 and of the stick anchors).
 
-mod common;
+use crate::common;
 
 use fricsens::element::Kinematics;
 use fricsens::model::Model;
@@ -231,10 +231,7 @@ fn coarse_leaf_spring(
         .unwrap()
         .build()
         .unwrap();
-    let params = names
-        .iter()
-        .map(|n| fricsens::sensitivity::Parameter::by_name(&model, n).unwrap())
-        .collect();
+    let params = common::params(&model, names);
     (model, params)
 }
 

@@ -5,6 +5,8 @@
 // Index loops over responses, parameters and increments read like the formulas they check.
 #![allow(clippy::needless_range_loop)]
 
+use crate::common::{fricsens, scratch_path, sens, try_solve};
+
 use fricsens::contact::ContactState;
 use fricsens::element::{Hex8Formulation, Kinematics};
 use fricsens::mesh::{Axis, BlockSpec, NodePlace};
@@ -19,38 +21,14 @@ use fricsens::sensitivity::{
     run_sensitivity, IncrementSensitivity, Method, Parameter, SensitivityResults, Settings,
     TangentChoice,
 };
-use fricsens::solver::{AnalysisError, NoObserver, Results, RunOptions, Solver};
+use fricsens::solver::{AnalysisError, Results};
 use num_dual::Dual64;
-
-/// Sensitivities of `params` by `method` (exact tangent).
-fn sens(
-    model: &Model,
-    params: &[&str],
-    method: Method,
-    beta: f64,
-) -> Result<SensitivityResults, AnalysisError> {
-    let p: Vec<Parameter> = params
-        .iter()
-        .map(|n| Parameter::by_name(model, n).unwrap())
-        .collect();
-    let settings = Settings {
-        method,
-        beta,
-        tangent: TangentChoice::Exact,
-        ..Settings::default()
-    };
-    run_sensitivity(model, &p, &settings).map(|(_, s)| s)
-}
 
 fn at(s: &SensitivityResults, t: f64) -> &IncrementSensitivity {
     s.increments
         .iter()
         .find(|i| (i.time - t).abs() < 1e-9)
         .unwrap_or_else(|| panic!("no increment at t = {t}"))
-}
-
-fn primal(model: &Model) -> Result<Results, AnalysisError> {
-    Solver::new(model)?.run(&RunOptions::default(), &mut NoObserver)
 }
 
 /// Piecewise-linear amplitude of the Jenkins and Klarbring cycles: 0 -> 1 (t = 1) -> -1
@@ -76,11 +54,11 @@ fn mu_zero_derivatives_are_the_right_derivatives_of_the_closed_forms() {
     let mut scene = jenkins(10);
     scene.contacts[0].friction = Some(FrictionSpec::Coulomb { mu: 0.0 });
     let model = scene.build().unwrap();
-    let ddm = sens(&model, &["plane.mu"], Method::Ddm, 0.0).unwrap();
+    let ddm = sens(&model, &["plane.mu"], Method::Ddm, 0.0);
     // in slip T is linear in mu (T = s mu N): a forward difference has no truncation error
     // while mu = db keeps every increment slipping (the stick phase after a reversal lasts
     // 2 db N / k = 2e-3 of base travel, inside one increment of 0.1)
-    let fwd = sens(&model, &["plane.mu"], Method::Fdm, 1e-3).unwrap();
+    let fwd = sens(&model, &["plane.mu"], Method::Fdm, 1e-3);
     let mut t_prev = 0.0;
     for (d, f) in ddm.increments.iter().zip(&fwd.increments) {
         let s = (cycle(d.time) - cycle(t_prev)).signum();
@@ -96,8 +74,8 @@ fn mu_zero_derivatives_are_the_right_derivatives_of_the_closed_forms() {
     let mut scene = klarbring_2dof(10);
     scene.contacts[0].friction = Some(FrictionSpec::Coulomb { mu: 0.0 });
     let model = scene.build().unwrap();
-    let ddm = sens(&model, &["plane.mu"], Method::Ddm, 0.0).unwrap();
-    let fwd = sens(&model, &["plane.mu"], Method::Fdm, 1e-3).unwrap();
+    let ddm = sens(&model, &["plane.mu"], Method::Ddm, 0.0);
+    let fwd = sens(&model, &["plane.mu"], Method::Fdm, 1e-3);
     let (k11, k12, f_n) = (1.0, 0.5, -1.0);
     let mut t_prev = 0.0;
     for (d, f) in ddm.increments.iter().zip(&fwd.increments) {
@@ -136,7 +114,7 @@ fn mu_zero_derivatives_are_the_right_derivatives_of_the_closed_forms() {
     // a non-physical model. Forward FDM stays in mu >= 0 and is the right independent check.
     let mut negative = model.clone();
     negative.set_param(DesignParam::Friction { pair: 0, index: 0 }, -1e-3);
-    let res = primal(&negative).unwrap();
+    let res = try_solve(&negative).unwrap();
     let k = res.increment_at(1.0).unwrap();
     let (u, u_formula) = (
         res.response_value(&negative, 0, k),
@@ -144,7 +122,7 @@ fn mu_zero_derivatives_are_the_right_derivatives_of_the_closed_forms() {
     );
     println!("klarbring at mu = -1e-3, t = 1: u {u:.12} (slip formula continued: {u_formula:.12}; frictionless 0.6)");
     assert!(u > 0.6 && (u - u_formula).abs() < 1e-10, "{u}");
-    let central = sens(&model, &["plane.mu"], Method::FdmCentral, 1e-6).unwrap();
+    let central = sens(&model, &["plane.mu"], Method::FdmCentral, 1e-6);
     let mut worst: f64 = 0.0;
     for (d, c) in ddm.increments.iter().zip(&central.increments) {
         let (dd, cd) = (d.derivatives[0][0], c.derivatives[0][0]);
@@ -172,8 +150,8 @@ fn mu_ten_sticks_with_zero_mu_sensitivity() {
     scene.contacts[0].friction = Some(FrictionSpec::Coulomb { mu: 10.0 });
     let eps_t = scene.contacts[0].tangential_stiffness.unwrap();
     let model = scene.build().unwrap();
-    let ddm = sens(&model, &["plane.mu"], Method::Ddm, 0.0).unwrap();
-    let fdm = sens(&model, &["plane.mu"], Method::FdmCentral, 1e-6).unwrap();
+    let ddm = sens(&model, &["plane.mu"], Method::Ddm, 0.0);
+    let fdm = sens(&model, &["plane.mu"], Method::FdmCentral, 1e-6);
     let k = 1.0;
     let mut worst: f64 = 0.0;
     for (d, f) in ddm.increments.iter().zip(&fdm.increments) {
@@ -399,7 +377,7 @@ fn ring_model(formulation: Hex8Formulation, young: f64, nu: f64, nr: usize, nt: 
     model
 }
 
-/// tests/locking.rs checks F-bar on plastic incompressibility (Prandtl's punch) and in
+/// tests/oracles/locking.rs checks F-bar on plastic incompressibility (Prandtl's punch) and in
 /// bending, but has no nearly incompressible elastic problem with a closed form. Here: Lame's
 /// thick cylinder (a = 1, b = 2, plane strain, load control) at nu = 0.499 with F-bar, and its
 /// sensitivities to E and nu: DDM against central FDM, against the invariant du/dE = -u/E
@@ -418,7 +396,7 @@ fn nearly_incompressible_thick_cylinder_with_f_bar_and_its_sensitivities() {
     let lame_du = [ua.eps, ub.eps];
     let error = |f, nr, nt| {
         let model = ring_model(f, young, nu, nr, nt);
-        let res = primal(&model).unwrap();
+        let res = try_solve(&model).unwrap();
         let e = [0, 1].map(|r| res.response_value(&model, r, 1) / lame_u[r] - 1.0);
         println!(
             "{f:?} {nr} x {nt}: u(a), u(b) {:+.3} %, {:+.3} % off Lame",
@@ -439,7 +417,7 @@ fn nearly_incompressible_thick_cylinder_with_f_bar_and_its_sensitivities() {
     let mut du_error = Vec::new();
     for (nr, nt) in [(8, 16), (16, 32)] {
         let model = ring_model(Hex8Formulation::FBar, young, nu, nr, nt);
-        let ddm = sens(&model, &["E", "nu"], Method::Ddm, 0.0).unwrap();
+        let ddm = sens(&model, &["E", "nu"], Method::Ddm, 0.0);
         let d = &ddm.increments[0];
         let e = [0, 1].map(|r| d.derivatives[r][1] / lame_du[r] - 1.0);
         println!(
@@ -466,7 +444,7 @@ fn nearly_incompressible_thick_cylinder_with_f_bar_and_its_sensitivities() {
             // central FDM of reruns. beta = 1e-4: truncation ~ beta^2 u'''/u' ~ 1e-8; the
             // reruns' round-off cond(K) eps u / (beta nu u') ~ 1e-12 x 6 / 5e-5 ~ 1e-7 (at
             // beta = 1e-6 it reaches 1e-5)
-            let fdm = sens(&model, &["E", "nu"], Method::FdmCentral, 1e-4).unwrap();
+            let fdm = sens(&model, &["E", "nu"], Method::FdmCentral, 1e-4);
             let f = &fdm.increments[0];
             for r in 0..2 {
                 for q in 0..2 {
@@ -509,7 +487,7 @@ fn slender_leaf_matches_beam_theory_and_the_e_scaling() {
             ..CantileverSpec::small_deflection()
         };
         let model = cantilever(&spec).build().unwrap();
-        let s = sens(&model, &["E"], Method::Ddm, 0.0).unwrap();
+        let s = sens(&model, &["E"], Method::Ddm, 0.0);
         let inc = &s.increments[0];
         let delta = -inc.values[0];
         let d_delta = -inc.derivatives[0][0];
@@ -588,7 +566,7 @@ fn j2_oracle(t: f64, plastic: Option<bool>) -> (f64, [f64; 3]) {
 fn tiny_and_huge_increments() {
     for per_unit in [1, 1000] {
         let model = uniaxial_j2(Kinematics::Small, per_unit).build().unwrap();
-        let s = sens(&model, &["sigma_y", "H", "E"], Method::Ddm, 0.0).unwrap();
+        let s = sens(&model, &["sigma_y", "H", "E"], Method::Ddm, 0.0);
         assert_eq!(s.increments.len(), 3 * per_unit);
         let mut worst: f64 = 0.0;
         let mut check = |what: &str, t: f64, got: f64, want: f64, floor: f64| {
@@ -664,7 +642,7 @@ fn tiny_and_huge_increments() {
     }];
     for (name, scene) in [("sliding block", block), ("jenkins", slider)] {
         let model = scene.build().unwrap();
-        match primal(&model) {
+        match try_solve(&model) {
             Ok(res) => {
                 let cutbacks: Vec<usize> = res.records.iter().map(|r| r.cutbacks).collect();
                 let last = res.times.len() - 1;
@@ -680,7 +658,7 @@ fn tiny_and_huge_increments() {
                 assert_eq!(res.times.last(), model.times.last());
                 // both end sliding: the pull (block, N = 1) and the spring force (slider,
                 // N = 1) equal mu N = 0.3, the block's up to the slope of the bent base
-                // (~1e-3, tests/sliding.rs)
+                // (~1e-3, tests/robustness/sliding.rs)
                 let tol = if name == "jenkins" { 1e-9 } else { 1e-2 };
                 assert!(
                     (values[0].abs() / 0.3 - 1.0).abs() < tol,
@@ -740,7 +718,7 @@ fn tangential_penalty_from_soft_to_stiff() {
         let mut scene = klarbring_2dof(10);
         scene.contacts[0].tangential_stiffness = Some(eps);
         let model = scene.build().unwrap();
-        let s = sens(&model, &["plane.mu", "plane.eps_t"], Method::Ddm, 0.0).unwrap();
+        let s = sens(&model, &["plane.mu", "plane.eps_t"], Method::Ddm, 0.0);
         let mut errors = [0.0; 2];
         let mut line = format!("eps_T = {eps:.0e}:");
         for (k, &(t, ft_star, u_star, du_star)) in stick.iter().enumerate() {
@@ -882,7 +860,7 @@ fn hard_increments_fail_with_a_useful_error_and_cutbacks_rescue_large_ones() {
     let limit = 1000.0 / 2.0 * (1.0 / 3f64.sqrt()) * (1.0 - 1.0 / 3.0);
     let scene = compressed_cube(1.5 * limit, 10);
     let model = scene.build().unwrap();
-    let err = primal(&model).expect_err("no equilibrium beyond the limit point");
+    let err = try_solve(&model).expect_err("no equilibrium beyond the limit point");
     let partial = check_failure("dead load beyond the limit point", &err);
     // the converged increments end at the limit point, t = 1 / 1.5
     let t_last = *partial.times.last().unwrap();
@@ -893,17 +871,17 @@ fn hard_increments_fail_with_a_useful_error_and_cutbacks_rescue_large_ones() {
     assert!(t_last <= 1.0 / 1.5 + 1e-9 && t_last > 0.6, "{t_last}");
 
     let model = uniaxial_svk(-0.5, 10).build().unwrap();
-    let err = primal(&model).expect_err("the element inverts");
+    let err = try_solve(&model).expect_err("the element inverts");
     let partial = check_failure("compression through lambda = 0", &err);
     // lambda = 1 - 1.5 t reaches 0 at t = 2/3
     assert!(*partial.times.last().unwrap() < 2.0 / 3.0);
 
     // the command line on the first scene as a file: fails, says why, writes the history
-    let dir = std::env::temp_dir().join(format!("fricsens-extremes-{}", std::process::id()));
+    let dir = scratch_path("extremes");
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("dead-load.toml");
     std::fs::write(&file, scene.to_toml()).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_fricsens"))
+    let out = fricsens()
         .args(["run", &file.display().to_string(), "--out"])
         .arg(dir.join("out"))
         .output()
@@ -915,7 +893,7 @@ fn hard_increments_fail_with_a_useful_error_and_cutbacks_rescue_large_ones() {
         "{stderr}"
     );
     let model = scene.build().unwrap();
-    let partial = primal(&model).unwrap_err().partial().unwrap().clone();
+    let partial = try_solve(&model).unwrap_err().partial().unwrap().clone();
     let csv = std::fs::read_to_string(dir.join("out").join("history.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
     // a header, the initial state and every converged increment
@@ -939,7 +917,7 @@ fn hard_increments_fail_with_a_useful_error_and_cutbacks_rescue_large_ones() {
             ..CantileverSpec::large_deflection()
         };
         let model = cantilever(&spec).build().unwrap();
-        let res = primal(&model).unwrap();
+        let res = try_solve(&model).unwrap();
         let w = res.response_value(&model, 0, res.times.len() - 1);
         (res, w)
     };
@@ -1029,7 +1007,7 @@ fn closing_node() -> Scene {
 
 /// Non-smooth points reached exactly at an increment end are flagged (`kinks`) and carry the
 /// one-sided derivatives (`one_sided`), which match the closed-form left and right derivatives
-/// (the stick/slip onset is tests/contact_oracles.rs's Klarbring test):
+/// (the stick/slip onset is tests/oracles/contact_oracles.rs's Klarbring test):
 /// * yield onset: one J2 hex8 in uniaxial stress, 8 increments per unit, the first ending at
 ///   eps = sigma_y / E. Elastic side: dsigma/dE = eps, dsigma/dsigma_y = dsigma/dH = 0,
 ///   d alpha = 0; plastic side (oracles.md 1): dsigma/dsigma_y = E/(E+H),
@@ -1048,7 +1026,7 @@ fn closing_node() -> Scene {
 #[test]
 fn non_smooth_points_are_flagged_with_one_sided_derivatives() {
     let model = uniaxial_j2(Kinematics::Small, 8).build().unwrap();
-    let s = sens(&model, &["sigma_y", "H", "E"], Method::Ddm, 0.0).unwrap();
+    let s = sens(&model, &["sigma_y", "H", "E"], Method::Ddm, 0.0);
     let flagged: Vec<f64> = s
         .increments
         .iter()
@@ -1099,7 +1077,7 @@ fn non_smooth_points_are_flagged_with_one_sided_derivatives() {
     }
 
     let model = closing_node().build().unwrap();
-    let s = sens(&model, &["load.F"], Method::Ddm, 0.0).unwrap();
+    let s = sens(&model, &["load.F"], Method::Ddm, 0.0);
     for inc in &s.increments {
         println!(
             "closing node t = {:.1}: v {:.3}, plane force {:.3}; d/dF {:?}; kinks {:?}; one-sided {:?}",

@@ -7,21 +7,23 @@
 //! `main` asserts that the three agree.
 //!
 //! The indentation study (about 40 s on two cores) is ignored by default:
-//! `cargo test --release --test examples -- --ignored`.
+//! `cargo test --release --test methods -- --ignored examples::`.
+
+use crate::common::scratch_path;
 
 #[allow(dead_code)]
-#[path = "../examples/choose_your_beta.rs"]
+#[path = "../../examples/choose_your_beta.rs"]
 mod choose_your_beta;
 
 #[allow(dead_code)]
-#[path = "../examples/leaf_spring.rs"]
+#[path = "../../examples/leaf_spring.rs"]
 mod leaf_spring;
 
 #[allow(dead_code)]
-#[path = "../examples/indentation_study.rs"]
+#[path = "../../examples/indentation_study.rs"]
 mod indentation_study;
 
-#[path = "../examples/own_friction_law.rs"]
+#[path = "../../examples/own_friction_law.rs"]
 mod own_friction_law;
 
 #[test]
@@ -31,7 +33,7 @@ fn bring_your_own_friction_law_example_runs_and_the_three_methods_agree() {
 
 #[test]
 fn choose_your_beta_sweeps_and_writes_the_v_curves() {
-    let svg = std::env::temp_dir().join(format!("fricsens-beta-{}.svg", std::process::id()));
+    let svg = scratch_path("beta").with_extension("svg");
     let s = choose_your_beta::study(&svg).expect("the sweep runs");
     assert_eq!(s.errors.len(), 4);
     assert!(s.errors.iter().all(|e| e.len() == s.betas.len()));

@@ -3,6 +3,8 @@
 //! fuzz on raw text and on mutated built-in scenes); analyses and DDM sensitivities are
 //! bit-identical across runs and rayon thread counts.
 
+use crate::common::{fricsens, scratch_path, solve};
+
 use fricsens::element::{Hex8Formulation, Kinematics};
 use fricsens::model::Model;
 use fricsens::scene::{
@@ -11,7 +13,6 @@ use fricsens::scene::{
 };
 use fricsens::scene::{cantilever, CantileverSpec, Component, ResponseSpec};
 use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings};
-use fricsens::solver::{NoObserver, RunOptions, Solver};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -845,8 +846,7 @@ fn solver_settings_must_be_usable() {
 
 /// A fresh directory for scene files of one test.
 fn scratch_dir(test: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("fricsens-robustness-{}-{test}", std::process::id()));
+    let dir = scratch_path(&format!("robustness-{test}"));
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
@@ -888,7 +888,7 @@ fn errors_of_scene_files_name_the_file() {
         ("negative-e.toml", "bodies[0].material.E"),
     ] {
         let path = dir.join(file);
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_fricsens"))
+        let out = fricsens()
             .args(["run", &path.display().to_string(), "--out"])
             .arg(dir.join("out"))
             .output()
@@ -1319,7 +1319,7 @@ fn mutated_builtin_scenes_never_panic() {
 }
 
 /// The closing-note campaign: `FRICSENS_FUZZ_CASES` cases (default 100 000) of each strategy,
-/// `cargo test --release -j 1 --test robustness -- --ignored --nocapture large_fuzz`
+/// `cargo test --release -j 1 --test robustness -- --ignored --nocapture robustness::large_fuzz`
 /// (4 x 100 000 cases: 15 s in release on one core).
 #[test]
 #[ignore]
@@ -1361,10 +1361,7 @@ fn pool(threads: usize) -> rayon::ThreadPool {
 
 /// Every converged state and the final history, as bits.
 fn primal_bits(model: &Model) -> Vec<Vec<u64>> {
-    let res = Solver::new(model)
-        .unwrap()
-        .run(&RunOptions::default(), &mut NoObserver)
-        .unwrap();
+    let res = solve(model);
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     let mut out: Vec<Vec<u64>> = res.states.iter().map(|s| bits(s)).collect();
     out.push(bits(&res.history));

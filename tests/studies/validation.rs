@@ -1,12 +1,14 @@
 //! A reduced validation run (a few betas, the small scenes): the harness agrees with the
 //! independent methods and the closed forms, and writes the report.
 
+use crate::common::scratch_path;
+
 use fricsens::scene::builtin;
 use fricsens::studies::validate::{default_scenes, validate, ValidateOptions};
 
 #[test]
 fn reduced_validation_agrees_and_writes_the_report() {
-    let out = std::env::temp_dir().join(format!("fricsens-validation-{}", std::process::id()));
+    let out = scratch_path("validation");
     let _ = std::fs::remove_dir_all(&out);
     let keep = [
         "stacked-leaves",
@@ -102,11 +104,7 @@ fn every_builtin_scene_declares_study_parameters_that_resolve() {
 /// the difference measures the change of the discrete path, see
 /// `IncrementSensitivity::rerun_substeps`), at the best of a few betas.
 fn paper_scene_agreement(scene: fricsens::scene::Scene, fdm_tol: f64) {
-    let out = std::env::temp_dir().join(format!(
-        "fricsens-paper-{}-{}",
-        scene.name,
-        std::process::id()
-    ));
+    let out = scratch_path(&format!("paper-{}", scene.name));
     let _ = std::fs::remove_dir_all(&out);
     let opts = ValidateOptions {
         out: out.clone(),

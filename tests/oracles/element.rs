@@ -5,8 +5,10 @@
 // Index loops over responses, parameters and unknowns read like the formulas they check.
 #![allow(clippy::needless_range_loop)]
 
-mod common;
-use common::{block, boundary_nodes, distorted_mesh, element, one_body_model, unit_cube};
+use crate::common::{
+    block, boundary_nodes, deformed_cantilever, directional, distorted_mesh, element,
+    one_body_model, prescribe, rigid_motion_force, solve, unit_cube, Directional,
+};
 
 use approx::assert_relative_eq;
 use fricsens::assembly::{Assembler, Evaluation};
@@ -17,20 +19,9 @@ use fricsens::material::{Branch, StVenantKirchhoff};
 use fricsens::mesh::Mesh;
 use fricsens::model::{Amplitude, DesignParam, Material, Model, Prescribed};
 use fricsens::scene::{cantilever, CantileverSpec};
-use fricsens::solver::{NoObserver, RunOptions, Solver};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use num_dual::Dual64;
 use proptest::prelude::*;
-
-fn prescribe(model: &mut Model, node: usize, c: usize, v: f64) {
-    model.prescribed.push(Prescribed {
-        name: format!("n{node}c{c}"),
-        nodes: vec![node],
-        component: c,
-        value: v,
-        amplitude: Amplitude::ramp(),
-    });
-}
 
 fn patch_test(kinematics: Kinematics, formulation: Hex8Formulation) {
     let mesh = distorted_mesh();
@@ -47,11 +38,10 @@ fn patch_test(kinematics: Kinematics, formulation: Hex8Formulation) {
     for n in boundary_nodes(&mesh) {
         let u = grad_u * x[n];
         for c in 0..3 {
-            prescribe(&mut model, n, c, u[c]);
+            prescribe(&mut model, vec![n], c, u[c]);
         }
     }
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     let z = &res.states[1];
     // every node follows the affine field exactly
     for (n, xn) in x.iter().enumerate() {
@@ -94,29 +84,15 @@ fn patch_test_distorted_mesh_large_strain() {
     patch_test(Kinematics::Large, Hex8Formulation::IncompatibleModes);
 }
 
-/// Internal force and Cauchy stress of one element under a rigid motion `x = Q X + c`.
-fn rigid_motion_force(x_ref: [Vector3<f64>; 8], q: Matrix3<f64>, c: Vector3<f64>) -> (f64, f64) {
-    let mat = StVenantKirchhoff::new(2.0e5, 0.3);
-    let mut dofs: Vec<Vector3<f64>> = x_ref.iter().map(|x| q * x + c - x).collect();
-    dofs.extend([Vector3::zeros(); 3]);
-    let r = element(
-        &x_ref,
-        &dofs,
-        Kinematics::Large,
-        Hex8Formulation::IncompatibleModes,
-        &mat,
-        &[],
-        false,
-    );
-    let (force, cauchy) = (r.force, r.cauchy.norm());
-    let fmax = force.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    (fmax, cauchy)
-}
-
 #[test]
 fn rigid_rotation_of_90_degrees_gives_zero_stress() {
     let q = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
-    let (f, s) = rigid_motion_force(unit_cube(), *q.matrix(), Vector3::new(3.0, -2.0, 1.0));
+    let (f, s) = rigid_motion_force(
+        Hex8Formulation::IncompatibleModes,
+        unit_cube(),
+        *q.matrix(),
+        Vector3::new(3.0, -2.0, 1.0),
+    );
     // force scale of a unit strain: E * volume = 2e5
     assert!(f < 1e-10 * 2.0e5, "force {f}");
     assert!(s < 1e-10 * 2.0e5, "stress {s}");
@@ -138,7 +114,8 @@ proptest! {
         for (k, xa) in x.iter_mut().enumerate() {
             for i in 0..3 { xa[i] += jiggle[3 * k + i]; }
         }
-        let (f, s) = rigid_motion_force(x, *q.matrix(), Vector3::from(shift));
+        let (f, s) =
+            rigid_motion_force(Hex8Formulation::IncompatibleModes, x, *q.matrix(), Vector3::from(shift));
         prop_assert!(f < 1e-10 * 2.0e5, "force {}", f);
         prop_assert!(s < 1e-10 * 2.0e5, "stress {}", s);
     }
@@ -183,8 +160,7 @@ fn uniaxial_stretch_nominal_stress_matches_oracle() {
     // oracles.md section 2: P11 = (E/2) lambda (lambda^2 - 1), lateral stretch sqrt(1 - nu (lambda^2-1))
     for (lambda, nu) in [(1.5, 0.3), (1.5, 0.0), (0.8, 0.25), (0.6, 0.3)] {
         let (model, pulled) = uniaxial_model(lambda, nu, 10);
-        let mut solver = Solver::new(&model).unwrap();
-        let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+        let res = solve(&model);
         for k in 1..=10 {
             let l = 1.0 + (lambda - 1.0) * k as f64 / 10.0;
             let reaction: f64 = pulled.iter().map(|n| res.residuals[k][3 * n]).sum();
@@ -205,8 +181,7 @@ fn uniaxial_stretch_nominal_stress_matches_oracle() {
 fn uniaxial_compression_through_the_limit_point() {
     // displacement control passes the limit point lambda = 1/sqrt(3) of P11(lambda)
     let (model, pulled) = uniaxial_model(0.45, 0.0, 11);
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     let mut min = (0.0, f64::INFINITY);
     for k in 1..=11 {
         let l = 1.0 - 0.55 * k as f64 / 11.0;
@@ -224,46 +199,13 @@ fn uniaxial_compression_through_the_limit_point() {
     );
 }
 
-/// A deformed state of the large-deflection cantilever and its model.
-fn deformed_cantilever(formulation: Hex8Formulation) -> (Model, Vec<f64>) {
-    let spec = CantileverSpec {
-        nx: 10,
-        alpha: 2.0,
-        increments: 4,
-        formulation,
-        ..CantileverSpec::large_deflection()
-    };
-    let model = cantilever(&spec).build().unwrap();
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
-    let mut z = res.states.last().unwrap().clone();
-    // step off equilibrium so the check is at a generic state
-    for (i, zi) in z.iter_mut().enumerate() {
-        *zi += 1e-3 * ((i as f64) * 0.37).sin();
-    }
-    (model, z)
-}
-
 #[test]
 fn assembled_tangent_is_the_derivative_of_the_residual() {
     for formulation in [Hex8Formulation::Full, Hex8Formulation::IncompatibleModes] {
-        let (model, z) = deformed_cantilever(formulation);
-        let asm = Assembler::new(&model, &[]).unwrap();
-        let ne = model.mesh.elements.len();
-        let lifted = model.lifted::<f64>(&[]);
-        let mut k = SparseMatrix::new(asm.pattern.clone());
-        let mut ev = Evaluation::<f64>::new(&asm, ne);
-        asm.evaluate(&model, &lifted, &z, &[], 0.5, None, Some(&mut k), &mut ev)
-            .unwrap();
+        let (model, z) = deformed_cantilever(Kinematics::Large, formulation, 0.0);
         // directional derivative of R along v by dual numbers: K v
         let v: Vec<f64> = (0..z.len()).map(|i| ((i as f64) * 1.3).cos()).collect();
-        let zd: Vec<Dual64> = z.iter().zip(&v).map(|(a, b)| Dual64::new(*a, *b)).collect();
-        let lifted_d = model.lifted::<Dual64>(&[]);
-        let mut evd = Evaluation::<Dual64>::new(&asm, ne);
-        asm.evaluate(&model, &lifted_d, &zd, &[], 0.5, None, None, &mut evd)
-            .unwrap();
-        let mut kv = vec![0.0; z.len()];
-        k.mul_vec(&v, &mut kv).unwrap();
+        let Directional { ev, dual: evd, kv } = directional(&model, &z, &[], 0.5, &v);
         let scale = kv.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         for (i, r) in evd.residual.iter().enumerate() {
             assert!(
@@ -284,7 +226,8 @@ fn assembled_tangent_is_the_derivative_of_the_residual() {
 
 #[test]
 fn real_part_of_seeded_dual_evaluation_equals_f64() {
-    let (model, z) = deformed_cantilever(Hex8Formulation::IncompatibleModes);
+    let (model, z) =
+        deformed_cantilever(Kinematics::Large, Hex8Formulation::IncompatibleModes, 0.0);
     let asm = Assembler::new(&model, &[]).unwrap();
     let ne = model.mesh.elements.len();
     let mut ev = Evaluation::<f64>::new(&asm, ne);
@@ -327,8 +270,7 @@ fn newton_converges_quadratically_on_the_large_deflection_cantilever() {
     let model = cantilever(&CantileverSpec::large_deflection())
         .build()
         .unwrap();
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     let mut checked = 0;
     let mut t_prev = 0.0;
     for rec in &res.records {

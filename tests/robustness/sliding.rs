@@ -2,10 +2,12 @@
 //! the frictionless pair, a very large mu sticks everywhere, and the friction force stays at
 //! mu N while the hitting nodes cross segment boundaries. The VTK output carries the state map.
 
+use crate::common::{scratch_path, solve, solve_scene};
+
 use fricsens::contact::ContactState;
 use fricsens::model::Model;
 use fricsens::scene::sliding_block as scene;
-use fricsens::solver::{NoObserver, Results, RunOptions, Solver};
+use fricsens::solver::Results;
 
 const N: f64 = 1.0; // total normal load on the slider
 
@@ -13,12 +15,7 @@ fn run(friction: Option<f64>) -> (Model, Results) {
     let mut s = scene(friction);
     // converge to round-off so two runs can be compared beyond the default 1e-9 tolerance
     s.solver.force_tol = 1e-13;
-    let model = s.build().unwrap();
-    let res = Solver::new(&model)
-        .unwrap()
-        .run(&RunOptions::default(), &mut NoObserver)
-        .unwrap();
-    (model, res)
+    solve_scene(s)
 }
 
 #[test]
@@ -57,10 +54,7 @@ fn very_large_mu_sticks_everywhere() {
         s.prescribed[3].value = 1e-3;
         s.build().unwrap()
     };
-    let res = Solver::new(&model)
-        .unwrap()
-        .run(&RunOptions::default(), &mut NoObserver)
-        .unwrap();
+    let res = solve(&model);
     for (k, c) in res.contact.iter().enumerate().skip(1) {
         for ch in &c.choice {
             assert!(
@@ -100,7 +94,7 @@ fn friction_force_stays_at_mu_n_while_sliding_across_segments() {
     // boundary (the slope is continuous to within the same order).
     assert!(worst < 1e-2, "friction force deviates from mu N by {worst}");
     // the state map is written to the VTK files
-    let dir = std::env::temp_dir().join(format!("fricsens-sliding-{}", std::process::id()));
+    let dir = scratch_path("sliding");
     fricsens::output::write_run(&dir, &model, &res, fricsens::output::VtkOutput::Every(1)).unwrap();
     let vtu = std::fs::read_to_string(dir.join("vtk").join("step_0010.vtu")).unwrap();
     assert!(vtu.contains("Name=\"contact_state\"") && vtu.contains("Name=\"friction_force\""));

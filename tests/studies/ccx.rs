@@ -2,7 +2,9 @@
 //!
 //! The deck tests need no CalculiX. The comparison itself is `#[ignore]`d (it runs `ccx` three
 //! times and fricsens twice) and skips with a message when `ccx` is not on PATH:
-//! `cargo test --release --test ccx -- --ignored`.
+//! `cargo test --release --test studies -- --ignored ccx::`.
+
+use crate::common::{fricsens, scratch_path};
 
 use fricsens::element::Hex8Formulation;
 use fricsens::scene::indentation;
@@ -132,8 +134,8 @@ fn dat_force_blocks_are_read_and_summed() {
 
 #[test]
 fn the_cli_skips_cleanly_without_ccx() {
-    let out = std::env::temp_dir().join(format!("fricsens-ccx-skip-{}", std::process::id()));
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_fricsens"))
+    let out = scratch_path("ccx-skip");
+    let run = fricsens()
         .args(["ccx", "indentation", "--out"])
         .arg(&out)
         .env("PATH", "")
@@ -156,7 +158,7 @@ fn reduced_indentation_against_calculix() {
         return;
     };
     let model = indentation(2, 4).build().unwrap();
-    let work = std::env::temp_dir().join(format!("fricsens-ccx-test-{}", std::process::id()));
+    let work = scratch_path("ccx-test");
     let opts = CompareOptions {
         ccx,
         work: work.clone(),
@@ -185,7 +187,7 @@ fn reduced_indentation_against_calculix() {
             "dFx/dmu: {a:?} vs {b:?}"
         );
     }
-    let dir = std::env::temp_dir().join(format!("fricsens-ccx-report-{}", std::process::id()));
+    let dir = scratch_path("ccx-report");
     c.write(&dir).unwrap();
     let md = std::fs::read_to_string(dir.join("ccx.md")).unwrap();
     assert!(md.starts_with("## Against CalculiX"));

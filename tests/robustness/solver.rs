@@ -3,8 +3,9 @@
 //! no cutbacks (starting from a state in which only the tip nodes have moved distorts the last
 //! element layer, yields it spuriously and inverts elements).
 
+use crate::common::solve;
+
 use fricsens::scene::{cantilever, CantileverSpec, Component, MaterialSpec, PrescribedSpec};
-use fricsens::solver::{NoObserver, RunOptions, Solver};
 
 #[test]
 fn displacement_controlled_plastic_cantilever_needs_no_cutback() {
@@ -39,8 +40,7 @@ fn displacement_controlled_plastic_cantilever_needs_no_cutback() {
         amplitude: vec![(0.0, 0.0), (1.0, 1.0)],
     });
     let model = scene.build().unwrap();
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     let cutbacks: usize = res.records.iter().map(|r| r.cutbacks).sum();
     let iterations: Vec<usize> = res.records.iter().map(|r| r.iterations).collect();
     println!("iterations per increment {iterations:?}, cutbacks {cutbacks}");
@@ -67,12 +67,7 @@ fn a_force_tolerance_below_the_round_off_floor_converges_at_the_floor() {
     let mut tight = model.clone();
     tight.solver.force_tol = 1e-15;
     tight.solver.energy_tol = 1e-40;
-    let run = |m: &fricsens::model::Model| {
-        Solver::new(m)
-            .unwrap()
-            .run(&RunOptions::default(), &mut NoObserver)
-            .unwrap()
-    };
+    let run = |m: &fricsens::model::Model| solve(m);
     let (nominal, floor) = (run(&model), run(&tight));
     assert_eq!(floor.times, nominal.times, "the tight run cut back");
     let n_nodal = 3 * model.mesh.n_nodes();

@@ -6,32 +6,22 @@
 // Index loops over responses, parameters and unknowns read like the formulas they check.
 #![allow(clippy::needless_range_loop)]
 
-mod common;
-use common::{block, boundary_nodes, distorted_mesh, element, one_body_model, unit_cube};
+use crate::common::{
+    block, boundary_nodes, deformed_cantilever, directional, distorted_mesh, element,
+    one_body_model, prescribe, rigid_motion_force, solve, unit_cube, Directional,
+};
 
-use fricsens::assembly::{Assembler, Evaluation};
 use fricsens::element::hex8::{self, Hex8Input, Hex8Output};
 use fricsens::element::{Hex8Formulation, Kinematics};
-use fricsens::linalg::SparseMatrix;
 use fricsens::material::{Branch, J2Plasticity, MaterialLaw, StVenantKirchhoff};
 use fricsens::mesh::{Axis, BlockSpec, Mesh, NodePlace, Zone};
-use fricsens::model::{Amplitude, Material, Model, Prescribed};
+use fricsens::model::{Material, Model};
 use fricsens::scene::{cantilever, CantileverSpec};
 use fricsens::solver::{NoObserver, RunOptions, Solver};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use num_dual::Dual64;
 use proptest::prelude::*;
 use std::time::Instant;
-
-fn prescribe(model: &mut Model, nodes: Vec<usize>, c: usize, v: f64) {
-    model.prescribed.push(Prescribed {
-        name: format!("{}c{c}", nodes[0]),
-        nodes,
-        component: c,
-        value: v,
-        amplitude: Amplitude::ramp(),
-    });
-}
 
 #[test]
 fn serde_name_is_f_bar() {
@@ -43,7 +33,7 @@ fn serde_name_is_f_bar() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Patch test (helpers as in tests/element.rs)
+// Patch test (helpers as in tests/oracles/element.rs)
 
 /// A 3x3x3 block of unit cubes with every node moved by a pseudo-random offset of up to 0.2 in
 /// each direction: general distorted hexes, no symmetry between neighbours. (The mesh above
@@ -83,8 +73,7 @@ fn patch_test(mesh: Mesh, kinematics: Kinematics, formulation: Hex8Formulation) 
             prescribe(&mut model, vec![n], c, u[c]);
         }
     }
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     let z = &res.states[1];
     for (n, xn) in x.iter().enumerate() {
         let u = grad_u * xn;
@@ -136,27 +125,15 @@ fn patch_test_rough_mesh_other_formulations() {
 // ---------------------------------------------------------------------------------------------
 // One element, evaluated directly
 
-/// Internal force and Cauchy stress of one F-bar element under a rigid motion `x = Q X + c`.
-fn rigid_motion_force(x_ref: [Vector3<f64>; 8], q: Matrix3<f64>, c: Vector3<f64>) -> (f64, f64) {
-    let mat = StVenantKirchhoff::new(2.0e5, 0.3);
-    let u: Vec<Vector3<f64>> = x_ref.iter().map(|x| q * x + c - x).collect();
-    let r = element(
-        &x_ref,
-        &u,
-        Kinematics::Large,
-        Hex8Formulation::FBar,
-        &mat,
-        &[],
-        false,
-    );
-    let fmax = r.force.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    (fmax, r.cauchy.norm())
-}
-
 #[test]
 fn rigid_rotation_of_90_degrees_gives_zero_force_f_bar() {
     let q = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
-    let (f, s) = rigid_motion_force(unit_cube(), *q.matrix(), Vector3::new(3.0, -2.0, 1.0));
+    let (f, s) = rigid_motion_force(
+        Hex8Formulation::FBar,
+        unit_cube(),
+        *q.matrix(),
+        Vector3::new(3.0, -2.0, 1.0),
+    );
     // force scale of a unit strain: E * volume = 2e5
     assert!(f < 1e-10 * 2.0e5, "force {f}");
     assert!(s < 1e-10 * 2.0e5, "stress {s}");
@@ -178,7 +155,8 @@ proptest! {
         for (k, xa) in x.iter_mut().enumerate() {
             for i in 0..3 { xa[i] += jiggle[3 * k + i]; }
         }
-        let (f, s) = rigid_motion_force(x, *q.matrix(), Vector3::from(shift));
+        let (f, s) =
+            rigid_motion_force(Hex8Formulation::FBar, x, *q.matrix(), Vector3::from(shift));
         prop_assert!(f < 1e-10 * 2.0e5, "force {}", f);
         prop_assert!(s < 1e-10 * 2.0e5, "stress {}", s);
     }
@@ -433,45 +411,10 @@ fn vector_dual_design_derivatives_match_central_differences_f_bar() {
     }
 }
 
-/// A deformed state of the large-deflection cantilever (nu = 0.3) and its model.
-fn deformed_cantilever(kinematics: Kinematics) -> (Model, Vec<f64>) {
-    let spec = CantileverSpec {
-        nx: 10,
-        nu: 0.3,
-        alpha: 2.0,
-        increments: 4,
-        kinematics,
-        formulation: Hex8Formulation::FBar,
-        ..CantileverSpec::large_deflection()
-    };
-    let model = cantilever(&spec).build().unwrap();
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
-    let mut z = res.states.last().unwrap().clone();
-    for (i, zi) in z.iter_mut().enumerate() {
-        *zi += 1e-3 * ((i as f64) * 0.37).sin();
-    }
-    (model, z)
-}
-
 /// `K v` of the assembled tangent against the dual-number derivative of the residual along `v`.
 fn check_assembled_tangent(model: &Model, z: &[f64], hist: &[f64], what: &str) {
-    let asm = Assembler::new(model, &[]).unwrap();
-    let ne = model.mesh.elements.len();
-    let lifted = model.lifted::<f64>(&[]);
-    let mut k = SparseMatrix::new(asm.pattern.clone());
-    let mut ev = Evaluation::<f64>::new(&asm, ne);
-    asm.evaluate(model, &lifted, z, hist, 0.5, None, Some(&mut k), &mut ev)
-        .unwrap();
     let v: Vec<f64> = (0..z.len()).map(|i| ((i as f64) * 1.3).cos()).collect();
-    let zd: Vec<Dual64> = z.iter().zip(&v).map(|(a, b)| Dual64::new(*a, *b)).collect();
-    let hd: Vec<Dual64> = hist.iter().map(|h| Dual64::from_re(*h)).collect();
-    let lifted_d = model.lifted::<Dual64>(&[]);
-    let mut evd = Evaluation::<Dual64>::new(&asm, ne);
-    asm.evaluate(model, &lifted_d, &zd, &hd, 0.5, None, None, &mut evd)
-        .unwrap();
-    let mut kv = vec![0.0; z.len()];
-    k.mul_vec(&v, &mut kv).unwrap();
+    let Directional { ev, dual: evd, kv } = directional(model, z, hist, 0.5, &v);
     let scale = kv.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let rscale = ev.residual.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let mut worst = 0.0f64;
@@ -489,7 +432,7 @@ fn check_assembled_tangent(model: &Model, z: &[f64], hist: &[f64], what: &str) {
 #[test]
 fn assembled_tangent_is_the_derivative_of_the_residual_f_bar() {
     for kin in [Kinematics::Large, Kinematics::Small] {
-        let (model, z) = deformed_cantilever(kin);
+        let (model, z) = deformed_cantilever(kin, Hex8Formulation::FBar, 0.3);
         check_assembled_tangent(&model, &z, &[], &format!("elastic cantilever {kin:?}"));
     }
     // elastoplastic: a sheared and compressed J2 block, committed history of a previous run
@@ -511,8 +454,7 @@ fn assembled_tangent_is_the_derivative_of_the_residual_f_bar() {
         prescribe(&mut model, top.clone(), 0, 0.02);
         prescribe(&mut model, top, 1, -0.01);
         model.times = vec![0.25, 0.5, 0.75, 1.0];
-        let mut solver = Solver::new(&model).unwrap();
-        let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+        let res = solve(&model);
         let plastic = res.history.chunks(7).filter(|h| h[6] > 0.0).count();
         assert!(plastic > 8, "{kin:?}: {plastic} plastic points");
         let mut z = res.states.last().unwrap().clone();
@@ -722,8 +664,7 @@ fn f_bar_does_not_cure_shear_locking() {
             ..CantileverSpec::small_deflection()
         };
         let model = cantilever(&spec).build().unwrap();
-        let mut solver = Solver::new(&model).unwrap();
-        let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+        let res = solve(&model);
         let tip = &model.mesh.node_sets["beam.xmax"];
         let w = -tip.iter().map(|n| res.states[1][3 * n + 1]).sum::<f64>() / tip.len() as f64;
         let exact = spec.load() * spec.length.powi(3) / (3.0 * spec.young * spec.inertia());

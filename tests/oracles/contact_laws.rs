@@ -2,24 +2,16 @@
 //! system), penalty (cheap, interpenetrates by p_n / eps_N), augmented Lagrangian (penalty
 //! stiffness, multiplier estimates updated until the penetration is within tolerance).
 
+use crate::common::solve_scene;
+
 use fricsens::contact::NormalLaw;
 use fricsens::scene::contact_patch;
-use fricsens::solver::{NoObserver, Results, RunOptions, Solver};
-
-/// Build `scene` and run it to the end.
-fn run_scene(scene: fricsens::scene::Scene) -> (fricsens::model::Model, Results) {
-    let model = scene.build().unwrap();
-    let res = Solver::new(&model)
-        .unwrap()
-        .run(&RunOptions::default(), &mut NoObserver)
-        .unwrap();
-    (model, res)
-}
+use fricsens::solver::Results;
 
 fn run(normal: NormalLaw) -> (fricsens::model::Model, Results) {
     let mut scene = contact_patch(None);
     scene.contacts[0].normal = normal;
-    run_scene(scene)
+    solve_scene(scene)
 }
 
 /// Largest penetration, and the pressures, at the end.
@@ -84,7 +76,7 @@ fn coarse_leaf_spring(
 ) -> (fricsens::model::Model, Results) {
     let mut scene = fricsens::scene::builtin("leaf-spring-coarse").unwrap();
     change(&mut scene);
-    run_scene(scene)
+    solve_scene(scene)
 }
 
 /// Assert that two runs of `model` agree, response by response, at every time both converged
@@ -169,7 +161,7 @@ fn leaf_spring_first_increment(
     let end = scene.steps[0].end / scene.steps[0].increments as f64;
     scene.steps = vec![fricsens::scene::StepSpec { end, increments: n }];
     change(&mut scene.solver);
-    run_scene(scene)
+    solve_scene(scene)
 }
 
 #[test]

@@ -3,7 +3,7 @@
 //! and DDM against central finite differences of complete reruns for each of the law's
 //! parameters along a load-unload path (which exercises the history sensitivities).
 
-mod common;
+use crate::common;
 
 use fricsens::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCoulomb};
 use fricsens::contact::Friction;

@@ -1,6 +1,8 @@
 //! The sensitivity methods' defaults: DDM with the default settings is the exact derivative of
 //! the discrete incremental solution, to the solver's accuracy.
 
+use crate::common::{fricsens, params, scratch_path};
+
 use fricsens::scene::{builtin, builtin_list, Scene};
 use fricsens::sensitivity::{
     run_sensitivity, Method, Parameter, SensitivityResults, Settings, TangentChoice,
@@ -200,10 +202,7 @@ fn ddm_against_central_fdm(
     };
     let force_tol = tight.solver.force_tol;
     let names = ["sigma_y", "E"];
-    let params: Vec<Parameter> = names
-        .iter()
-        .map(|n| Parameter::by_name(&model, n).unwrap())
-        .collect();
+    let params = params(&model, &names);
     let (res, ddm) = run_sensitivity(&model, &params, &Settings::default()).unwrap();
     // the beam yields: the comparison is in the plastic range
     let plastic = res
@@ -261,10 +260,9 @@ fn ddm_against_central_fdm(
 /// files and `--vtk-every N` every N-th increment and the last.
 #[test]
 fn the_command_line_takes_the_study_and_writes_vtk_as_asked() {
-    let dir = std::env::temp_dir().join(format!("fricsens-cli-{}", std::process::id()));
-    let exe = env!("CARGO_BIN_EXE_fricsens");
+    let dir = scratch_path("cli");
     let run = |args: &[&str]| {
-        let out = std::process::Command::new(exe).args(args).output().unwrap();
+        let out = fricsens().args(args).output().unwrap();
         assert!(
             out.status.success(),
             "{args:?}: {}",

@@ -5,11 +5,12 @@
 // Index loops over responses, parameters and unknowns read like the formulas they check.
 #![allow(clippy::needless_range_loop)]
 
+use crate::common::solve;
+
 use fricsens::scene::{
     contact_patch, hertz, jenkins, klarbring_2dof, strip_pullout, HertzSpec, StripSpec,
 };
 use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
-use fricsens::solver::{NoObserver, RunOptions, Solver};
 
 /// oracles.md section 6, slip in direction s: u and du/dmu
 fn klarbring_slip(ft: f64, s: f64, mu: f64) -> (f64, f64) {
@@ -164,8 +165,7 @@ fn jenkins_friction_force_and_its_mu_derivative_along_the_cycle() {
 fn contact_patch_test_transmits_a_uniform_pressure() {
     for mu in [None, Some(0.3)] {
         let model = contact_patch(mu).build().unwrap();
-        let mut solver = Solver::new(&model).unwrap();
-        let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+        let res = solve(&model);
         for r in 0..model.responses.len() {
             let p = res.response_value(&model, r, 1);
             assert!(
@@ -181,8 +181,7 @@ fn contact_patch_test_transmits_a_uniform_pressure() {
 fn hertz_half_width_and_peak_pressure() {
     let h = HertzSpec::default();
     let model = hertz(&h).build().unwrap();
-    let mut solver = Solver::new(&model).unwrap();
-    let res = solver.run(&RunOptions::default(), &mut NoObserver).unwrap();
+    let res = solve(&model);
     let last = res.states.len() - 1;
     let pair = &model.contacts[0];
     let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());

@@ -1,0 +1,69 @@
+//! Design parameters by name and sensitivities by one method with the settings spelled out.
+
+use fricsens::model::Model;
+use fricsens::sensitivity::{
+    run_sensitivity, Method, Parameter, SensitivityResults, Settings, TangentChoice,
+};
+
+/// The named design parameters of `model` (panics on an unknown name).
+pub fn params(model: &Model, names: &[&str]) -> Vec<Parameter> {
+    names
+        .iter()
+        .map(|n| Parameter::by_name(model, n).unwrap())
+        .collect()
+}
+
+/// Default settings but for the method, the relative perturbation `beta` and the tangent.
+pub fn settings(method: Method, beta: f64, tangent: TangentChoice) -> Settings {
+    Settings {
+        method,
+        beta,
+        tangent,
+        ..Settings::default()
+    }
+}
+
+/// Sensitivities of `model` for `params` by `method` (at relative perturbation `beta`),
+/// solving with the tangent at the converged state.
+pub fn sensitivities(
+    model: &Model,
+    params: &[Parameter],
+    method: Method,
+    beta: f64,
+) -> SensitivityResults {
+    let settings = settings(method, beta, TangentChoice::Exact);
+    run_sensitivity(model, params, &settings).unwrap().1
+}
+
+/// Sensitivities of `model` for the named parameters by `method` (at relative perturbation
+/// `beta`), solving with the tangent at the converged state.
+pub fn sens(model: &Model, names: &[&str], method: Method, beta: f64) -> SensitivityResults {
+    sensitivities(model, &params(model, names), method, beta)
+}
+
+/// Sensitivities of `model` for the named parameters by `method` (at relative perturbation
+/// `beta`), solving with `tangent`.
+pub fn sens_tangent(
+    model: &Model,
+    names: &[&str],
+    method: Method,
+    beta: f64,
+    tangent: TangentChoice,
+) -> SensitivityResults {
+    let settings = settings(method, beta, tangent);
+    run_sensitivity(model, &params(model, names), &settings)
+        .unwrap()
+        .1
+}
+
+/// DDM and central FDM (beta = 1e-6) of `model` for the named parameters, both solving with
+/// the tangent at the converged state.
+pub fn ddm_and_central_fdm(
+    model: &Model,
+    names: &[&str],
+) -> (Vec<Parameter>, SensitivityResults, SensitivityResults) {
+    let params = params(model, names);
+    let ddm = sensitivities(model, &params, Method::Ddm, 0.0);
+    let fdm = sensitivities(model, &params, Method::FdmCentral, 1e-6);
+    (params, ddm, fdm)
+}

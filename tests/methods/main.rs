@@ -1,0 +1,17 @@
+//! The sensitivity methods (SDM, DDM, FDM): their defaults and agreement, the elastic and the
+//! plastic cantilever, branch freezing at kinks, round-off against the perturbation size, and
+//! the literate examples of `examples/`.
+//!
+//! One test binary: each former `tests/NAME.rs` is the module `NAME` here, so
+//! `cargo test --release --test methods NAME::` runs one of them. Shared fixtures are in
+//! `tests/common/` (`crate::common`).
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod examples;
+mod methods;
+mod plastic_cantilever;
+mod roundoff;
+mod sensitivity_elastic;
+mod sensitivity_kinks;
