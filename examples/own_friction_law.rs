@@ -23,7 +23,7 @@
 //! **Result.** Run with `cargo run --release --example own_friction_law`. The three methods
 //! agree on every response at every increment of the load-unload path: DDM against central FDM
 //! to within 1e-6 of the largest sensitivity, DDM against SDM central to within 1e-6 — the
-//! example asserts both (the test suite runs it, `tests/examples.rs`). The pulled end's
+//! example asserts both (the test suite runs it, `tests/methods/examples.rs`). The pulled end's
 //! displacement depends on the cap as much as on `mu` (its two sensitivities come out of the
 //! same size): the cap binds.
 
@@ -159,7 +159,7 @@ pub fn run() -> Agreement {
     }
 }
 
-/// Print the comparison and assert the agreement (the test suite calls this, `tests/examples.rs`).
+/// Print the comparison and assert the agreement (the test suite calls this, `tests/methods/examples.rs`).
 pub fn main() {
     let a = run();
     println!("A friction law written in this file: limit = t_max tanh(mu p_n / t_max)");

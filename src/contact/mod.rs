@@ -19,7 +19,7 @@
 //!   `lambda_bar` carried per node and set to `p_n` after each converged pass, the increment
 //!   solved again until the penetration is below a tolerance.
 //!
-//! The trade (measured on the patch test, `tests/contact_laws.rs`): Lagrange multipliers are
+//! The trade (measured on the patch test, `tests/oracles/contact_laws.rs`): Lagrange multipliers are
 //! exact (no penetration) in one pass, but add an unknown per hitting node and make the system
 //! indefinite (LU with pivoting); the penalty needs no multiplier and is definite, but the
 //! bodies interpenetrate by `p / eps_N` and a stiff `eps_N` ill-conditions the tangent; the
@@ -234,7 +234,7 @@ pub struct ContactPair {
     /// Klarbring, Jenkins, contact patch unchanged. Not the default: on the 200-element strip pull-out the changed Newton path
     /// takes other cutbacks in unloading (58 against 31 increments), and the slip front, held
     /// at a node by the discrete derivative, then misses du0/dmu = -u0/mu by up to 7.7 %
-    /// instead of 1.6 % (`tests/contact_oracles.rs`).
+    /// instead of 1.6 % (`tests/oracles/contact_oracles.rs`).
     pub activation: f64,
     /// Candidate target faces of each hitting node (indices into `Target::Faces::faces`).
     pub candidates: Vec<Vec<usize>>,

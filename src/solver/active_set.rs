@@ -236,7 +236,7 @@ impl Solver<'_> {
             // the set whose prediction changed the fewest states and leave the rest to
             // Newton's iterations; Newton's own step wins a tie (the strip pull-out's
             // unloading cycles between it and the set releasing its end node at g = 0, and
-            // the other step moves du0/dmu 2.26 % off -u0/mu, tests/contact_oracles.rs).
+            // the other step moves du0/dmu 2.26 % off -u0/mu, tests/oracles/contact_oracles.rs).
             // Newton's own first step is the worst on refined leaf springs: refined 7 times it
             // pressed the upper leaf 0.07 mm into the lower one along its whole length, the
             // active set then released the spurious contacts a row or two per iteration under

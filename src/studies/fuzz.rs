@@ -618,7 +618,7 @@ fn finish(
 ) -> Scene {
     Scene {
         name: format!("fuzz-{seed}"),
-        description: format!("physics fuzzer scene, seed {seed} (fricsens::fuzz::generate)"),
+        description: format!("physics fuzzer scene, seed {seed} (fricsens::studies::fuzz::generate)"),
         bodies,
         free_nodes: Vec::new(),
         springs: Vec::new(),
@@ -1190,7 +1190,7 @@ pub fn report_section(after: &Summary, before: Option<&Summary>, notes: &str) ->
     let _ = writeln!(s, "## Robustness\n");
     let _ = writeln!(
         s,
-        "`fricsens fuzz` generates random valid contact scenes a user could write (`fricsens::fuzz::generate`: rigid cylinders, spheres, rounded punches and planes, or a second deformable block, pressed into graded blocks in plane strain or 3D; St Venant-Kirchhoff, Neo-Hookean and J2 bodies, E over six decades, nu up to 0.49, mu in [0, 1.5]; every normal and friction law; press, slide, unload and reload paths with random increment counts) and runs each with default settings. After every converged increment it checks global equilibrium (reactions, loads and rigid-target forces add up to zero, to 1e-6 of the largest force), the Coulomb inequality at every closed node (to 1e-6 of its slip limit), tension, and penetration of Lagrange pairs (1e-6 of the smallest element). A scene passes when its whole path completes with every check holding.\n"
+        "`fricsens fuzz` generates random valid contact scenes a user could write (`fricsens::studies::fuzz::generate`: rigid cylinders, spheres, rounded punches and planes, or a second deformable block, pressed into graded blocks in plane strain or 3D; St Venant-Kirchhoff, Neo-Hookean and J2 bodies, E over six decades, nu up to 0.49, mu in [0, 1.5]; every normal and friction law; press, slide, unload and reload paths with random increment counts) and runs each with default settings. After every converged increment it checks global equilibrium (reactions, loads and rigid-target forces add up to zero, to 1e-6 of the largest force), the Coulomb inequality at every closed node (to 1e-6 of its slip limit), tension, and penetration of Lagrange pairs (1e-6 of the smallest element). A scene passes when its whole path completes with every check holding.\n"
     );
     let _ = writeln!(s, "| | before | after |\n|---|---|---|");
     let b = |f: &dyn Fn(&Summary) -> String| before.map(f).unwrap_or_else(|| "-".into());
