@@ -44,11 +44,11 @@
 //! sqrt(eps) ~ 1e-8 round-off takes over; 1e-5 keeps clear of both. FDM is the check that needs
 //! nothing but the solver, at a beta set by its Newton tolerance. The plot marks the choice.
 
-use fricsens::plot::{write_svg, Figure, Style};
 use fricsens::scene::builtin;
 use fricsens::sensitivity::{
     run_fdm_sweep, run_inline_sweep, Method, Parameter, SensitivityResults, Settings,
 };
+use fricsens::studies::plot::{write_svg, Figure, Style};
 use std::path::{Path, PathBuf};
 
 /// The four finite-difference methods of the sweep.

@@ -34,6 +34,7 @@
 
 pub mod assembly;
 pub mod contact;
+pub mod design;
 pub mod element;
 pub mod linalg;
 pub mod load;
@@ -42,6 +43,7 @@ pub mod mesh;
 pub mod model;
 pub mod output;
 pub mod precheck;
+pub mod prelude;
 pub mod response;
 pub mod scalar;
 pub mod scene;

@@ -125,8 +125,7 @@ fn closest_face<S: Scalar>(
         .collect();
     let xr = x.map(|v| v.value());
     let keep = keep.and_then(|f| candidates.iter().position(|&c| c == f));
-    let (k, pr) = closest_on_quads_keeping(&xr, &quads, keep)
-        .map_err(|e| ContactFailure::Geometry(e.to_string()))?;
+    let (k, pr) = closest_on_quads_keeping(&xr, &quads, keep).map_err(ContactFailure::Geometry)?;
     Ok((candidates[k], [pr.xi[0], pr.xi[1]]))
 }
 
@@ -380,8 +379,8 @@ fn project_on_quad_s<S: Scalar>(
     x: &Vector3<S>,
     nodes: &[Vector3<S>; 4],
 ) -> Result<[S; 2], ContactFailure> {
-    let p = super::geometry::project_on_quad(x, nodes, [0.0, 0.0])
-        .map_err(|e| ContactFailure::Geometry(e.to_string()))?;
+    let p =
+        super::geometry::project_on_quad(x, nodes, [0.0, 0.0]).map_err(ContactFailure::Geometry)?;
     Ok(p.xi)
 }
 
@@ -644,7 +643,7 @@ pub fn initial_history<S: Scalar>(
             let err = |e: super::geometry::GeometryError| ContactError {
                 pair: pair.name.clone(),
                 node: s,
-                failure: ContactFailure::Geometry(e.to_string()),
+                failure: ContactFailure::Geometry(e),
             };
             match &pair.target {
                 Target::Rigid { surface, .. } => {

@@ -452,9 +452,9 @@ pub struct KernelOut<S: Scalar> {
 /// Kernel failures (recoverable by cutback).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ContactFailure {
-    /// The closest-point projection failed (its message).
+    /// The closest-point projection failed.
     #[error("projection: {0}")]
-    Geometry(String),
+    Geometry(#[from] geometry::GeometryError),
     /// A contact or anchor face (from the history or a frozen choice) has a node outside the
     /// hitting node's candidate faces, so its tangent has no place in the node's block.
     #[error("target node {node} is not on any of the hitting node's candidate faces")]
@@ -481,7 +481,7 @@ pub fn node_kernel<S: Scalar>(
         TargetGeom::Quad { nodes, xi_start } => project_on_quad(x, nodes, *xi_start),
         TargetGeom::Rigid { surface, d } => surface.project(x, d),
     }
-    .map_err(|e| ContactFailure::Geometry(e.to_string()))?;
+    .map_err(ContactFailure::Geometry)?;
     let g = proj.gap;
     let n = proj.normal;
     let weights = match target {

@@ -2,6 +2,11 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+
+use faer::Par;
+
 use approx::assert_relative_eq;
 use faer::prelude::*;
 use faer::Mat;

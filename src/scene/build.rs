@@ -394,7 +394,7 @@ impl Scene {
             }
         }
         for (i, name) in self.study.params.iter().enumerate() {
-            crate::sensitivity::Parameter::by_name(&model, name)
+            crate::design::Parameter::by_name(&model, name)
                 .map_err(|e| invalid(&format!("study.params[{i}]"), e.to_string()))?;
         }
         Ok(model)

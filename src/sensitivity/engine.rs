@@ -223,8 +223,7 @@ impl<'a> Engine<'a> {
                 &c.assembler.contact,
                 c.assembler.dofs.n_history,
                 &lifted,
-            )
-            .map_err(|e| AnalysisError::Model(e.to_string()))?;
+            )?;
             for (i, h) in h0.iter().enumerate().take(nh) {
                 self.dhist[k * nh + i] = h.eps;
             }
@@ -400,22 +399,23 @@ impl Observer for Engine<'_> {
             dhist,
             dz,
             roundoff,
-        } =
-            match self.settings.method {
-                Method::Ddm => {
-                    let frozen = converged_frozen(c);
-                    let p = self.pseudo_loads(c, &frozen)?;
-                    let step = self.ddm(c, &frozen, &p)?;
-                    pseudo = Some(p);
-                    step
+        } = match self.settings.method {
+            Method::Ddm => {
+                let frozen = converged_frozen(c);
+                let p = self.pseudo_loads(c, &frozen)?;
+                let step = self.ddm(c, &frozen, &p)?;
+                pseudo = Some(p);
+                step
+            }
+            Method::Sdm => self.sdm(c, false)?,
+            Method::SdmCentral => self.sdm(c, true)?,
+            Method::Fdm | Method::FdmCentral => {
+                return Err(SensitivityError::NotInline {
+                    method: self.settings.method.name(),
                 }
-                Method::Sdm => self.sdm(c, false)?,
-                Method::SdmCentral => self.sdm(c, true)?,
-                Method::Fdm | Method::FdmCentral => return Err(AnalysisError::Sensitivity(
-                    "finite differences of reruns are not an in-line method (use run_sensitivity)"
-                        .into(),
-                )),
-            };
+                .into())
+            }
+        };
         // one-sided derivatives at flagged points (DDM): force the flagged points on each branch
         let one_sided = if !kinks.is_empty() && self.settings.method == Method::Ddm {
             // whether the derivative just computed solved with the converged tangent (the
@@ -429,13 +429,13 @@ impl Observer for Engine<'_> {
                 let mut contact: Vec<ContactChoice> = c.eval.contact.choice.clone();
                 for k in &kinks {
                     match k.kind {
-                        "yield" => {
+                        KinkKind::Yield => {
                             gauss[8 * k.at + k.point] = [Branch::Elastic, Branch::Plastic][side];
                         }
-                        "friction" => {
+                        KinkKind::Friction => {
                             contact[k.at].state = [ContactState::Stick, ContactState::Slip][side];
                         }
-                        _ => {
+                        KinkKind::Contact => {
                             let closed = if c.eval.contact.choice[k.at].state == ContactState::Open
                             {
                                 // closing: stick is the state a node enters
@@ -550,7 +550,7 @@ impl Reach {
 /// unchanged and whose residual no response reads: all eight points frozen elastic (no
 /// history at all counts as elastic), and none of its nodes among the residual rows a response
 /// declares it reads ([`crate::response::ResponseKind::reads`]).
-pub(super) fn history_unchanged(model: &Model, gauss: &[Branch]) -> Vec<bool> {
+pub fn history_unchanged(model: &Model, gauss: &[Branch]) -> Vec<bool> {
     let mut reaction_node = vec![false; model.mesh.n_nodes()];
     for r in &model.responses {
         for &n in r.kind.reads().residual_nodes {

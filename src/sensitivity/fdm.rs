@@ -24,9 +24,9 @@ pub(super) fn responses_at(
 ) -> Result<Vec<Vec<f64>>, AnalysisError> {
     let mut out = Vec::with_capacity(times.len());
     for t in times {
-        let k = res.increment_at(*t).ok_or_else(|| {
-            AnalysisError::Sensitivity(format!("rerun has no increment at t = {t}"))
-        })?;
+        let k = res
+            .increment_at(*t)
+            .ok_or_else(|| AnalysisError::from(SensitivityError::NoIncrementAt { time: *t }))?;
         out.push(
             (0..model.responses.len())
                 .map(|r| res.response_value(model, r, k))
@@ -68,10 +68,10 @@ pub fn run_inline_sweep(
     settings: &[Settings],
 ) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
     if let Some(s) = settings.iter().find(|s| !s.method.is_inline()) {
-        return Err(AnalysisError::Sensitivity(format!(
-            "{} is not an in-line method",
-            s.method.name()
-        )));
+        return Err(SensitivityError::NotInline {
+            method: s.method.name(),
+        }
+        .into());
     }
     let (res, out, _) = inline_sweep(model, params, settings)?;
     Ok((res, out))

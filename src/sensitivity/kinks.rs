@@ -16,11 +16,40 @@ pub(super) fn roundoff_dominated(delta: f64, size: f64, noise: f64) -> bool {
     delta.abs() < 10f64.powf(ROUNDOFF_DIGITS) * noise * size.abs()
 }
 
+/// The kind of transition a [`Kink`] sits on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum KinkKind {
+    /// A hitting node between open and closed (`at`: its flat hitting-node index).
+    Contact,
+    /// A closed frictional node between stick and slip (`at`: its flat hitting-node index).
+    Friction,
+    /// A Gauss point at yield onset (`at`: the element, `point`: the Gauss point).
+    Yield,
+}
+
+impl KinkKind {
+    /// `contact`, `friction` or `yield`, as in the reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            KinkKind::Contact => "contact",
+            KinkKind::Friction => "friction",
+            KinkKind::Yield => "yield",
+        }
+    }
+}
+
+impl std::fmt::Display for KinkKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// A point where the converged state sits on a transition.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Kink {
     /// What kind of transition.
-    pub kind: &'static str,
+    pub kind: KinkKind,
     /// Element (or node) number.
     pub at: usize,
     /// Gauss point (or 0).
@@ -60,14 +89,14 @@ impl Engine<'_> {
             };
             if rel < tol {
                 v.push(Kink {
-                    kind: "contact",
+                    kind: KinkKind::Contact,
                     at: k,
                     point: 0,
                     distance: rel,
                 });
             } else if closed && sr.abs() < tol {
                 v.push(Kink {
-                    kind: "friction",
+                    kind: KinkKind::Friction,
                     at: k,
                     point: 0,
                     distance: *sr,
@@ -77,7 +106,7 @@ impl Engine<'_> {
         for (i, r) in c.eval.yield_ratio.iter().enumerate() {
             if *r != -1.0 && r.abs() < self.settings.kink_tol {
                 v.push(Kink {
-                    kind: "yield",
+                    kind: KinkKind::Yield,
                     at: i / 8,
                     point: i % 8,
                     distance: *r,

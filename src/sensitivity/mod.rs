@@ -57,14 +57,13 @@ mod ddm;
 mod engine;
 mod fdm;
 mod kinks;
-mod parameter;
 mod sdm;
 
-pub use engine::Engine;
+pub use crate::design::{Parameter, ParameterError};
 use engine::*;
+pub use engine::{history_unchanged, Engine};
 pub use fdm::*;
 pub use kinks::*;
-pub use parameter::Parameter;
 
 /// A sensitivity method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -297,6 +296,43 @@ pub struct SensitivityResults {
     pub failure: Option<String>,
 }
 
+impl SensitivityResults {
+    /// The row of response `name`.
+    pub fn response_index(&self, name: &str) -> Option<usize> {
+        self.responses.iter().position(|r| r == name)
+    }
+
+    /// The column of parameter `name`.
+    pub fn parameter_index(&self, name: &str) -> Option<usize> {
+        self.parameters.iter().position(|p| p == name)
+    }
+
+    /// Response `name` at every increment (`None`: no such response).
+    pub fn values(&self, response: &str) -> Option<Vec<f64>> {
+        let r = self.response_index(response)?;
+        Some(self.increments.iter().map(|i| i.values[r]).collect())
+    }
+
+    /// `d response / d parameter` at every increment (`None`: no such response or parameter).
+    pub fn derivative(&self, response: &str, parameter: &str) -> Option<Vec<f64>> {
+        let (r, p) = (
+            self.response_index(response)?,
+            self.parameter_index(parameter)?,
+        );
+        Some(
+            self.increments
+                .iter()
+                .map(|i| i.derivatives[r][p])
+                .collect(),
+        )
+    }
+
+    /// The increment that ends at pseudo-time `t` (to 1e-9).
+    pub fn increment_at(&self, t: f64) -> Option<&IncrementSensitivity> {
+        self.increments.iter().find(|i| (i.time - t).abs() < 1e-9)
+    }
+}
+
 /// Run the primal analysis with in-line SDM or DDM, or the reruns of FDM.
 pub fn run_sensitivity(
     model: &Model,
@@ -316,7 +352,44 @@ pub fn run_sensitivity(
     // the sweep of one beta gives [forward] or [forward, central]: the requested one is last
     let s = out.pop().expect("one result per setting");
     if let Some(why) = &s.failure {
-        return Err(AnalysisError::Sensitivity(why.clone()));
+        return Err(SensitivityError::Failed {
+            method: s.method.map_or("?", Method::name),
+            reason: why.clone(),
+        }
+        .into());
     }
     Ok((res, s))
+}
+
+/// Why a sensitivity computation failed (carried by [`AnalysisError::Sensitivity`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SensitivityError {
+    /// A finite-difference method asked of the in-line engine, or of an in-line sweep.
+    #[error("{method} is not an in-line method (finite differences rerun the analysis: use run_sensitivity)")]
+    NotInline {
+        /// The method's name.
+        method: &'static str,
+    },
+    /// A rerun took other increments than the nominal run: it has none at this time.
+    #[error("rerun has no increment at t = {time}")]
+    NoIncrementAt {
+        /// The nominal run's pseudo-time.
+        time: f64,
+    },
+    /// A method stopped; `reason` is the error that stopped it, as recorded in its results
+    /// ([`SensitivityResults::failure`]).
+    #[error("{method} failed: {reason}")]
+    Failed {
+        /// The method's name.
+        method: &'static str,
+        /// Why it stopped.
+        reason: String,
+    },
+}
+
+impl From<SensitivityError> for AnalysisError {
+    fn from(e: SensitivityError) -> Self {
+        AnalysisError::Sensitivity(Box::new(e))
+    }
 }

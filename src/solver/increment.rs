@@ -53,16 +53,19 @@ impl<'m> Solver<'m> {
             for &node in &p.nodes {
                 let d = 3 * node + p.component;
                 if d >= assembler.dofs.n_nodal {
-                    return Err(AnalysisError::Model(format!(
-                        "prescribed '{}': node {node} does not exist",
-                        p.name
-                    )));
+                    return Err(ModelError::NoNode {
+                        prescribed: p.name.clone(),
+                        node,
+                    }
+                    .into());
                 }
                 if constrained[d] {
-                    return Err(AnalysisError::Model(format!(
-                        "prescribed '{}': node {node} component {} is prescribed twice",
-                        p.name, p.component
-                    )));
+                    return Err(ModelError::PrescribedTwice {
+                        prescribed: p.name.clone(),
+                        node,
+                        component: p.component,
+                    }
+                    .into());
                 }
                 constrained[d] = true;
             }
@@ -107,8 +110,7 @@ impl<'m> Solver<'m> {
                 &assembler.contact,
                 assembler.dofs.n_history,
                 &lifted,
-            )
-            .map_err(|e| AnalysisError::Model(e.to_string()))?;
+            )?;
             if assembler
                 .evaluate(model, &lifted, &z, &hist, 0.0, None, None, &mut eval)
                 .is_ok()
@@ -203,8 +205,7 @@ impl<'m> Solver<'m> {
             &self.assembler.contact,
             self.assembler.dofs.n_history,
             &self.lifted,
-        )
-        .map_err(|e| AnalysisError::Model(e.to_string()))?;
+        )?;
         let mut eval = Evaluation::<f64>::new(&self.assembler, ne);
         // the contact states of the start state: the first increment's active-set predictor
         self.converged_choice.clear();
@@ -309,7 +310,7 @@ impl<'m> Solver<'m> {
                     Ok(Some(false))
                 } else {
                     self.predict(&z, &mut z_try, &hist, t, &mut eval, &mut res.cost)
-                        .map_err(|e| AnalysisError::Model(e.to_string()))
+                        .map_err(AnalysisError::Linalg)
                 };
                 // the history the increment is solved with: h_{n-1}, with the multiplier
                 // estimates of augmented-Lagrangian pairs updated between passes

@@ -174,6 +174,30 @@ impl PrimalCost {
     }
 }
 
+/// A model that cannot be solved as given.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelError {
+    /// A prescribed displacement on a node the model does not have.
+    #[error("prescribed '{prescribed}': node {node} does not exist")]
+    NoNode {
+        /// The prescribed displacement's name.
+        prescribed: String,
+        /// The node.
+        node: usize,
+    },
+    /// A component prescribed twice.
+    #[error("prescribed '{prescribed}': node {node} component {component} is prescribed twice")]
+    PrescribedTwice {
+        /// The second prescribed displacement's name.
+        prescribed: String,
+        /// The node.
+        node: usize,
+        /// The component (0, 1, 2 for x, y, z).
+        component: usize,
+    },
+}
+
 /// Why an analysis stopped.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -205,10 +229,19 @@ pub enum AnalysisError {
     Linalg(#[from] LinalgError),
     /// The model is inconsistent (e.g. a prescribed unknown that does not exist).
     #[error("model: {0}")]
-    Model(String),
-    /// A sensitivity computation failed (e.g. an unknown parameter name).
+    Model(#[from] ModelError),
+    /// The contact kernel failed outside Newton's loop (the initial history: a hitting node
+    /// whose reference position does not project onto its target).
+    #[error("{0}")]
+    Contact(#[from] crate::contact::assembly::ContactError),
+    /// A design parameter does not resolve on the model.
     #[error("sensitivity: {0}")]
-    Sensitivity(String),
+    Parameter(#[from] crate::design::ParameterError),
+    /// A sensitivity computation failed ([`crate::sensitivity::SensitivityError`], boxed so
+    /// that the solver, below the sensitivity engine, need not know its type; `downcast_ref`
+    /// recovers it).
+    #[error("sensitivity: {0}")]
+    Sensitivity(Box<dyn std::error::Error + Send + Sync>),
     /// A pre-check refused the model before the first increment ([`crate::precheck`]).
     #[error("{0}")]
     Precheck(#[from] crate::precheck::PrecheckError),

@@ -890,9 +890,9 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
     let mut force_fricsens = Vec::new();
     for t in &times {
         let k = res.increment_at(*t).ok_or_else(|| {
-            CcxError::Analysis(crate::solver::AnalysisError::Sensitivity(format!(
-                "no increment at t = {t}"
-            )))
+            CcxError::Analysis(
+                crate::sensitivity::SensitivityError::NoIncrementAt { time: *t }.into(),
+            )
         })?;
         let mut f = [f64::NAN; 3];
         for (c, r) in comp.iter().enumerate() {
@@ -935,7 +935,8 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
         model,
         &format!("{}.mu", pair.name),
         DesignParam::Friction { pair: pi, index: 0 },
-    )?;
+    )
+    .map_err(crate::solver::AnalysisError::from)?;
     let settings = Settings {
         method: Method::Ddm,
         ..Settings::default()

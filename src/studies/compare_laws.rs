@@ -17,8 +17,8 @@ use crate::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCou
 use crate::contact::Friction;
 use crate::scene::{strip_pullout, StripSpec};
 use crate::sensitivity::{
-    run_inline_sweep, run_sensitivity, Method, Parameter, SensitivityResults, Settings,
-    TangentChoice,
+    run_inline_sweep, run_sensitivity, Method, Parameter, SensitivityError, SensitivityResults,
+    Settings, TangentChoice,
 };
 use crate::solver::AnalysisError;
 use crate::studies::plot::{write_svg, Figure, PlotError, Style};
@@ -80,6 +80,9 @@ pub enum CompareLawsError {
     /// Writing a figure failed.
     #[error(transparent)]
     Plot(#[from] PlotError),
+    /// The strip scene did not build.
+    #[error(transparent)]
+    Scene(#[from] crate::scene::SceneError),
 }
 
 /// The laws at matching parameters: `mu = mu0 = 0.5`; the pressure-dependent law's reference
@@ -128,15 +131,13 @@ pub fn compare_laws(elements: usize) -> Result<LawComparison, CompareLawsError> 
             law: law.clone(),
             source,
         };
-        let mut model = strip_pullout(&spec)
-            .build()
-            .map_err(|e| fail(AnalysisError::Sensitivity(e.to_string())))?;
+        let mut model = strip_pullout(&spec).build()?;
         model.contacts[0].friction = Some(friction);
         let params = names
             .iter()
             .map(|n| Parameter::by_name(&model, &format!("ground.{n}")))
             .collect::<Result<Vec<_>, _>>()
-            .map_err(fail)?;
+            .map_err(|e| fail(e.into()))?;
         let settings = |method, beta| Settings {
             method,
             beta,
@@ -153,9 +154,15 @@ pub fn compare_laws(elements: usize) -> Result<LawComparison, CompareLawsError> 
             ],
         )
         .map_err(fail)?;
-        let [ddm, sdm]: [SensitivityResults; 2] = inline
-            .try_into()
-            .map_err(|_| fail(AnalysisError::Sensitivity("two in-line methods".into())))?;
+        let [ddm, sdm]: [SensitivityResults; 2] = inline.try_into().map_err(|_| {
+            fail(
+                SensitivityError::Failed {
+                    method: "in-line sweep",
+                    reason: "did not return two in-line methods".into(),
+                }
+                .into(),
+            )
+        })?;
         let fdm = run_sensitivity(&model, &params, &settings(Method::FdmCentral, BETA_FDM))
             .map_err(fail)?
             .1;

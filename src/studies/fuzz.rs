@@ -618,7 +618,9 @@ fn finish(
 ) -> Scene {
     Scene {
         name: format!("fuzz-{seed}"),
-        description: format!("physics fuzzer scene, seed {seed} (fricsens::studies::fuzz::generate)"),
+        description: format!(
+            "physics fuzzer scene, seed {seed} (fricsens::studies::fuzz::generate)"
+        ),
         bodies,
         free_nodes: Vec::new(),
         springs: Vec::new(),

@@ -415,7 +415,8 @@ pub fn measure(scene: ScalingScene, refinement: f64) -> Result<Measurement, Scal
         .parameters()
         .iter()
         .map(|n| Parameter::by_name(&model, n))
-        .collect::<Result<_, _>>()?;
+        .collect::<Result<_, _>>()
+        .map_err(AnalysisError::from)?;
     let settings = [
         Settings {
             method: Method::Ddm,
@@ -430,7 +431,13 @@ pub fn measure(scene: ScalingScene, refinement: f64) -> Result<Measurement, Scal
     let (res, sens) = run_inline_sweep(&model, &params, &settings)?;
     let total = start.elapsed().as_secs_f64();
     if let Some(why) = sens.iter().find_map(|s| s.failure.clone()) {
-        return Err(AnalysisError::Sensitivity(why).into());
+        return Err(
+            AnalysisError::from(crate::sensitivity::SensitivityError::Failed {
+                method: "in-line sweep",
+                reason: why,
+            })
+            .into(),
+        );
     }
     let (ddm, sdm) = (&sens[0], &sens[1]);
     Ok(Measurement {

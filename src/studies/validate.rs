@@ -510,7 +510,7 @@ fn parameters<N: AsRef<str>>(
         .collect::<Result<_, _>>()
         .map_err(|source| ValidateError::Analysis {
             scene: scene.to_string(),
-            source,
+            source: source.into(),
         })
 }
 
@@ -566,9 +566,13 @@ pub fn validate_scene(
     let ddm_last = inline.remove(0);
     let sdm_last = inline.remove(0);
     if let Some(why) = &ddm.failure {
-        return Err(wrap(AnalysisError::Sensitivity(format!(
-            "DDM failed: {why}"
-        ))));
+        return Err(wrap(
+            crate::sensitivity::SensitivityError::Failed {
+                method: "DDM",
+                reason: why.clone(),
+            }
+            .into(),
+        ));
     }
     let fdm_betas: Vec<f64> = if opts.reduced_fdm.contains(&scene.name) {
         opts.betas
@@ -745,8 +749,8 @@ fn history_figure(
     beta: f64,
     title: &str,
 ) -> Option<Figure> {
-    let r = v.ddm.responses.iter().position(|x| x == response)?;
-    let p = v.ddm.parameters.iter().position(|x| x == param)?;
+    let r = v.ddm.response_index(response)?;
+    let p = v.ddm.parameter_index(param)?;
     let mut f = Figure::new(title, "pseudo-time t", format!("d {response} / d {param}"));
     let series = |s: &SensitivityResults| -> Vec<(f64, f64)> {
         s.increments
@@ -978,7 +982,7 @@ impl PressureProfile {
         nodes.sort_by(|a, b| a.1.total_cmp(&b.1));
         Some(PressureProfile {
             nodes,
-            mu: v.ddm.parameters.iter().position(|n| n == "mu"),
+            mu: v.ddm.parameter_index("mu"),
         })
     }
 
@@ -1083,7 +1087,7 @@ fn write_figures(
                 })
                 .unwrap_or(t)
         };
-        if let Some(r) = v.ddm.responses.iter().position(|n| n == "block-force") {
+        if let Some(r) = v.ddm.response_index("block-force") {
             let mut fig7 = Figure::new(
                 "Fig. 7: block force against block displacement (leaf spring)",
                 "block displacement (mm)",
@@ -1557,8 +1561,8 @@ fn findings(
     }
     if let Some(v) = val.scenes.iter().find(|v| v.scene == "leaf-spring") {
         if let (Some(r), Some(pm)) = (
-            v.ddm.responses.iter().position(|n| n == "block-force"),
-            v.ddm.parameters.iter().position(|n| n == "mu"),
+            v.ddm.response_index("block-force"),
+            v.ddm.parameter_index("mu"),
         ) {
             let inc = &v.ddm.increments;
             let f: Vec<(f64, f64)> = inc.iter().map(|i| (i.time, i.values[r])).collect();

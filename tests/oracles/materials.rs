@@ -148,7 +148,7 @@ impl fricsens::solver::Observer for SkipCheck {
             skip: None,
             ..Frozen::default()
         };
-        let skip = Frozen::history_unchanged(c.model, &c.eval.branches);
+        let skip = fricsens::sensitivity::history_unchanged(c.model, &c.eval.branches);
         let update = Frozen {
             skip: Some(&skip),
             ..frozen
@@ -173,7 +173,7 @@ impl fricsens::solver::Observer for SkipCheck {
         for (fr, ev) in [(&frozen, &mut full), (&update, &mut part)] {
             c.assembler
                 .evaluate(c.model, &lifted, &z, &hist, c.time, Some(fr), None, ev)
-                .map_err(|e| fricsens::solver::AnalysisError::Model(e.to_string()))?;
+                .map_err(fricsens::solver::AnalysisError::from)?;
         }
         for (i, (a, b)) in full.hist_new.iter().zip(&part.hist_new).enumerate() {
             assert_eq!(

@@ -1036,7 +1036,10 @@ fn non_smooth_points_are_flagged_with_one_sided_derivatives() {
     assert_eq!(flagged, vec![0.125], "flagged increments");
     let inc = at(&s, 0.125);
     assert_eq!(inc.kinks.len(), 8, "{:?}", inc.kinks);
-    assert!(inc.kinks.iter().all(|k| k.kind == "yield"));
+    assert!(inc
+        .kinks
+        .iter()
+        .all(|k| k.kind == fricsens::sensitivity::KinkKind::Yield));
     let sides = inc.one_sided.as_ref().expect("one-sided derivatives");
     let eps = SY / E;
     let (_, elastic) = j2_oracle(0.125, Some(false));
@@ -1088,7 +1091,7 @@ fn non_smooth_points_are_flagged_with_one_sided_derivatives() {
             continue;
         }
         assert!(
-            inc.kinks.len() == 1 && inc.kinks[0].kind == "contact",
+            inc.kinks.len() == 1 && inc.kinks[0].kind == fricsens::sensitivity::KinkKind::Contact,
             "{:?}",
             inc.kinks
         );

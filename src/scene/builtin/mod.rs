@@ -216,14 +216,9 @@ fn lookups(
     impl Fn(f64) -> Option<IncrementSensitivity> + '_,
 ) {
     (
-        |name: &str| res.responses.iter().position(|r| r == name),
-        |name: &str| res.parameters.iter().position(|r| r == name),
-        |t: f64| {
-            res.increments
-                .iter()
-                .find(|i| (i.time - t).abs() < 1e-9)
-                .cloned()
-        },
+        |name: &str| res.response_index(name),
+        |name: &str| res.parameter_index(name),
+        |t: f64| res.increment_at(t).cloned(),
     )
 }
 

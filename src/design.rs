@@ -1,7 +1,89 @@
 //! Design parameters: a name resolved against a model into the quantities it moves.
+//!
+//! A [`Parameter`] names one value `b` and the model quantities ([`DesignParam`]) it sets; the
+//! model lifts them into the scalar type of an evaluation ([`Model::lifted`]): `f64` at a
+//! perturbed design for SDM and FDM, a dual number seeded with `db = 1` for DDM.
 
-use crate::model::{DesignParam, Model};
-use crate::solver::AnalysisError;
+use crate::model::Model;
+pub use crate::model::{DesignParam, Lifted};
+
+/// Why a parameter name does not resolve on a model.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ParameterError {
+    /// A shape parameter's axis is not x, y or z.
+    #[error("parameter '{name}': axis '{axis}' is not x, y or z")]
+    Axis {
+        /// The parameter name.
+        name: String,
+        /// The axis given.
+        axis: String,
+    },
+    /// No body of that name.
+    #[error("parameter '{name}': no body '{body}'")]
+    NoBody {
+        /// The parameter name.
+        name: String,
+        /// The body named.
+        body: String,
+    },
+    /// `PAIR.motionK` without a valid index.
+    #[error("parameter '{name}': use PAIR.motion[K]")]
+    MotionSyntax {
+        /// The parameter name.
+        name: String,
+    },
+    /// A rigid motion index beyond the pair's motions.
+    #[error("parameter '{name}': pair '{pair}' has {count} rigid motions")]
+    NoMotion {
+        /// The parameter name.
+        name: String,
+        /// The pair.
+        pair: String,
+        /// Its number of rigid motions.
+        count: usize,
+    },
+    /// A friction parameter of a pair without friction.
+    #[error("parameter '{name}': pair '{pair}' is frictionless")]
+    Frictionless {
+        /// The parameter name.
+        name: String,
+        /// The pair.
+        pair: String,
+    },
+    /// A law (friction or material) without a parameter of that name.
+    #[error("parameter '{name}': {what} '{law}' has parameters {known:?}")]
+    LawParameter {
+        /// The parameter name.
+        name: String,
+        /// `friction law` or `material`.
+        what: &'static str,
+        /// The law's name.
+        law: String,
+        /// The law's parameter names.
+        known: Vec<String>,
+    },
+    /// The name matches no quantity of the model.
+    #[error("parameter '{name}': matches nothing in this model")]
+    NoMatch {
+        /// The parameter name.
+        name: String,
+    },
+    /// A shared name whose targets have different values.
+    #[error(
+        "parameter '{name}': its targets have different values; name one of them (BODY.PARAM)"
+    )]
+    DifferentValues {
+        /// The parameter name.
+        name: String,
+    },
+    /// A target that does not exist in the model.
+    #[error("design parameter {target:?} does not exist")]
+    NoTarget {
+        /// The target.
+        target: DesignParam,
+    },
+}
 
 /// A named design parameter: one value `b` shared by one or more model targets (e.g. the same
 /// friction coefficient on two contact pairs).
@@ -17,10 +99,10 @@ pub struct Parameter {
 
 impl Parameter {
     /// A parameter with one target, named `name`.
-    pub fn single(model: &Model, name: &str, target: DesignParam) -> Result<Self, AnalysisError> {
-        let value = model.param_value(target).ok_or_else(|| {
-            AnalysisError::Sensitivity(format!("design parameter {target:?} does not exist"))
-        })?;
+    pub fn single(model: &Model, name: &str, target: DesignParam) -> Result<Self, ParameterError> {
+        let value = model
+            .param_value(target)
+            .ok_or(ParameterError::NoTarget { target })?;
         Ok(Parameter {
             name: name.to_string(),
             targets: vec![target],
@@ -37,13 +119,20 @@ impl Parameter {
     ///   pair's friction parameter, tangential penalty, or rigid-target motion magnitude; a bare
     ///   friction parameter name (`mu`) is shared by every pair that has it;
     /// * `load.NAME`, `prescribed.NAME`: the magnitude of a nodal load or prescribed displacement.
-    pub fn by_name(model: &Model, name: &str) -> Result<Self, AnalysisError> {
-        let err = |why: String| AnalysisError::Sensitivity(format!("parameter '{name}': {why}"));
+    pub fn by_name(model: &Model, name: &str) -> Result<Self, ParameterError> {
+        let named = || name.to_string();
+        let no_body = |body: &str| ParameterError::NoBody {
+            name: named(),
+            body: body.to_string(),
+        };
         let axis = |a: &str| match a {
             "x" => Ok(0),
             "y" => Ok(1),
             "z" => Ok(2),
-            _ => Err(err(format!("axis '{a}' is not x, y or z"))),
+            _ => Err(ParameterError::Axis {
+                name: named(),
+                axis: a.to_string(),
+            }),
         };
         let parts: Vec<&str> = name.split('.').collect();
         let mut targets = Vec::new();
@@ -67,7 +156,7 @@ impl Parameter {
                     .bodies
                     .iter()
                     .find(|b| b.name == *body)
-                    .ok_or_else(|| err(format!("no body '{body}'")))?;
+                    .ok_or_else(|| no_body(body))?;
                 let axis = axis(a)?;
                 targets.push(if *kind == "length" {
                     DesignParam::BlockLength {
@@ -94,30 +183,36 @@ impl Parameter {
                     let index: usize = k
                         .trim_matches(|ch| ch == '[' || ch == ']')
                         .parse()
-                        .map_err(|_| err("use PAIR.motion[K]".into()))?;
+                        .map_err(|_| ParameterError::MotionSyntax { name: named() })?;
                     let n = match &c.target {
                         crate::contact::Target::Rigid { motion, .. } => motion.len(),
                         _ => 0,
                     };
                     if index >= n {
-                        return Err(err(format!("pair '{pair}' has {n} rigid motions")));
+                        return Err(ParameterError::NoMotion {
+                            name: named(),
+                            pair: pair.to_string(),
+                            count: n,
+                        });
                     }
                     targets.push(DesignParam::RigidMotion { pair: pi, index });
                 } else {
                     let f = c
                         .friction
                         .as_ref()
-                        .ok_or_else(|| err(format!("pair '{pair}' is frictionless")))?;
+                        .ok_or_else(|| ParameterError::Frictionless {
+                            name: named(),
+                            pair: pair.to_string(),
+                        })?;
                     let index =
                         f.param_names()
                             .iter()
                             .position(|n| n == param)
-                            .ok_or_else(|| {
-                                err(format!(
-                                    "friction law '{}' has parameters {:?}",
-                                    f.name(),
-                                    f.param_names()
-                                ))
+                            .ok_or_else(|| ParameterError::LawParameter {
+                                name: named(),
+                                what: "friction law",
+                                law: f.name().to_string(),
+                                known: f.param_names().iter().map(|n| n.to_string()).collect(),
                             })?;
                     targets.push(DesignParam::Friction { pair: pi, index });
                 }
@@ -128,18 +223,22 @@ impl Parameter {
                     .iter()
                     .enumerate()
                     .find(|(_, b)| b.name == *body)
-                    .ok_or_else(|| err(format!("no body '{body}'")))?;
+                    .ok_or_else(|| no_body(body))?;
                 let index = b
                     .material
                     .param_names()
                     .iter()
                     .position(|n| n == param)
-                    .ok_or_else(|| {
-                        err(format!(
-                            "material '{}' has parameters {:?}",
-                            b.material.name(),
-                            b.material.param_names()
-                        ))
+                    .ok_or_else(|| ParameterError::LawParameter {
+                        name: named(),
+                        what: "material",
+                        law: b.material.name().to_string(),
+                        known: b
+                            .material
+                            .param_names()
+                            .iter()
+                            .map(|n| n.to_string())
+                            .collect(),
                     })?;
                 targets.push(DesignParam::Material { body: bi, index });
             }
@@ -160,15 +259,13 @@ impl Parameter {
             _ => {}
         }
         if targets.is_empty() {
-            return Err(err("matches nothing in this model".into()));
+            return Err(ParameterError::NoMatch { name: named() });
         }
         let value = model
             .param_value(targets[0])
             .expect("resolved target exists");
         if targets.iter().any(|t| model.param_value(*t) != Some(value)) {
-            return Err(err(
-                "its targets have different values; name one of them (BODY.PARAM)".into(),
-            ));
+            return Err(ParameterError::DifferentValues { name: named() });
         }
         Ok(Parameter {
             name: name.to_string(),
