@@ -38,6 +38,11 @@ pub struct Assembler {
     elem_block: Vec<usize>,
     /// Contact blocks and offsets.
     pub contact: ContactLayout,
+    /// Elements whose stress a response reads ([`crate::response::Reads::stress_elements`]),
+    /// sorted: their stress is kept in the evaluation's scalar ([`Evaluation::stress`]).
+    pub stress_elements: Vec<usize>,
+    /// Position of each element in `stress_elements` (`usize::MAX`: not read).
+    stress_slot: Vec<usize>,
 }
 
 /// Branch decisions imposed on an evaluation (SDM's frozen state, one-sided derivatives), and
@@ -99,6 +104,9 @@ pub struct Evaluation<S: Scalar> {
     pub yield_ratio: Vec<f64>,
     /// Volume-averaged Cauchy stress per element (real parts).
     pub cauchy: Vec<Matrix3<f64>>,
+    /// Volume-averaged Cauchy stress, in the evaluation's scalar, of the elements a response
+    /// reads ([`Assembler::stress_elements`]; empty where none does).
+    pub stress: Vec<Matrix3<S>>,
     /// Smallest det F over the model.
     pub min_det_f: f64,
     /// Contact results.
@@ -116,6 +124,7 @@ impl<S: Scalar> Evaluation<S> {
             branches: vec![Branch::Elastic; 8 * n_elements],
             yield_ratio: vec![-1.0; 8 * n_elements],
             cauchy: vec![Matrix3::zeros(); n_elements],
+            stress: vec![Matrix3::zeros(); asm.stress_elements.len()],
             min_det_f: f64::INFINITY,
         }
     }
@@ -134,6 +143,8 @@ impl<S: Scalar> Evaluation<S> {
             hist: &self.hist_new,
             contact: Some(&self.contact),
             flat: Some(&asm.contact.flat),
+            stress: &self.stress,
+            stress_elements: Some(&asm.stress_elements),
         }
     }
 }
@@ -143,7 +154,7 @@ struct Local<S: Scalar> {
     force: [S; MAX_DOF],
     branches: [Branch; 8],
     yield_ratio: [f64; 8],
-    cauchy: Matrix3<f64>,
+    cauchy: Matrix3<S>,
     min_det_f: f64,
     failure: Option<ElementFailure>,
     hist: [S; MAX_HISTORY],
@@ -229,7 +240,21 @@ impl Assembler {
                 k += 1;
             }
         }
+        let mut stress_elements: Vec<usize> = model
+            .responses
+            .iter()
+            .flat_map(|r| r.kind.reads().stress_elements.to_vec())
+            .filter(|e| *e < ne)
+            .collect();
+        stress_elements.sort_unstable();
+        stress_elements.dedup();
+        let mut stress_slot = vec![usize::MAX; ne];
+        for (i, &e) in stress_elements.iter().enumerate() {
+            stress_slot[e] = i;
+        }
         Ok(Assembler {
+            stress_elements,
+            stress_slot,
             dofs,
             pattern,
             elem_dofs,
@@ -392,7 +417,10 @@ impl Assembler {
                 }
                 out.branches[8 * e..8 * e + 8].copy_from_slice(&loc.branches);
                 out.yield_ratio[8 * e..8 * e + 8].copy_from_slice(&loc.yield_ratio);
-                out.cauchy[e] = loc.cauchy;
+                out.cauchy[e] = loc.cauchy.map(|c| c.value());
+                if let Some(&slot) = self.stress_slot.get(e).filter(|s| **s != usize::MAX) {
+                    out.stress[slot] = loc.cauchy;
+                }
                 let h0 = self.dofs.history_offset[e];
                 let nh8 = self.elem_hist[e];
                 out.hist_new[h0..h0 + nh8].copy_from_slice(&loc.hist[..nh8]);
@@ -550,7 +578,7 @@ impl Assembler {
             let r = hex8::evaluate(&input, &mut out);
             loc.branches = out.branches;
             loc.yield_ratio = out.yield_ratio;
-            loc.cauchy = out.cauchy.map(|c| c.value());
+            loc.cauchy = out.cauchy;
             loc.min_det_f = out.min_det_f;
             r
         });

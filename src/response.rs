@@ -8,6 +8,7 @@
 
 use crate::contact::eval::ContactEval;
 use crate::scalar::Scalar;
+use nalgebra::Matrix3;
 
 /// The converged state a response is evaluated at.
 pub struct ResponseInput<'a, S: Scalar> {
@@ -22,6 +23,78 @@ pub struct ResponseInput<'a, S: Scalar> {
     pub contact: Option<&'a ContactEval<S>>,
     /// First flat hitting-node index of each pair.
     pub flat: Option<&'a [usize]>,
+    /// Volume-averaged Cauchy stresses, in the scalar of the evaluation.
+    pub stress: &'a [Matrix3<S>],
+    /// The element of each entry of `stress` (sorted); `None`: `stress` has every element.
+    pub stress_elements: Option<&'a [usize]>,
+}
+
+impl<S: Scalar> ResponseInput<'_, S> {
+    /// The volume-averaged Cauchy stress of element `e`, if this input has it.
+    pub fn element_stress(&self, e: usize) -> Option<&Matrix3<S>> {
+        match self.stress_elements {
+            None => self.stress.get(e),
+            Some(elements) => elements
+                .binary_search(&e)
+                .ok()
+                .and_then(|i| self.stress.get(i)),
+        }
+    }
+}
+
+/// What a stress response measures of an element's volume-averaged Cauchy stress: a component
+/// (`xx`, `yy`, `zz`, `xy`, `yz`, `xz`) or `von-mises`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StressMeasure {
+    /// `sigma_xx`.
+    Xx,
+    /// `sigma_yy`.
+    Yy,
+    /// `sigma_zz`.
+    Zz,
+    /// `sigma_xy`.
+    Xy,
+    /// `sigma_yz`.
+    Yz,
+    /// `sigma_xz`.
+    Xz,
+    /// The von Mises stress `sqrt(3/2 s:s)`, `s` the deviator.
+    VonMises,
+}
+
+impl StressMeasure {
+    /// The measure of stress `sigma` (generic: differentiated with the evaluation).
+    pub fn of<S: Scalar>(self, sigma: &Matrix3<S>) -> S {
+        match self {
+            StressMeasure::Xx => sigma[(0, 0)],
+            StressMeasure::Yy => sigma[(1, 1)],
+            StressMeasure::Zz => sigma[(2, 2)],
+            StressMeasure::Xy => sigma[(0, 1)],
+            StressMeasure::Yz => sigma[(1, 2)],
+            StressMeasure::Xz => sigma[(0, 2)],
+            StressMeasure::VonMises => {
+                let p = sigma.trace() / 3.0;
+                let mut ss = S::zero();
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let s = if i == j {
+                            sigma[(i, j)] - p
+                        } else {
+                            sigma[(i, j)]
+                        };
+                        ss += s * s;
+                    }
+                }
+                // zero-safe: the derivative of sqrt at a zero deviator is taken as zero
+                if ss.re() == 0.0 {
+                    S::zero()
+                } else {
+                    (ss * 1.5).sqrt()
+                }
+            }
+        }
+    }
 }
 
 /// What a response measures.
@@ -64,6 +137,13 @@ pub enum ResponseKind {
         /// Index in the global history vector.
         index: usize,
     },
+    /// A measure of the volume-averaged Cauchy stress of one element.
+    Stress {
+        /// The element.
+        element: usize,
+        /// What of its stress.
+        measure: StressMeasure,
+    },
 }
 
 /// What a response reads of a converged state. The sensitivity engine derives from it which
@@ -80,6 +160,8 @@ pub struct Reads<'a> {
     pub history: bool,
     /// It reads the contact results.
     pub contact: bool,
+    /// Elements whose evaluated stress it reads: every sensitivity evaluation evaluates them.
+    pub stress_elements: &'a [usize],
 }
 
 impl ResponseKind {
@@ -100,6 +182,10 @@ impl ResponseKind {
             },
             ResponseKind::History { .. } => Reads {
                 history: true,
+                ..Reads::default()
+            },
+            ResponseKind::Stress { element, .. } => Reads {
+                stress_elements: std::slice::from_ref(element),
                 ..Reads::default()
             },
         }
@@ -130,6 +216,9 @@ impl Response {
                 sum / nodes.len() as f64
             }
             ResponseKind::History { index } => hist[*index],
+            ResponseKind::Stress { element, measure } => at
+                .element_stress(*element)
+                .map_or(S::zero(), |sigma| measure.of(sigma)),
             ResponseKind::TargetForce { pair, component } => match at.contact {
                 Some(c) => -c.pair_force[*pair][*component],
                 None => S::zero(),

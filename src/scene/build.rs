@@ -345,6 +345,28 @@ impl Scene {
                     history_refs.push((responses.len(), bi, elems.start + element, *point, var));
                     ResponseKind::History { index: usize::MAX }
                 }
+                ResponseSpec::Stress {
+                    body,
+                    element,
+                    measure,
+                    ..
+                } => {
+                    let at = format!("responses[{i}]");
+                    let b = bodies.iter().find(|b| &b.name == body).ok_or_else(|| {
+                        invalid(&format!("{at}.body"), format!("no body '{body}'"))
+                    })?;
+                    let elems = mesh.block_elements[b.block].clone();
+                    if *element >= elems.len() {
+                        return Err(invalid(
+                            &format!("{at}.element"),
+                            format!("body '{body}' has {} elements", elems.len()),
+                        ));
+                    }
+                    ResponseKind::Stress {
+                        element: elems.start + element,
+                        measure: *measure,
+                    }
+                }
             };
             responses.push(Response {
                 name: r.name().to_string(),

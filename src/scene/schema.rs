@@ -470,6 +470,18 @@ pub enum ResponseSpec {
         /// History entry of the body's material.
         variable: String,
     },
+    /// A measure of one element's volume-averaged Cauchy stress: `element` counts within the
+    /// body; `measure` is a component (`xx`, `yy`, `zz`, `xy`, `yz`, `xz`) or `von-mises`.
+    Stress {
+        /// Response name.
+        name: String,
+        /// Body name.
+        body: String,
+        /// Element index within the body.
+        element: usize,
+        /// What of its stress.
+        measure: crate::response::StressMeasure,
+    },
 }
 
 impl ResponseSpec {
@@ -480,7 +492,8 @@ impl ResponseSpec {
             | ResponseSpec::Displacement { name, .. }
             | ResponseSpec::TargetForce { name, .. }
             | ResponseSpec::PressureProfile { name, .. }
-            | ResponseSpec::History { name, .. } => name,
+            | ResponseSpec::History { name, .. }
+            | ResponseSpec::Stress { name, .. } => name,
         }
     }
 }

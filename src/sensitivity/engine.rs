@@ -552,9 +552,16 @@ impl Reach {
 /// declares it reads ([`crate::response::ResponseKind::reads`]).
 pub fn history_unchanged(model: &Model, gauss: &[Branch]) -> Vec<bool> {
     let mut reaction_node = vec![false; model.mesh.n_nodes()];
+    let mut stress_read = vec![false; model.mesh.elements.len()];
     for r in &model.responses {
-        for &n in r.kind.reads().residual_nodes {
+        let reads = r.kind.reads();
+        for &n in reads.residual_nodes {
             if let Some(f) = reaction_node.get_mut(n) {
+                *f = true;
+            }
+        }
+        for &e in reads.stress_elements {
+            if let Some(f) = stress_read.get_mut(e) {
                 *f = true;
             }
         }
@@ -569,6 +576,7 @@ pub fn history_unchanged(model: &Model, gauss: &[Branch]) -> Vec<bool> {
                 .iter()
                 .all(|b| *b == Branch::Elastic)
                 && !conn.iter().any(|&n| reaction_node[n])
+                && !stress_read[e]
         })
         .collect()
 }

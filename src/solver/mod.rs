@@ -280,6 +280,8 @@ impl Results {
             hist: &self.histories[k],
             contact: self.contact.get(k),
             flat: Some(&self.contact_flat),
+            stress: self.stresses.get(k).map_or(&[], |s| s.as_slice()),
+            stress_elements: None,
         };
         model.responses[r].value(&input)
     }

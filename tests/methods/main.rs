@@ -15,3 +15,4 @@ mod plastic_cantilever;
 mod roundoff;
 mod sensitivity_elastic;
 mod sensitivity_kinks;
+mod stress;
