@@ -2,6 +2,9 @@
 //! reaction forces back, and compare it with fricsens — cost of the primal, force histories,
 //! and the peer's own finite-difference sensitivity (two reruns) against fricsens' DDM.
 //!
+//! *Why one file of over 1,000 lines:* the deck writer and the reader of ccx's `.dat` output are
+//! the two directions of one format and change together; the comparison they serve is the rest.
+//!
 //! ## The deck
 //! * nodes and hex8 elements one for one (fricsens node `i` is CalculiX node `i + 1`); the
 //!   element type follows the body's formulation: [`Hex8Formulation::Full`] (2x2x2 Gauss points)

@@ -3,6 +3,9 @@
 //! memory against the number of unknowns, power laws fitted to them, and where the sparse
 //! direct solver stops being the right tool.
 //!
+//! *Why one file of over 1,000 lines:* one study — the refined meshes, their measurement in a
+//! child process, the fits and the write-up — of which about 120 lines are its tests.
+//!
 //! * **Scenes.** `indentation` ([`crate::scene::indentation_refined`]: the plane-strain slab,
 //!   refined in its plane, so its unknowns form a 2D graph) and `leaf-spring`
 //!   ([`crate::scene::leaf_spring`] with every element count scaled: a slender 3D bar, refined
