@@ -1146,7 +1146,7 @@ impl Comparison {
         let ratio = self.ccx_seconds / self.fricsens_primal_seconds.max(1e-12);
         let _ = writeln!(
             s,
-            "The `{}` scene solved by CalculiX {} (`ccx`) with the same mesh, the same {n_inc} increments (`*STATIC, DIRECT`: no automatic incrementation) and fricsens' force tolerance {:.0e} as CalculiX's residual and correction ratios (`*CONTROLS, PARAMETERS=FIELD`), written by `fricsens ccx` (`src/ccx.rs`). Both codes on {} thread(s). Regenerate with `cargo run --release -- ccx {}`.\n",
+            "The `{}` scene solved by CalculiX {} (`ccx`) with the same mesh, the same {n_inc} increments (`*STATIC, DIRECT`: no automatic incrementation) and fricsens' force tolerance {:.0e} as CalculiX's residual and correction ratios (`*CONTROLS, PARAMETERS=FIELD`), written by `fricsens ccx` (`src/studies/ccx.rs`). Both codes on {} thread(s). Regenerate with `cargo run --release -- ccx {}`.\n",
             self.scene,
             self.ccx_version,
             self.force_tol,

@@ -246,7 +246,7 @@ impl LawComparison {
         let _ = writeln!(s, "## Friction laws compared\n");
         let _ = writeln!(
             s,
-            "The frictional strip pull-out ({} elements, pulled to its peak force at t = 1 and released by t = 2) with each shipped friction law at matching parameters (mu = mu0 = 0.5; the pressure-dependent law's p0 = 0.1, about the mean nodal normal force, and n = 0.2). Response: the pulled end's displacement u0. Every sensitivity by DDM, SDM central (beta = {BETA_SDM:.0e}) and central FDM (beta = {BETA_FDM:.0e}); no law has a derivative written by hand. `src/compare_laws.rs`.\n",
+            "The frictional strip pull-out ({} elements, pulled to its peak force at t = 1 and released by t = 2) with each shipped friction law at matching parameters (mu = mu0 = 0.5; the pressure-dependent law's p0 = 0.1, about the mean nodal normal force, and n = 0.2). Response: the pulled end's displacement u0. Every sensitivity by DDM, SDM central (beta = {BETA_SDM:.0e}) and central FDM (beta = {BETA_FDM:.0e}); no law has a derivative written by hand. `src/studies/compare_laws.rs`.\n",
             self.elements
         );
         let _ = writeln!(s, "| law | parameter | u0 at peak | du0/db at peak | du0/db released | FDM central vs DDM | SDM central vs DDM |");
