@@ -25,7 +25,7 @@ fn assembly(c: &mut Criterion) {
     let model = cantilever_model(NX_10K, 1.0, 1);
     let asm = Assembler::new(&model, &[]).expect("pattern");
     let dofs = &asm.dofs;
-    let ne = model.mesh.elements.len();
+    let ne = model.mesh.n_elements();
     let n = dofs.n_total;
     println!(
         "cantilever {NX_10K} x 4 x 2: {ne} elements, {n} unknowns ({} nodal + {} incompatible-mode), {} stored tangent entries, {} rayon threads",

@@ -191,7 +191,7 @@ fn newton_section() {
     let mut solver = Solver::new(&model).expect("solver");
     let n = solver.assembler.dofs.n_total;
     let n_nodal = solver.assembler.dofs.n_nodal;
-    let ne = model.mesh.elements.len();
+    let ne = model.mesh.n_elements();
     let nnz = solver.assembler.pattern.nnz();
     println!(
         "\n## 2. Newton iteration, cantilever {NX_10K} x 4 x 2 hex8 (incompatible modes, SVK, large kinematics): {ne} elements, {n} unknowns ({n_nodal} nodal + {} modes), {nnz} stored entries",
@@ -399,7 +399,7 @@ fn rayon_section() {
     let model = cantilever_model(NX_10K, 1.0, 1);
     let asm = Assembler::new(&model, &[]).expect("pattern");
     let n = asm.dofs.n_total;
-    let ne = model.mesh.elements.len();
+    let ne = model.mesh.n_elements();
     let lifted = model.lifted::<f64>(&[]);
     let z = bending_state(&model, n);
     let hist = vec![0.0; asm.dofs.n_history];
@@ -498,7 +498,7 @@ fn rayon_section() {
         .expect("cantilever");
         let asm_s = Assembler::new(&small, &[]).expect("pattern");
         let n_s = asm_s.dofs.n_total;
-        let ne_s = small.mesh.elements.len();
+        let ne_s = small.mesh.n_elements();
         let lifted_s = small.lifted::<f64>(&[]);
         let z_s = bending_state(&small, n_s);
         let hist_s = vec![0.0; asm_s.dofs.n_history];
@@ -595,7 +595,7 @@ fn newton_matrix(model: &Model) -> SparseMatrix {
     let asm = &solver.assembler;
     let n = asm.dofs.n_total;
     let mut k = SparseMatrix::new(asm.pattern.clone());
-    let mut ev = Evaluation::<f64>::new(asm, model.mesh.elements.len());
+    let mut ev = Evaluation::<f64>::new(asm, model.mesh.n_elements());
     let z = bending_state(model, n);
     let hist = vec![0.0; asm.dofs.n_history];
     asm.evaluate(

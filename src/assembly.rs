@@ -8,7 +8,8 @@
 
 use crate::contact::assembly::{ContactError, ContactEval, ContactLayout};
 use crate::contact::ContactChoice;
-use crate::element::hex8::{self, ElementFailure, Hex8Input, Hex8Output, MAX_DOF, MAX_GEN};
+use crate::element::family::{MAX_DOFS, MAX_GAUSS, MAX_GEN, MAX_NODES};
+use crate::element::{ElementFailure, ElementInput, ElementOutput};
 use crate::linalg::{LinalgError, SparseMatrix, SparsePattern};
 use crate::material::Branch;
 use crate::model::{DofMap, Lifted, Model};
@@ -27,11 +28,6 @@ pub struct Assembler {
     /// The sparsity pattern of the tangent, fixed over the run (every candidate contact pair
     /// included), shared with the linear solvers that factor it.
     pub pattern: std::sync::Arc<SparsePattern>,
-    /// Global unknowns of each element (nodal, then internal), flattened with `elem_ndof`.
-    elem_dofs: Vec<[usize; MAX_DOF]>,
-    elem_ndof: Vec<usize>,
-    /// History scalars of each element (8 x per-point length).
-    elem_hist: Vec<usize>,
     /// Pattern block of each spring.
     spring_block: Vec<usize>,
     /// Pattern block of each element (`usize::MAX` for unassembled ones).
@@ -50,7 +46,7 @@ pub struct Assembler {
 /// `Frozen::default()` leaves everything free.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Frozen<'a> {
-    /// Per Gauss point (8 per element); `None` leaves them free.
+    /// Per Gauss point (flat, [`DofMap::gauss`]); `None` leaves them free.
     pub gauss: Option<&'a [Branch]>,
     /// Per hitting node (flat over pairs); empty: every contact state decided freely.
     pub contact: &'a [ContactChoice],
@@ -98,7 +94,7 @@ pub struct Evaluation<S: Scalar> {
     pub residual: Vec<S>,
     /// Updated history (trial values until the increment is committed).
     pub hist_new: Vec<S>,
-    /// Branch at each Gauss point (8 per element).
+    /// Branch at each Gauss point (flat, [`DofMap::gauss`]).
     pub branches: Vec<Branch>,
     /// Trial yield ratio at each Gauss point.
     pub yield_ratio: Vec<f64>,
@@ -121,8 +117,8 @@ impl<S: Scalar> Evaluation<S> {
             contact: ContactEval::new(asm.contact.n_hitting, asm.contact.lambda.len()),
             residual: vec![S::zero(); dofs.n_total],
             hist_new: vec![S::zero(); dofs.n_history],
-            branches: vec![Branch::Elastic; 8 * n_elements],
-            yield_ratio: vec![-1.0; 8 * n_elements],
+            branches: vec![Branch::Elastic; dofs.n_gauss()],
+            yield_ratio: vec![-1.0; dofs.n_gauss()],
             cauchy: vec![Matrix3::zeros(); n_elements],
             stress: vec![Matrix3::zeros(); asm.stress_elements.len()],
             min_det_f: f64::INFINITY,
@@ -151,9 +147,9 @@ impl<S: Scalar> Evaluation<S> {
 
 /// Per-element scratch filled in parallel.
 struct Local<S: Scalar> {
-    force: [S; MAX_DOF],
-    branches: [Branch; 8],
-    yield_ratio: [f64; 8],
+    force: [S; MAX_DOFS],
+    branches: [Branch; MAX_GAUSS],
+    yield_ratio: [f64; MAX_GAUSS],
     cauchy: Matrix3<S>,
     min_det_f: f64,
     failure: Option<ElementFailure>,
@@ -164,9 +160,9 @@ impl<S: Scalar> Local<S> {
     /// No force, elastic branches, no history: what an element without unknowns returns.
     fn empty() -> Self {
         Local {
-            force: [S::zero(); MAX_DOF],
-            branches: [Branch::Elastic; 8],
-            yield_ratio: [-1.0; 8],
+            force: [S::zero(); MAX_DOFS],
+            branches: [Branch::Elastic; MAX_GAUSS],
+            yield_ratio: [-1.0; MAX_GAUSS],
             cauchy: Matrix3::zeros(),
             min_det_f: f64::INFINITY,
             failure: None,
@@ -175,48 +171,25 @@ impl<S: Scalar> Local<S> {
     }
 }
 
-/// Largest element history (8 Gauss points x 16 scalars).
-pub const MAX_HISTORY: usize = 8 * 16;
+/// Largest element history (the most Gauss points of any family x 16 scalars).
+pub const MAX_HISTORY: usize = MAX_GAUSS * 16;
 
 impl Assembler {
     /// Number the unknowns and build the sparsity pattern (once per model).
     pub fn new(model: &Model, extra: &[(usize, usize)]) -> Result<Self, LinalgError> {
         let dofs = model.dof_map();
-        let ne = model.mesh.elements.len();
-        let mut elem_dofs = vec![[0usize; MAX_DOF]; ne];
-        let mut elem_ndof = vec![0usize; ne];
-        let mut elem_hist = vec![0usize; ne];
-        for (e, conn) in model.mesh.elements.iter().enumerate() {
-            if dofs.element_body[e] == usize::MAX {
-                continue; // element of a block without a body: not assembled
-            }
-            let d = &mut elem_dofs[e];
-            for (a, &n) in conn.iter().enumerate() {
-                for i in 0..3 {
-                    d[3 * a + i] = 3 * n + i;
-                }
-            }
-            let mut nd = 24;
-            let body = &model.bodies[dofs.element_body[e]];
-            if let Some(first) = dofs.element_internal[e] {
-                for k in 0..body.formulation.internal_dofs() {
-                    d[24 + k] = first + k;
-                }
-                nd += body.formulation.internal_dofs();
-            }
-            elem_ndof[e] = nd;
-            elem_hist[e] = 8 * body.material.history_len();
-        }
+        let ne = model.mesh.n_elements();
         let mut blocks: Vec<Vec<usize>> = (0..ne)
-            .filter(|e| elem_ndof[*e] > 0)
-            .map(|e| elem_dofs[e][..elem_ndof[e]].to_vec())
+            .map(|e| dofs.element_dofs(e))
+            .filter(|d| !d.is_empty())
+            .map(|d| d.to_vec())
             .collect();
         let mut spring_block = Vec::new();
         for s in &model.springs {
             spring_block.push(blocks.len());
-            let mut d: Vec<usize> = (0..3).map(|i| 3 * s.a + i).collect();
+            let mut d: Vec<usize> = dofs.node_dofs(s.a).collect();
             if let Some(b) = s.b {
-                d.extend((0..3).map(|i| 3 * b + i));
+                d.extend(dofs.node_dofs(b));
             }
             blocks.push(d);
         }
@@ -234,9 +207,9 @@ impl Assembler {
         );
         let mut elem_block = vec![usize::MAX; ne];
         let mut k = 0;
-        for (e, nd) in elem_ndof.iter().enumerate() {
-            if *nd > 0 {
-                elem_block[e] = k;
+        for (e, b) in elem_block.iter_mut().enumerate() {
+            if !dofs.element_dofs(e).is_empty() {
+                *b = k;
                 k += 1;
             }
         }
@@ -257,9 +230,6 @@ impl Assembler {
             stress_slot,
             dofs,
             pattern,
-            elem_dofs,
-            elem_ndof,
-            elem_hist,
             spring_block,
             elem_block,
             contact,
@@ -268,7 +238,23 @@ impl Assembler {
 
     /// Global unknowns of element `e`.
     pub fn element_dofs(&self, e: usize) -> &[usize] {
-        &self.elem_dofs[e][..self.elem_ndof[e]]
+        self.dofs.element_dofs(e)
+    }
+
+    /// Reference coordinates of element `e`'s nodes (`MAX_NODES` slots, the first
+    /// `n_nodes` filled) and the element's node count.
+    #[inline]
+    fn reference_nodes<S: Scalar>(
+        model: &Model,
+        coords: &[Vector3<S>],
+        e: usize,
+    ) -> ([Vector3<S>; MAX_NODES], usize) {
+        let conn = model.mesh.element_nodes(e);
+        let mut x = [Vector3::<S>::zeros(); MAX_NODES];
+        for (xa, &n) in x.iter_mut().zip(conn) {
+            *xa = coords[n];
+        }
+        (x, conn.len())
     }
 
     /// The shortest fraction of the step from `z` to `z + dz` at which a Gauss point plastic
@@ -286,15 +272,17 @@ impl Assembler {
     ) -> (f64, usize) {
         let mut fraction = 1.0f64;
         let mut points = 0;
-        for e in 0..model.mesh.elements.len() {
-            let plastic = &branches[8 * e..8 * e + 8];
+        for e in 0..model.mesh.n_elements() {
+            let plastic = &branches[self.dofs.gauss(e)];
             if !plastic.contains(&Branch::Plastic) {
                 continue;
             }
+            let Some(family) = self.dofs.element_family[e] else {
+                continue;
+            };
             let b = self.dofs.element_body[e];
             let body = &model.bodies[b];
-            let conn = &model.mesh.elements[e];
-            let x_ref: [Vector3<f64>; 8] = std::array::from_fn(|a| lifted.coords[conn[a]]);
+            let (x_ref, nn) = Self::reference_nodes(model, &lifted.coords, e);
             let gdofs = self.element_dofs(e);
             let n = gdofs.len() / 3;
             let mut d0 = [Vector3::<f64>::zeros(); MAX_GEN];
@@ -305,16 +293,18 @@ impl Assembler {
                 d1[a] = d0[a] + Vector3::new(dz[g[0]], dz[g[1]], dz[g[2]]);
             }
             let strains = |d: &[Vector3<f64>]| {
-                hex8::gauss_strains(&x_ref, d, body.kinematics, body.formulation)
-                    .ok()
-                    .flatten()
+                let mut out = [nalgebra::Matrix3::<f64>::zeros(); MAX_GAUSS];
+                match family.gauss_strains(&x_ref[..nn], d, body.kinematics, &mut out) {
+                    Ok(true) => Some(out),
+                    _ => None,
+                }
             };
             let (Some(e0), Some(e1)) = (strains(&d0[..n]), strains(&d1[..n])) else {
                 continue;
             };
             let nh = body.material.history_len();
             let h0 = self.dofs.history_offset[e];
-            for g in (0..8).filter(|&g| plastic[g] == Branch::Plastic) {
+            for g in (0..plastic.len()).filter(|&g| plastic[g] == Branch::Plastic) {
                 let hist = &hist_old[h0 + nh * g..h0 + nh * (g + 1)];
                 let crossing = with_material!(&body.material, m => {
                     crate::material::MaterialLaw::elastic_crossing(
@@ -359,10 +349,10 @@ impl Assembler {
         // elements left out of this evaluation
         let skip = frozen.and_then(|f| f.skip);
         let skipped = |e: usize| skip.is_some_and(|s| s[e]);
-        let ne = model.mesh.elements.len();
+        let ne = model.mesh.n_elements();
         let mut locals: Vec<Local<S>> = Vec::new();
         // element tangents of one chunk, allocated once per evaluation (not per element)
-        let stride = MAX_DOF * MAX_DOF;
+        let stride = MAX_DOFS * MAX_DOFS;
         let mut kbuf: Vec<S> = if want_k {
             vec![S::zero(); CHUNK.min(ne) * stride]
         } else {
@@ -402,7 +392,7 @@ impl Assembler {
             // scatter sequentially in element order (bit-identical whatever the thread count)
             for (off, loc) in locals.iter().enumerate() {
                 let e = start + off;
-                let nd = self.elem_ndof[e];
+                let nd = self.dofs.element_dofs(e).len();
                 if nd == 0 {
                     continue;
                 }
@@ -415,15 +405,17 @@ impl Assembler {
                 for (l, &g) in self.element_dofs(e).iter().enumerate() {
                     out.residual[g] += loc.force[l];
                 }
-                out.branches[8 * e..8 * e + 8].copy_from_slice(&loc.branches);
-                out.yield_ratio[8 * e..8 * e + 8].copy_from_slice(&loc.yield_ratio);
+                let gauss = self.dofs.gauss(e);
+                let ng = gauss.len();
+                out.branches[gauss.clone()].copy_from_slice(&loc.branches[..ng]);
+                out.yield_ratio[gauss].copy_from_slice(&loc.yield_ratio[..ng]);
                 out.cauchy[e] = loc.cauchy.map(|c| c.value());
                 if let Some(&slot) = self.stress_slot.get(e).filter(|s| **s != usize::MAX) {
                     out.stress[slot] = loc.cauchy;
                 }
-                let h0 = self.dofs.history_offset[e];
-                let nh8 = self.elem_hist[e];
-                out.hist_new[h0..h0 + nh8].copy_from_slice(&loc.hist[..nh8]);
+                let hist = self.dofs.history(e);
+                let nh = hist.len();
+                out.hist_new[hist].copy_from_slice(&loc.hist[..nh]);
                 out.min_det_f = out.min_det_f.min(loc.min_det_f);
                 // a skipped element adds nothing (its slot of `kbuf` holds whatever an element
                 // of an earlier chunk left there)
@@ -439,17 +431,21 @@ impl Assembler {
             start = end;
         }
         // springs
+        let node_u = |n: usize| {
+            let d = self.dofs.node_dofs(n);
+            Vector3::from_column_slice(&z[d])
+        };
         for (s, spring) in model.springs.iter().enumerate() {
-            let ua = Vector3::new(z[3 * spring.a], z[3 * spring.a + 1], z[3 * spring.a + 2]);
+            let ua = node_u(spring.a);
             let ub = match spring.b {
-                Some(b) => Vector3::new(z[3 * b], z[3 * b + 1], z[3 * b + 2]),
+                Some(b) => node_u(b),
                 None => Vector3::zeros(),
             };
             let f = spring.force(&ua, &ub, S::one());
             for i in 0..3 {
-                out.residual[3 * spring.a + i] += f[i];
+                out.residual[self.dofs.node_dof(spring.a, i)] += f[i];
                 if let Some(b) = spring.b {
-                    out.residual[3 * b + i] -= f[i];
+                    out.residual[self.dofs.node_dof(b, i)] -= f[i];
                 }
             }
             if let Some(k) = tangent.as_deref_mut() {
@@ -501,7 +497,7 @@ impl Assembler {
         for (l, load) in model.loads.iter().enumerate() {
             let f = lifted.loads[l] * load.amplitude.at(time);
             for (&n, w) in load.nodes.iter().zip(&load.weights) {
-                out.residual[3 * n + load.component] -= f * *w;
+                out.residual[self.dofs.node_dof(n, load.component)] -= f * *w;
             }
         }
         Ok(())
@@ -516,12 +512,12 @@ impl Assembler {
         e: usize,
     ) -> Local<S> {
         let mut loc = Local::empty();
+        let gauss = self.dofs.gauss(e);
         if let Some(f) = frozen {
-            loc.branches.copy_from_slice(&f[8 * e..8 * e + 8]);
+            loc.branches[..gauss.len()].copy_from_slice(&f[gauss]);
         }
-        let h0 = self.dofs.history_offset[e];
-        let nh8 = self.elem_hist[e];
-        loc.hist[..nh8].copy_from_slice(&hist_old[h0..h0 + nh8]);
+        let hist = self.dofs.history(e);
+        loc.hist[..hist.len()].copy_from_slice(&hist_old[hist]);
         loc
     }
 
@@ -537,47 +533,43 @@ impl Assembler {
         k_out: Option<&mut [S]>,
     ) -> Local<S> {
         let mut loc = Local::empty();
-        let nd = self.elem_ndof[e];
-        if nd == 0 {
+        let Some(family) = self.dofs.element_family[e] else {
             return loc;
-        }
+        };
         let b = self.dofs.element_body[e];
         let body = &model.bodies[b];
-        let conn = &model.mesh.elements[e];
-        let x_ref: [Vector3<S>; 8] = std::array::from_fn(|a| lifted.coords[conn[a]]);
+        let (x_ref, nn) = Self::reference_nodes(model, &lifted.coords, e);
         let gdofs = self.element_dofs(e);
+        let nd = gdofs.len();
         let mut d = [Vector3::<S>::zeros(); MAX_GEN];
         for (a, da) in d.iter_mut().enumerate().take(nd / 3) {
             *da = Vector3::new(z[gdofs[3 * a]], z[gdofs[3 * a + 1]], z[gdofs[3 * a + 2]]);
         }
-        let nh = body.material.history_len();
-        let h0 = self.dofs.history_offset[e];
-        let hist = &hist_old[h0..h0 + 8 * nh];
-        let fr: Option<&[Branch; 8]> =
-            frozen.map(|f| (&f[8 * e..8 * e + 8]).try_into().expect("8 branches"));
+        let hist = self.dofs.history(e);
+        let nh = hist.len();
+        let gauss = self.dofs.gauss(e);
+        let ng = gauss.len();
+        let fr: Option<&[Branch]> = frozen.map(|f| &f[gauss]);
         let result = with_material!(&body.material, m => {
-            let input = Hex8Input {
-                x_ref: &x_ref,
+            let input = ElementInput {
+                x_ref: &x_ref[..nn],
                 dofs: &d[..nd / 3],
                 kinematics: body.kinematics,
-                formulation: body.formulation,
                 material: m,
                 params: &lifted.material[b],
-                hist_old: hist,
+                hist_old: &hist_old[hist],
                 frozen: fr,
             };
-            let mut out = Hex8Output {
+            let mut out = ElementOutput {
                 force: &mut loc.force[..nd],
                 tangent: k_out,
-                hist_new: &mut loc.hist[..8 * nh],
-                branches: [Branch::Elastic; 8],
-                yield_ratio: [-1.0; 8],
+                hist_new: &mut loc.hist[..nh],
+                branches: &mut loc.branches[..ng],
+                yield_ratio: &mut loc.yield_ratio[..ng],
                 cauchy: Matrix3::zeros(),
                 min_det_f: f64::INFINITY,
             };
-            let r = hex8::evaluate(&input, &mut out);
-            loc.branches = out.branches;
-            loc.yield_ratio = out.yield_ratio;
+            let r = family.evaluate(&input, &mut out);
             loc.cauchy = out.cauchy;
             loc.min_det_f = out.min_det_f;
             r

@@ -19,6 +19,15 @@ pub enum ParameterError {
         /// The axis given.
         axis: String,
     },
+    /// A shape parameter of a body the block generator did not make (its nodes have fixed
+    /// coordinates).
+    #[error("parameter '{name}': body '{body}' was not made by the block generator: it has no shape parameters")]
+    NotGenerated {
+        /// The parameter name.
+        name: String,
+        /// The body.
+        body: String,
+    },
     /// No body of that name.
     #[error("parameter '{name}': no body '{body}'")]
     NoBody {
@@ -157,17 +166,18 @@ impl Parameter {
                     .iter()
                     .find(|b| b.name == *body)
                     .ok_or_else(|| no_body(body))?;
+                // a shape parameter moves the nodes of the block that generated the body
+                let block = model.mesh.groups[b.group].block.ok_or_else(|| {
+                    ParameterError::NotGenerated {
+                        name: named(),
+                        body: body.to_string(),
+                    }
+                })?;
                 let axis = axis(a)?;
                 targets.push(if *kind == "length" {
-                    DesignParam::BlockLength {
-                        block: b.block,
-                        axis,
-                    }
+                    DesignParam::BlockLength { block, axis }
                 } else {
-                    DesignParam::BlockOrigin {
-                        block: b.block,
-                        axis,
-                    }
+                    DesignParam::BlockOrigin { block, axis }
                 });
             }
             [pair, param] if model.contacts.iter().any(|c| c.name == *pair) => {

@@ -1,5 +1,9 @@
-//! Meshes: nodes, hex8 connectivity, named node and face sets, and a structured block generator
-//! with grading.
+//! Meshes: nodes, element groups of any shape with flat connectivity, named node and face
+//! sets, and a structured block generator with grading (one way to make a mesh; a mesh built in
+//! code or imported adds nodes with [`Mesh::add_node`] and elements with [`Mesh::add_group`]).
+//!
+//! Elements are numbered globally in group order: group `g` holds the elements
+//! `groups[g].first..groups[g].first + groups[g].len()`.
 //!
 //! A generated node does not store its coordinates: it stores its *fractional* position
 //! `t in [0, 1]^3` inside its block, and the reference coordinates are computed on demand as
@@ -11,6 +15,7 @@
 //! of elements and a size ratio (last element / first element), so a fine region can sit next
 //! to a coarse one in one conforming block.
 
+use crate::element::{FaceFamily, Shape};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
@@ -134,21 +139,183 @@ pub struct BlockGeometry<S: Scalar> {
     pub lengths: Vector3<S>,
 }
 
-/// A mesh of hex8 elements grouped by generating block.
+/// Elements of one shape, with flat connectivity.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElementGroup {
+    /// Shape of every element of the group.
+    pub shape: Shape,
+    /// Node numbers, `shape.n_nodes()` per element, element after element.
+    pub nodes: Vec<usize>,
+    /// Global number of the group's first element.
+    pub first: usize,
+    /// The generating block, if the block generator made the group (its shape parameters
+    /// move the group's nodes).
+    pub block: Option<usize>,
+}
+
+impl ElementGroup {
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        self.nodes.len() / self.shape.n_nodes()
+    }
+
+    /// Whether the group has no element.
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Global element numbers of the group.
+    pub fn elements(&self) -> std::ops::Range<usize> {
+        self.first..self.first + self.len()
+    }
+
+    /// Nodes of the group's `k`-th element.
+    pub fn element(&self, k: usize) -> &[usize] {
+        let n = self.shape.n_nodes();
+        &self.nodes[n * k..n * (k + 1)]
+    }
+}
+
+/// A set of boundary faces of any families, with flat storage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FaceSet {
+    families: Vec<FaceFamily>,
+    offsets: Vec<usize>,
+    nodes: Vec<usize>,
+}
+
+impl Default for FaceSet {
+    fn default() -> Self {
+        FaceSet::new()
+    }
+}
+
+/// One face of a [`FaceSet`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Face<'a> {
+    /// The face's family.
+    pub family: FaceFamily,
+    /// Its nodes, counter-clockwise seen from outside.
+    pub nodes: &'a [usize],
+}
+
+impl FaceSet {
+    /// An empty set.
+    pub fn new() -> Self {
+        FaceSet {
+            families: Vec::new(),
+            offsets: vec![0],
+            nodes: Vec::new(),
+        }
+    }
+
+    /// A set of quad4 faces.
+    pub fn quad4(faces: &[[usize; 4]]) -> Self {
+        let mut s = FaceSet::new();
+        for f in faces {
+            s.push_unchecked(FaceFamily::Quad4, f);
+        }
+        s
+    }
+
+    /// Add a face; a typed error when `nodes` is not the family's node count.
+    pub fn push(&mut self, family: FaceFamily, nodes: &[usize]) -> Result<(), MeshError> {
+        if nodes.len() != family.n_nodes() {
+            return Err(MeshError::FaceNodes {
+                face: self.len(),
+                family: family.name(),
+                expected: family.n_nodes(),
+                got: nodes.len(),
+            });
+        }
+        self.push_unchecked(family, nodes);
+        Ok(())
+    }
+
+    /// Add a face whose node count is the family's (checked by the caller).
+    fn push_unchecked(&mut self, family: FaceFamily, nodes: &[usize]) {
+        self.families.push(family);
+        self.nodes.extend_from_slice(nodes);
+        self.offsets.push(self.nodes.len());
+    }
+
+    /// Number of faces.
+    pub fn len(&self) -> usize {
+        self.families.len()
+    }
+
+    /// Whether the set has no face.
+    pub fn is_empty(&self) -> bool {
+        self.families.is_empty()
+    }
+
+    /// Face `k`.
+    pub fn face(&self, k: usize) -> Face<'_> {
+        Face {
+            family: self.families[k],
+            nodes: &self.nodes[self.offsets[k]..self.offsets[k + 1]],
+        }
+    }
+
+    /// Nodes of face `k`.
+    pub fn nodes(&self, k: usize) -> &[usize] {
+        &self.nodes[self.offsets[k]..self.offsets[k + 1]]
+    }
+
+    /// The faces in order.
+    pub fn iter(&self) -> impl Iterator<Item = Face<'_>> + '_ {
+        (0..self.len()).map(|k| self.face(k))
+    }
+
+    /// Every node of every face, face after face (with repetitions).
+    pub fn all_nodes(&self) -> &[usize] {
+        &self.nodes
+    }
+
+    /// The coordinates of face `k`'s nodes (at most eight nodes per face).
+    pub fn coordinates(&self, k: usize, x: &[Vector3<f64>]) -> FaceCoordinates {
+        let mut c = FaceCoordinates {
+            x: [Vector3::zeros(); MAX_FACE_NODES],
+            n: 0,
+        };
+        for (a, &n) in self.nodes(k).iter().enumerate() {
+            c.x[a] = x[n];
+            c.n += 1;
+        }
+        c
+    }
+}
+
+/// Most nodes of a face of any family.
+pub const MAX_FACE_NODES: usize = 8;
+
+/// Node coordinates of one face, on the stack.
+#[derive(Clone, Copy, Debug)]
+pub struct FaceCoordinates {
+    x: [Vector3<f64>; MAX_FACE_NODES],
+    n: usize,
+}
+
+impl std::ops::Deref for FaceCoordinates {
+    type Target = [Vector3<f64>];
+    fn deref(&self) -> &[Vector3<f64>] {
+        &self.x[..self.n]
+    }
+}
+
+/// A mesh: nodes and element groups of any shape.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
     /// Where each node's reference position comes from, by node number.
     pub places: Vec<NodePlace>,
     /// The generating blocks, in the order they were added.
     pub blocks: Vec<BlockSpec>,
-    /// Connectivity of every element.
-    pub elements: Vec<[usize; 8]>,
-    /// Element range of each block.
-    pub block_elements: Vec<std::ops::Range<usize>>,
+    /// Element groups, in element order.
+    pub groups: Vec<ElementGroup>,
     /// Named node sets (`BLOCK.all`, `BLOCK.xmin`, ..., and those added by the caller).
     pub node_sets: BTreeMap<String, Vec<usize>>,
-    /// Faces as 4 node numbers ordered counter-clockwise seen from outside the block.
-    pub face_sets: BTreeMap<String, Vec<[usize; 4]>>,
+    /// Named face sets, faces outward oriented.
+    pub face_sets: BTreeMap<String, FaceSet>,
 }
 
 /// Mesh construction errors.
@@ -173,6 +340,44 @@ pub enum MeshError {
         /// What is wrong with it.
         what: String,
     },
+    /// An element's connectivity has the wrong number of nodes for its shape.
+    #[error("group {group}, element {element}: a {shape} needs {expected} nodes, got {got}")]
+    Connectivity {
+        /// Group number (the one being added).
+        group: usize,
+        /// Element number inside the group (the first incomplete one).
+        element: usize,
+        /// Name of the shape.
+        shape: &'static str,
+        /// Nodes per element of the shape.
+        expected: usize,
+        /// Nodes given for that element.
+        got: usize,
+    },
+    /// A face has the wrong number of nodes for its family.
+    #[error("face {face}: a {family} face needs {expected} nodes, got {got}")]
+    FaceNodes {
+        /// Number of the face in its set.
+        face: usize,
+        /// Name of the face family.
+        family: &'static str,
+        /// Nodes of the family.
+        expected: usize,
+        /// Nodes given.
+        got: usize,
+    },
+    /// An element names a node the mesh does not have.
+    #[error("group {group}, element {element}: node {node} does not exist ({n_nodes} nodes)")]
+    UnknownNode {
+        /// Group number (the one being added).
+        group: usize,
+        /// Element number inside the group.
+        element: usize,
+        /// The node named.
+        node: usize,
+        /// Number of nodes of the mesh.
+        n_nodes: usize,
+    },
     /// Two blocks share a name (their node and face sets would collide).
     #[error("block '{block}': a block of that name already exists")]
     DuplicateBlock {
@@ -187,26 +392,55 @@ impl Mesh {
         self.places.len()
     }
 
-    /// The shortest element edge (the twelve edges of every hex8) at the coordinates `x`
-    /// (infinite without elements).
-    pub fn smallest_edge(&self, x: &[Vector3<f64>]) -> f64 {
-        const EDGES: [(usize, usize); 12] = [
-            (0, 1),
-            (1, 2),
-            (2, 3),
-            (3, 0),
-            (4, 5),
-            (5, 6),
-            (6, 7),
-            (7, 4),
-            (0, 4),
-            (1, 5),
-            (2, 6),
-            (3, 7),
-        ];
-        self.elements
+    /// Number of elements.
+    pub fn n_elements(&self) -> usize {
+        self.groups.last().map_or(0, |g| g.first + g.len())
+    }
+
+    /// The group holding element `e` and `e`'s place in it.
+    fn locate(&self, e: usize) -> (&ElementGroup, usize) {
+        let g = self.groups.partition_point(|g| g.first <= e) - 1;
+        let group = &self.groups[g];
+        (group, e - group.first)
+    }
+
+    /// Nodes of element `e`, in its shape's node order.
+    pub fn element_nodes(&self, e: usize) -> &[usize] {
+        let (g, k) = self.locate(e);
+        g.element(k)
+    }
+
+    /// Shape of element `e`.
+    pub fn element_shape(&self, e: usize) -> Shape {
+        self.locate(e).0.shape
+    }
+
+    /// Every element's shape and nodes, in element order.
+    pub fn elements(&self) -> impl Iterator<Item = (Shape, &[usize])> + '_ {
+        self.groups
             .iter()
-            .flat_map(|e| EDGES.iter().map(move |(a, b)| (x[e[*a]] - x[e[*b]]).norm()))
+            .flat_map(|g| (0..g.len()).map(move |k| (g.shape, g.element(k))))
+    }
+
+    /// Global element numbers of group `g`.
+    pub fn group_elements(&self, g: usize) -> std::ops::Range<usize> {
+        self.groups[g].elements()
+    }
+
+    /// The group a generating block made (the block generator makes one per block).
+    pub fn block_group(&self, block: usize) -> Option<usize> {
+        self.groups.iter().position(|g| g.block == Some(block))
+    }
+
+    /// The shortest element edge at the coordinates `x` (infinite without elements).
+    pub fn smallest_edge(&self, x: &[Vector3<f64>]) -> f64 {
+        self.elements()
+            .flat_map(|(shape, e)| {
+                shape
+                    .edges()
+                    .iter()
+                    .map(move |[a, b]| (x[e[*a]] - x[e[*b]]).norm())
+            })
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -214,6 +448,87 @@ impl Mesh {
     pub fn add_free_node(&mut self, x: [f64; 3]) -> usize {
         self.places.push(NodePlace::Free(x));
         self.places.len() - 1
+    }
+
+    /// Add a node at fixed coordinates (a mesh built in code or imported); returns its number.
+    pub fn add_node(&mut self, x: [f64; 3]) -> usize {
+        self.add_free_node(x)
+    }
+
+    /// Add a group of elements of one shape (`nodes`: `shape.n_nodes()` node numbers per
+    /// element, in the shape's node order); returns the group number. Typed errors name the
+    /// element whose connectivity is incomplete or names a missing node.
+    pub fn add_group(&mut self, shape: Shape, nodes: Vec<usize>) -> Result<usize, MeshError> {
+        self.push_group(shape, nodes, None)
+    }
+
+    fn push_group(
+        &mut self,
+        shape: Shape,
+        nodes: Vec<usize>,
+        block: Option<usize>,
+    ) -> Result<usize, MeshError> {
+        let group = self.groups.len();
+        let nn = shape.n_nodes();
+        if nodes.len() % nn != 0 {
+            return Err(MeshError::Connectivity {
+                group,
+                element: nodes.len() / nn,
+                shape: shape.name(),
+                expected: nn,
+                got: nodes.len() % nn,
+            });
+        }
+        let n_nodes = self.n_nodes();
+        if let Some(k) = nodes.iter().position(|&n| n >= n_nodes) {
+            return Err(MeshError::UnknownNode {
+                group,
+                element: k / nn,
+                node: nodes[k],
+                n_nodes,
+            });
+        }
+        let first = self.n_elements();
+        self.groups.push(ElementGroup {
+            shape,
+            nodes,
+            first,
+            block,
+        });
+        Ok(group)
+    }
+
+    /// The boundary faces of group `g`: the faces of its elements that no other element of
+    /// the group shares, outward oriented, in element order. A mesh built in code gets its
+    /// face sets from here.
+    pub fn boundary_faces(&self, g: usize) -> FaceSet {
+        let group = &self.groups[g];
+        let key = |nodes: &[usize]| {
+            let mut k = nodes.to_vec();
+            k.sort_unstable();
+            k
+        };
+        let mut count: std::collections::HashMap<Vec<usize>, usize> =
+            std::collections::HashMap::new();
+        let faces = group.shape.faces();
+        for k in 0..group.len() {
+            let e = group.element(k);
+            for f in faces {
+                let nodes: Vec<usize> = f.nodes.iter().map(|&l| e[l]).collect();
+                *count.entry(key(&nodes)).or_default() += 1;
+            }
+        }
+        let mut set = FaceSet::new();
+        for k in 0..group.len() {
+            let e = group.element(k);
+            for f in faces {
+                let nodes: Vec<usize> = f.nodes.iter().map(|&l| e[l]).collect();
+                if count[&key(&nodes)] == 1 {
+                    set.push_unchecked(f.family, &nodes);
+                }
+            }
+        }
+        set
     }
 
     /// Generate a block and its named sets: node sets `NAME.all`, `NAME.xmin`, `NAME.xmax`,
@@ -272,11 +587,11 @@ impl Mesh {
                 }
             }
         }
-        let e0 = self.elements.len();
+        let mut connectivity = Vec::with_capacity(8 * (nx - 1) * (ny - 1) * (nz - 1));
         for k in 0..nz - 1 {
             for j in 0..ny - 1 {
                 for i in 0..nx - 1 {
-                    self.elements.push([
+                    connectivity.extend_from_slice(&[
                         id(i, j, k),
                         id(i + 1, j, k),
                         id(i + 1, j + 1, k),
@@ -289,7 +604,7 @@ impl Mesh {
                 }
             }
         }
-        self.block_elements.push(e0..self.elements.len());
+        self.push_group(Shape::Hex8, connectivity, Some(b))?;
         let name = spec.name.clone();
         let all: Vec<usize> = (first..first + nx * ny * nz).collect();
         self.node_sets.insert(format!("{name}.all"), all);
@@ -313,8 +628,8 @@ impl Mesh {
         side("ymax", &|_, j, _| j == ny - 1);
         side("zmin", &|_, _, k| k == 0);
         side("zmax", &|_, _, k| k == nz - 1);
-        // face sets, oriented outward (see element::hex8::FACE_NODES)
-        let mut faces: [Vec<[usize; 4]>; 6] = Default::default();
+        // face sets, oriented outward (the hex8 faces -x, +x, -y, +y, -z, +z)
+        let mut faces: [FaceSet; 6] = Default::default();
         for k in 0..nz - 1 {
             for j in 0..ny - 1 {
                 for i in 0..nx - 1 {
@@ -336,10 +651,13 @@ impl Mesh {
                         k == 0,
                         k == nz - 2,
                     ];
-                    for f in 0..6 {
+                    for (f, face) in Shape::Hex8.faces().iter().enumerate() {
                         if on[f] {
-                            let l = crate::element::hex8::FACE_NODES[f];
-                            faces[f].push([conn[l[0]], conn[l[1]], conn[l[2]], conn[l[3]]]);
+                            let mut nodes = [0; 4];
+                            for (n, &l) in nodes.iter_mut().zip(face.nodes) {
+                                *n = conn[l];
+                            }
+                            faces[f].push_unchecked(face.family, &nodes);
                         }
                     }
                 }
@@ -458,17 +776,17 @@ mod tests {
     fn block_counts_sets_and_outward_faces() {
         let mut m = Mesh::default();
         m.add_block(block()).unwrap();
-        assert_eq!(m.elements.len(), 8 * 2);
+        assert_eq!(m.n_elements(), 8 * 2);
         assert_eq!(m.n_nodes(), 9 * 3 * 2);
         assert_eq!(m.node_sets["b.xmin"].len(), 3 * 2);
         assert_eq!(m.face_sets["b.ymax"].len(), 8);
         let x = m.coordinates::<f64>(&m.block_geometry());
         // outward normal of every ymax face is +y
-        for f in &m.face_sets["b.ymax"] {
+        for f in m.face_sets["b.ymax"].iter().map(|f| f.nodes) {
             let n = (x[f[1]] - x[f[0]]).cross(&(x[f[3]] - x[f[0]]));
             assert!(n[1] > 0.0 && n[0].abs() < 1e-12 && n[2].abs() < 1e-12);
         }
-        for f in &m.face_sets["b.xmin"] {
+        for f in m.face_sets["b.xmin"].iter().map(|f| f.nodes) {
             let n = (x[f[1]] - x[f[0]]).cross(&(x[f[3]] - x[f[0]]));
             assert!(n[0] < 0.0);
         }

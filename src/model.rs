@@ -5,7 +5,7 @@
 //! any design parameter replaced by a value of that type (seeded dual for DDM, perturbed `f64`
 //! for SDM), so that every kernel sees its parameters as `S`.
 
-use crate::element::{Hex8Formulation, Kinematics, Spring};
+use crate::element::{ElementFamily, Hex8Formulation, Kinematics, Spring};
 pub use crate::load::Amplitude;
 use crate::material::{J2Plasticity, MaterialLaw, NeoHookean, StVenantKirchhoff};
 use crate::mesh::{BlockGeometry, Mesh};
@@ -68,19 +68,27 @@ impl Material {
     }
 }
 
-/// A deformable body: one generated block of hex8 elements with one material.
+/// A deformable body: one element group of the mesh with one material.
 #[derive(Clone, Debug)]
 pub struct Body {
     /// Name of the body (from the scene).
     pub name: String,
-    /// Index of the mesh block (elements `mesh.block_elements[block]`).
-    pub block: usize,
+    /// Index of the mesh's element group (elements `mesh.group_elements(group)`; the block
+    /// generator makes group `b` from block `b`).
+    pub group: usize,
     /// Constitutive law.
     pub material: Material,
     /// Small or large deformation.
     pub kinematics: Kinematics,
     /// Hex8 element formulation (full integration, incompatible modes, F-bar).
     pub formulation: Hex8Formulation,
+}
+
+impl Body {
+    /// The element family of the body's elements in `mesh`.
+    pub fn family(&self, mesh: &Mesh) -> ElementFamily {
+        ElementFamily::new(mesh.groups[self.group].shape, self.formulation)
+    }
 }
 
 /// A prescribed displacement on some nodes: `u_c(t) = value * amplitude(t)`.
@@ -177,7 +185,28 @@ impl Default for SolverSettings {
     }
 }
 
-/// Where each unknown lives in the global vector.
+/// Unknowns per node (three displacement components).
+pub const NODE_DOFS: usize = 3;
+
+/// The global unknown of component `c` of node `n` (nodal unknowns come first, node-major).
+#[inline]
+pub fn node_dof(n: usize, c: usize) -> usize {
+    NODE_DOFS * n + c
+}
+
+/// The three global unknowns of node `n`.
+#[inline]
+pub fn node_dofs(n: usize) -> std::ops::Range<usize> {
+    NODE_DOFS * n..NODE_DOFS * (n + 1)
+}
+
+/// Where each unknown and each history scalar lives, computed from the element families.
+///
+/// Nodal unknowns come first (three per node), then each body's element-internal unknowns
+/// (body after body, element after element), then the contact multipliers. History: each
+/// assembled element's `n_gauss * history_len` scalars (body after body), then the contact
+/// history. Gauss points are numbered flat in element order (`gauss(e)`), the layout of every
+/// per-point array (branches, yield ratios).
 #[derive(Clone, Debug)]
 pub struct DofMap {
     /// Number of nodal unknowns (3 per node).
@@ -186,9 +215,11 @@ pub struct DofMap {
     pub element_internal: Vec<Option<usize>>,
     /// Total number of unknowns.
     pub n_total: usize,
-    /// Body of each element.
+    /// Body of each element (`usize::MAX` for an element no body owns: not assembled).
     pub element_body: Vec<usize>,
-    /// First history scalar of each element (`8 * history_len` per element).
+    /// Family of each element (`None`: not assembled).
+    pub element_family: Vec<Option<ElementFamily>>,
+    /// First history scalar of each element (`n_gauss * history_len` per element).
     pub history_offset: Vec<usize>,
     /// Total history length.
     pub n_history: usize,
@@ -196,14 +227,66 @@ pub struct DofMap {
     pub first_lambda: usize,
     /// First contact history scalar.
     pub first_contact_history: usize,
+    /// History scalars of each element.
+    history_len: Vec<usize>,
+    /// Element `e`'s unknowns are `dofs[dof_offset[e]..dof_offset[e + 1]]`.
+    dof_offset: Vec<usize>,
+    /// Global unknowns of every element (nodal, then internal), flat.
+    dofs: Vec<usize>,
+    /// Element `e`'s Gauss points are `gauss_offset[e]..gauss_offset[e + 1]`.
+    gauss_offset: Vec<usize>,
+}
+
+impl DofMap {
+    /// The global unknown of component `c` of node `n`.
+    #[inline]
+    pub fn node_dof(&self, n: usize, c: usize) -> usize {
+        node_dof(n, c)
+    }
+
+    /// The three global unknowns of node `n`.
+    #[inline]
+    pub fn node_dofs(&self, n: usize) -> std::ops::Range<usize> {
+        node_dofs(n)
+    }
+
+    /// Global unknowns of element `e` (nodal in node order, then internal; empty for an
+    /// element that is not assembled).
+    #[inline]
+    pub fn element_dofs(&self, e: usize) -> &[usize] {
+        &self.dofs[self.dof_offset[e]..self.dof_offset[e + 1]]
+    }
+
+    /// Flat numbers of element `e`'s Gauss points (empty when not assembled).
+    #[inline]
+    pub fn gauss(&self, e: usize) -> std::ops::Range<usize> {
+        self.gauss_offset[e]..self.gauss_offset[e + 1]
+    }
+
+    /// Number of Gauss points of the model.
+    pub fn n_gauss(&self) -> usize {
+        self.gauss_offset.last().copied().unwrap_or(0)
+    }
+
+    /// The element and its local point of flat Gauss point `i`.
+    pub fn gauss_owner(&self, i: usize) -> (usize, usize) {
+        let e = self.gauss_offset.partition_point(|&o| o <= i) - 1;
+        (e, i - self.gauss_offset[e])
+    }
+
+    /// Element `e`'s history scalars.
+    #[inline]
+    pub fn history(&self, e: usize) -> std::ops::Range<usize> {
+        self.history_offset[e]..self.history_offset[e] + self.history_len[e]
+    }
 }
 
 /// A complete analysis model.
 #[derive(Clone, Debug, Default)]
 pub struct Model {
-    /// Nodes and hex8 elements, grouped by generating block.
+    /// Nodes and element groups.
     pub mesh: Mesh,
-    /// Deformable bodies (each one mesh block).
+    /// Deformable bodies (each one element group).
     pub bodies: Vec<Body>,
     /// Linear springs.
     pub springs: Vec<Spring>,
@@ -330,26 +413,31 @@ impl Model {
         })
     }
 
-    /// Number the unknowns and the history.
+    /// Number the unknowns and the history from the element families.
     pub fn dof_map(&self) -> DofMap {
-        let n_nodal = 3 * self.mesh.n_nodes();
-        let ne = self.mesh.elements.len();
+        let n_nodal = NODE_DOFS * self.mesh.n_nodes();
+        let ne = self.mesh.n_elements();
         let mut element_internal = vec![None; ne];
         let mut element_body = vec![usize::MAX; ne];
+        let mut element_family = vec![None; ne];
         let mut history_offset = vec![0; ne];
+        let mut history_len = vec![0; ne];
         let mut next = n_nodal;
         let mut hist = 0;
         for (b, body) in self.bodies.iter().enumerate() {
             let nh = body.material.history_len();
-            for e in self.mesh.block_elements[body.block].clone() {
+            let family = body.family(&self.mesh);
+            for e in self.mesh.group_elements(body.group) {
                 element_body[e] = b;
-                let ni = body.formulation.internal_dofs();
+                element_family[e] = Some(family);
+                let ni = family.internal_dofs();
                 if ni > 0 {
                     element_internal[e] = Some(next);
                     next += ni;
                 }
                 history_offset[e] = hist;
-                hist += 8 * nh;
+                history_len[e] = family.n_gauss() * nh;
+                hist += history_len[e];
             }
         }
         let first_lambda = next;
@@ -358,15 +446,37 @@ impl Model {
             next += c.hitting.len();
             hist += c.history_len() * c.hitting.len();
         }
+        let mut dof_offset = Vec::with_capacity(ne + 1);
+        let mut gauss_offset = Vec::with_capacity(ne + 1);
+        let mut dofs = Vec::new();
+        dof_offset.push(0);
+        gauss_offset.push(0);
+        for (e, family) in element_family.iter().enumerate() {
+            if let Some(family) = family {
+                for &n in self.mesh.element_nodes(e) {
+                    dofs.extend(node_dofs(n));
+                }
+                if let Some(first) = element_internal[e] {
+                    dofs.extend(first..first + family.internal_dofs());
+                }
+            }
+            dof_offset.push(dofs.len());
+            gauss_offset.push(gauss_offset[e] + family.map_or(0, |f| f.n_gauss()));
+        }
         DofMap {
             n_nodal,
             element_internal,
             n_total: next,
             element_body,
+            element_family,
             history_offset,
             n_history: hist,
             first_lambda,
             first_contact_history,
+            history_len,
+            dof_offset,
+            dofs,
+            gauss_offset,
         }
     }
 

@@ -7,7 +7,7 @@ use crate::solver::Results;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use vtkio::model::{
-    Attribute, Attributes, ByteOrder, CellType, Cells, DataArray, DataSet, ElementType, IOBuffer,
+    Attribute, Attributes, ByteOrder, Cells, DataArray, DataSet, ElementType, IOBuffer,
     UnstructuredGridPiece, Version, VertexNumbers, Vtk,
 };
 
@@ -98,14 +98,16 @@ pub fn write_vtu(
     let mut disp = Vec::with_capacity(3 * n);
     for (i, p) in x.iter().enumerate() {
         points.extend_from_slice(&[p[0], p[1], p[2]]);
-        disp.extend_from_slice(&[z[3 * i], z[3 * i + 1], z[3 * i + 2]]);
+        disp.extend_from_slice(&z[crate::model::node_dofs(i)]);
     }
-    let ne = model.mesh.elements.len();
-    let mut connectivity = Vec::with_capacity(8 * ne);
+    let ne = model.mesh.n_elements();
+    let mut connectivity = Vec::new();
     let mut offsets = Vec::with_capacity(ne);
-    for (e, c) in model.mesh.elements.iter().enumerate() {
+    let mut types = Vec::with_capacity(ne);
+    for (shape, c) in model.mesh.elements() {
         connectivity.extend(c.iter().map(|v| *v as u64));
-        offsets.push(8 * (e as u64 + 1));
+        offsets.push(connectivity.len() as u64);
+        types.push(shape.vtk_cell());
     }
     let mut sig = Vec::with_capacity(6 * ne);
     let mut mises = Vec::with_capacity(ne);
@@ -159,7 +161,7 @@ pub fn write_vtu(
                     connectivity,
                     offsets,
                 },
-                types: vec![CellType::Hexahedron; ne],
+                types,
             },
             data: Attributes { point, cell },
         }),
@@ -211,8 +213,9 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
             state[node] = c.choice[f].state.code();
             normal[node] += c.normal_force[f];
             for j in 0..3 {
-                friction[3 * node + j] += c.traction[f][j];
-                force[3 * node + j] += c.force[f][j];
+                // three components per node, as the nodal unknowns
+                friction[crate::model::node_dof(node, j)] += c.traction[f][j];
+                force[crate::model::node_dof(node, j)] += c.force[f][j];
             }
         }
     }

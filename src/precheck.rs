@@ -121,17 +121,10 @@ pub fn rigid_body_modes(
     constrained: &[bool],
 ) -> (Vec<PrecheckWarning>, Result<(), PrecheckError>) {
     let mut warnings = Vec::new();
-    let block_of = |n: usize| match model.mesh.places[n] {
-        crate::mesh::NodePlace::Block { block, .. } => Some(block),
-        crate::mesh::NodePlace::Free(_) => None,
-    };
+    let node_group = crate::contact::setup::node_groups(&model.mesh);
+    let group_of = |n: usize| node_group[n];
     for body in &model.bodies {
-        let elements = model.mesh.block_elements[body.block].clone();
-        let mut nodes: Vec<usize> = model.mesh.elements[elements]
-            .iter()
-            .flatten()
-            .copied()
-            .collect();
+        let mut nodes: Vec<usize> = model.mesh.groups[body.group].nodes.clone();
         nodes.sort_unstable();
         nodes.dedup();
         if nodes.is_empty() {
@@ -139,7 +132,7 @@ pub fn rigid_body_modes(
         }
         let tied = model.springs.iter().any(|s| {
             s.b.is_some()
-                && (block_of(s.a) == Some(body.block) || s.b.and_then(block_of) == Some(body.block))
+                && (group_of(s.a) == Some(body.group) || s.b.and_then(group_of) == Some(body.group))
         });
         if tied {
             continue;
@@ -171,7 +164,7 @@ pub fn rigid_body_modes(
                     .springs
                     .iter()
                     .any(|s| s.b.is_none() && s.a == n && s.stiffness[c][c] > 0.0);
-                if constrained[3 * n + c] || grounded {
+                if constrained[crate::model::node_dof(n, c)] || grounded {
                     add(r, c);
                 }
             }
@@ -191,11 +184,12 @@ pub fn rigid_body_modes(
             .contacts
             .iter()
             .filter(|c| {
-                c.hitting.iter().any(|&n| block_of(n) == Some(body.block))
+                c.hitting.iter().any(|&n| group_of(n) == Some(body.group))
                     || match &c.target {
                         Target::Faces { faces } => faces
+                            .all_nodes()
                             .iter()
-                            .any(|f| f.iter().any(|&n| block_of(n) == Some(body.block))),
+                            .any(|&n| group_of(n) == Some(body.group)),
                         Target::Rigid { .. } => false,
                     }
             })

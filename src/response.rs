@@ -206,13 +206,15 @@ impl Response {
     pub fn value<S: Scalar>(&self, at: &ResponseInput<'_, S>) -> S {
         let (z, residual, hist) = (at.z, at.residual, at.hist);
         match &self.kind {
-            ResponseKind::Reaction { nodes, component } => nodes
-                .iter()
-                .fold(S::zero(), |acc, n| acc + residual[3 * n + component]),
+            ResponseKind::Reaction { nodes, component } => {
+                nodes.iter().fold(S::zero(), |acc, n| {
+                    acc + residual[crate::model::node_dof(*n, *component)]
+                })
+            }
             ResponseKind::Displacement { nodes, component } => {
-                let sum = nodes
-                    .iter()
-                    .fold(S::zero(), |acc, n| acc + z[3 * n + component]);
+                let sum = nodes.iter().fold(S::zero(), |acc, n| {
+                    acc + z[crate::model::node_dof(*n, *component)]
+                });
                 sum / nodes.len() as f64
             }
             ResponseKind::History { index } => hist[*index],

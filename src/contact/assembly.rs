@@ -9,11 +9,13 @@
 
 pub use super::eval::ContactEval;
 use super::geometry::{closest_on_quads, closest_on_quads_keeping};
+use super::quad_nodes;
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
     KernelParams, Target, TargetGeom,
 };
-use crate::model::{Lifted, Model};
+use crate::mesh::FaceSet;
+use crate::model::{node_dof, node_dofs, Lifted, Model};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
 use num_dual::DualSVec64;
@@ -60,16 +62,16 @@ impl ContactLayout {
                 let mut target_nodes = Vec::new();
                 if let Target::Faces { faces } = &pair.target {
                     for &f in &pair.candidates[i] {
-                        for &n in &faces[f] {
+                        for &n in faces.nodes(f) {
                             if !target_nodes.contains(&n) {
                                 target_nodes.push(n);
                             }
                         }
                     }
                 }
-                let mut dofs: Vec<usize> = (0..3).map(|c| 3 * s + c).collect();
+                let mut dofs: Vec<usize> = node_dofs(s).collect();
                 for &n in &target_nodes {
-                    dofs.extend((0..3).map(|c| 3 * n + c));
+                    dofs.extend(node_dofs(n));
                 }
                 dofs.push(next_l + i);
                 blocks.push(NodeBlock {
@@ -101,7 +103,7 @@ pub struct ContactError {
 }
 
 fn node_disp<S: Scalar>(z: &[S], n: usize) -> Vector3<S> {
-    Vector3::new(z[3 * n], z[3 * n + 1], z[3 * n + 2])
+    Vector3::from_column_slice(&z[node_dofs(n)])
 }
 
 fn node_pos<S: Scalar>(lifted: &Lifted<S>, z: &[S], n: usize) -> Vector3<S> {
@@ -114,14 +116,14 @@ fn node_pos<S: Scalar>(lifted: &Lifted<S>, z: &[S], n: usize) -> Vector3<S> {
 fn closest_face<S: Scalar>(
     lifted: &Lifted<S>,
     z: &[S],
-    faces: &[[usize; 4]],
+    faces: &FaceSet,
     candidates: &[usize],
     x: &Vector3<S>,
     keep: Option<usize>,
 ) -> Result<(usize, [f64; 2]), ContactFailure> {
     let quads: Vec<[Vector3<f64>; 4]> = candidates
         .iter()
-        .map(|&f| faces[f].map(|n| node_pos(lifted, z, n).map(|v| v.value())))
+        .map(|&f| quad_nodes(faces, f).map(|n| node_pos(lifted, z, n).map(|v| v.value())))
         .collect();
     let xr = x.map(|v| v.value());
     let keep = keep.and_then(|f| candidates.iter().position(|&c| c == f));
@@ -222,7 +224,7 @@ pub fn evaluate<S: Scalar>(
             };
             let target = match &pair.target {
                 Target::Faces { faces } => TargetGeom::Quad {
-                    nodes: faces[face].map(|n| node_pos(lifted, z, n)),
+                    nodes: quad_nodes(faces, face).map(|n| node_pos(lifted, z, n)),
                     xi_start,
                 },
                 Target::Rigid { surface, .. } => TargetGeom::Rigid { surface, d },
@@ -237,7 +239,7 @@ pub fn evaluate<S: Scalar>(
                 Some(match &pair.target {
                     Target::Faces { faces } => {
                         let af = hist_old[h0].value() as usize;
-                        let f = faces[af.min(faces.len() - 1)];
+                        let f = quad_nodes(faces, af.min(faces.len() - 1));
                         AnchorGeom::Quad {
                             reference: f.map(|n| lifted.coords[n]),
                             displacement: f.map(|n| node_disp(z, n)),
@@ -290,12 +292,12 @@ pub fn evaluate<S: Scalar>(
             }
             // ---- residual ----
             for c in 0..3 {
-                residual[3 * s + c] -= ko.force[c];
+                residual[node_dof(s, c)] -= ko.force[c];
             }
             if let Target::Faces { faces } = &pair.target {
-                for (a, &n) in faces[face].iter().enumerate() {
+                for (a, &n) in quad_nodes(faces, face).iter().enumerate() {
                     for c in 0..3 {
-                        residual[3 * n + c] += ko.weights[a] * ko.force[c];
+                        residual[node_dof(n, c)] += ko.weights[a] * ko.force[c];
                     }
                 }
             }
@@ -349,7 +351,7 @@ pub fn evaluate<S: Scalar>(
                                 .0
                             }
                         };
-                        let nodes = faces[anchor_face].map(|n| node_pos(lifted, z, n));
+                        let nodes = quad_nodes(faces, anchor_face).map(|n| node_pos(lifted, z, n));
                         let pa = project_on_quad_s(&ko.new_anchor, &nodes).map_err(err)?;
                         hist_new[h0] = S::lift(anchor_face as f64);
                         hist_new[h0 + 1] = pa[0];
@@ -411,9 +413,9 @@ fn local_tangent<S: Scalar>(
             let off_face = if pair.anchor_len() > 0 {
                 let h0 = layout.history[p] + pair.history_len() * i;
                 let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
-                faces[af]
+                quad_nodes(faces, af)
                     .iter()
-                    .filter(|n| !faces[face].contains(n))
+                    .filter(|n| !quad_nodes(faces, face).contains(n))
                     .count()
             } else {
                 0
@@ -462,8 +464,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
     let h0 = layout.history[p] + nh * i;
     let re3 = |v: Vector3<S>| v.map(|c| c.value());
     let xref = |n: usize| re3(lifted.coords[n]).map(Ad::<N>::from_re);
-    let disp =
-        |n: usize| Vector3::new(z[3 * n].value(), z[3 * n + 1].value(), z[3 * n + 2].value());
+    let disp = |n: usize| node_disp(z, n).map(|v| v.value());
     // seeds: slot -> block-local column
     let mut slots: Vec<usize> = Vec::with_capacity(N);
     let seed = |v: f64, col: usize, slots: &mut Vec<usize>| {
@@ -515,7 +516,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
     let (target, contact_nodes) = match &pair.target {
         Target::Faces { faces } => {
             let mut nodes = [Vector3::zeros(); 4];
-            for (a, &n) in faces[face].iter().enumerate() {
+            for (a, &n) in quad_nodes(faces, face).iter().enumerate() {
                 nodes[a] = xref(n) + node_ad(n, &mut slots)?;
             }
             (
@@ -523,7 +524,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
                     nodes,
                     xi_start: [0.0, 0.0],
                 },
-                Some(faces[face]),
+                Some(quad_nodes(faces, face)),
             )
         }
         Target::Rigid { surface, .. } => (TargetGeom::Rigid { surface, d }, None),
@@ -539,11 +540,11 @@ fn local_tangent_n<S: Scalar, const N: usize>(
             Target::Faces { faces } => {
                 let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
                 let mut displacement = [Vector3::zeros(); 4];
-                for (a, &n) in faces[af].iter().enumerate() {
+                for (a, &n) in quad_nodes(faces, af).iter().enumerate() {
                     displacement[a] = node_ad(n, &mut slots)?;
                 }
                 AnchorGeom::Quad {
-                    reference: faces[af].map(xref),
+                    reference: quad_nodes(faces, af).map(xref),
                     displacement,
                     xi: [
                         Ad::<N>::from_re(hist_old[h0 + 1].value()),
@@ -654,12 +655,12 @@ pub fn initial_history<S: Scalar>(
                 Target::Faces { faces } => {
                     let quads: Vec<[Vector3<f64>; 4]> = pair.candidates[i]
                         .iter()
-                        .map(|&f| faces[f].map(|n| lifted.coords[n].map(|v| v.value())))
+                        .map(|&f| quad_nodes(faces, f).map(|n| lifted.coords[n].map(|v| v.value())))
                         .collect();
                     let xr = x.map(|v| v.value());
                     let (k, _) = closest_on_quads(&xr, &quads, None).map_err(err)?;
                     let f = pair.candidates[i][k];
-                    let nodes = faces[f].map(|n| lifted.coords[n]);
+                    let nodes = quad_nodes(faces, f).map(|n| lifted.coords[n]);
                     let pr =
                         super::geometry::project_on_quad(&x, &nodes, [0.0, 0.0]).map_err(err)?;
                     h[h0] = S::lift(f as f64);

@@ -48,8 +48,11 @@ pub mod assembly;
 pub mod eval;
 pub mod friction;
 pub mod geometry;
+pub mod setup;
 
+use crate::element::FaceFamily;
 use crate::load::Amplitude;
+use crate::mesh::FaceSet;
 use crate::scalar::Scalar;
 use friction::{
     Coulomb, FrictionBranch, FrictionLaw, PressureDependentCoulomb, RegularizedCoulomb,
@@ -176,10 +179,11 @@ pub struct RigidMotion {
 /// What the hitting nodes touch.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Target {
-    /// Quad faces of a deformable body (outward oriented).
+    /// Faces of a deformable body (outward oriented; the kernel's face geometry is the
+    /// bilinear quad: quad4 faces, see [`quad_nodes`]).
     Faces {
-        /// Node indices of each face, counter-clockwise seen from outside.
-        faces: Vec<[usize; 4]>,
+        /// The target faces.
+        faces: FaceSet,
     },
     /// An analytic rigid surface and its prescribed translation.
     Rigid {
@@ -259,6 +263,17 @@ impl ContactPair {
     /// estimate (augmented Lagrangian). Zero for a frictionless Lagrange or penalty pair.
     pub fn history_len(&self) -> usize {
         self.anchor_len() + usize::from(self.augmented())
+    }
+}
+
+/// The four nodes of target face `f`, for the kernel's one face geometry, the bilinear quad
+/// ([`TargetGeom::Quad`]). A face family with a geometry of its own (tri3, quad8) adds its arm
+/// here and its projection in [`geometry`]; the compiler lists every place that must learn it.
+pub fn quad_nodes(faces: &FaceSet, f: usize) -> [usize; 4] {
+    let face = faces.face(f);
+    match face.family {
+        // a quad4 face of a FaceSet has four nodes (FaceSet::push checks)
+        FaceFamily::Quad4 => [face.nodes[0], face.nodes[1], face.nodes[2], face.nodes[3]],
     }
 }
 

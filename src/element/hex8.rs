@@ -132,6 +132,39 @@ pub const FACE_NODES: [[usize; 4]; 6] = [
     [4, 5, 6, 7],
 ];
 
+/// The six faces as quad4 faces (outward, see [`FACE_NODES`]).
+pub const FACES: [super::FaceTopology; 6] = [
+    quad(&[0, 4, 7, 3]),
+    quad(&[1, 2, 6, 5]),
+    quad(&[0, 1, 5, 4]),
+    quad(&[3, 7, 6, 2]),
+    quad(&[0, 3, 2, 1]),
+    quad(&[4, 5, 6, 7]),
+];
+
+const fn quad(nodes: &'static [usize]) -> super::FaceTopology {
+    super::FaceTopology {
+        family: super::FaceFamily::Quad4,
+        nodes,
+    }
+}
+
+/// The twelve edges (local node numbers).
+pub const EDGES: [[usize; 2]; 12] = [
+    [0, 1],
+    [1, 2],
+    [2, 3],
+    [3, 0],
+    [4, 5],
+    [5, 6],
+    [6, 7],
+    [7, 4],
+    [0, 4],
+    [1, 5],
+    [2, 6],
+    [3, 7],
+];
+
 const GP: f64 = 0.577_350_269_189_625_8; // 1/sqrt(3)
 
 /// The eight 2x2x2 Gauss points.
@@ -178,7 +211,19 @@ pub const MAX_DOF: usize = 3 * MAX_GEN;
 /// Why an element evaluation failed. The solver recovers from an inverted element or a
 /// non-finite stress by cutting the increment back; a bad reference geometry is fatal.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ElementFailure {
+    /// The element was handed the wrong number of nodes, branches or unknowns for its family
+    /// (a model whose layout does not match its elements; not recoverable).
+    #[error("{what}: the family has {expected}, the element was given {got}")]
+    Layout {
+        /// What was miscounted (`nodes`, `frozen branches`).
+        what: &'static str,
+        /// How many the family has.
+        expected: usize,
+        /// How many the element was given.
+        got: usize,
+    },
     /// The reference Jacobian is singular or negative: a bad mesh (not recoverable).
     #[error("reference Jacobian determinant {det:.3e} at Gauss point {gauss_point}: the element is degenerate or inverted in the mesh")]
     BadReferenceGeometry {

@@ -747,7 +747,7 @@ fn hex8_blocks(ne: usize) -> (usize, Vec<Vec<usize>>) {
                 blocks.push(
                     corners
                         .iter()
-                        .flat_map(|&c| (0..3).map(move |d| 3 * c + d))
+                        .flat_map(|&c| crate::model::node_dofs(c))
                         .collect(),
                 );
             }

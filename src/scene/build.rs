@@ -5,7 +5,7 @@
 use super::*;
 use crate::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCoulomb};
 use crate::contact::geometry::RigidSurface;
-use crate::contact::{ContactPair, Friction, NormalLaw, RigidMotion, Target};
+use crate::contact::{setup, ContactPair, Friction, NormalLaw, RigidMotion, Target};
 use crate::element::Spring;
 use crate::mesh::{Axis, Mesh};
 use crate::model::{Amplitude, Body, Model, NodalLoad, Prescribed};
@@ -85,9 +85,12 @@ impl Scene {
             let block = mesh
                 .add_block(b.block.clone())
                 .map_err(|e| invalid(&at, e.to_string()))?;
+            let group = mesh
+                .block_group(block)
+                .ok_or_else(|| invalid(&at, "the block made no element group"))?;
             bodies.push(Body {
                 name: b.block.name.clone(),
-                block,
+                group,
                 material: b.material.build(),
                 kinematics: b.kinematics,
                 formulation: b.formulation,
@@ -206,7 +209,8 @@ impl Scene {
             let nodes = set(&l.set, &format!("{at}.set"))?;
             let weights = match mesh.face_sets.get(&l.set) {
                 Some(faces) if !faces.is_empty() => {
-                    let area = tributary_areas(&mesh, faces, &nodes);
+                    let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+                    let area = setup::tributary_areas(&x, faces, &nodes);
                     let total: f64 = area.iter().sum();
                     if !(total.is_finite() && total > 0.0) {
                         return Err(invalid(
@@ -332,15 +336,19 @@ impl Scene {
                             format!("material '{}' has history {names:?}", b.material.name()),
                         )
                     })?;
-                    let elems = mesh.block_elements[b.block].clone();
+                    let elems = mesh.group_elements(b.group);
                     if *element >= elems.len() {
                         return Err(invalid(
                             &format!("{at}.element"),
                             format!("body '{body}' has {} elements", elems.len()),
                         ));
                     }
-                    if *point >= 8 {
-                        return Err(invalid(&format!("{at}.point"), "Gauss points are 0-7"));
+                    let n_gauss = b.family(&mesh).n_gauss();
+                    if *point >= n_gauss {
+                        return Err(invalid(
+                            &format!("{at}.point"),
+                            format!("Gauss points are 0-{}", n_gauss - 1),
+                        ));
                     }
                     history_refs.push((responses.len(), bi, elems.start + element, *point, var));
                     ResponseKind::History { index: usize::MAX }
@@ -355,7 +363,7 @@ impl Scene {
                     let b = bodies.iter().find(|b| &b.name == body).ok_or_else(|| {
                         invalid(&format!("{at}.body"), format!("no body '{body}'"))
                     })?;
-                    let elems = mesh.block_elements[b.block].clone();
+                    let elems = mesh.group_elements(b.group);
                     if *element >= elems.len() {
                         return Err(invalid(
                             &format!("{at}.element"),
@@ -480,145 +488,8 @@ fn check_axis(axis: &Axis, origin: f64, at: &str) -> Result<usize, SceneError> {
     Ok(n)
 }
 
-/// Tributary area of each of `nodes` (sorted) over `faces`: a quarter of each face's area.
-fn tributary_areas(mesh: &Mesh, faces: &[[usize; 4]], nodes: &[usize]) -> Vec<f64> {
-    let x = mesh.coordinates::<f64>(&mesh.block_geometry());
-    // position of each node in `nodes` (the first, as a linear search would find)
-    let mut index = std::collections::HashMap::with_capacity(nodes.len());
-    for (k, n) in nodes.iter().enumerate() {
-        index.entry(*n).or_insert(k);
-    }
-    let mut area = vec![0.0; nodes.len()];
-    for f in faces {
-        let a = (x[f[1]] - x[f[0]]).cross(&(x[f[3]] - x[f[0]])).norm() * 0.5
-            + (x[f[3]] - x[f[2]]).cross(&(x[f[1]] - x[f[2]])).norm() * 0.5;
-        for n in f {
-            if let Some(&k) = index.get(n) {
-                area[k] += a / 4.0;
-            }
-        }
-    }
-    area
-}
-
-/// Factor `c_T` of the default tangential penalty `c_T E* A_i / h_i`: the stiffness of the
-/// element layer under a hitting node times this. With it the elastic slip in stick,
-/// `mu p_n / eps_T = (mu sigma_n / (c_T E*)) h_i`, is a strain-sized fraction of the element
-/// (0.5 % of it at mu = 0.5 and a contact pressure of E* / 100), and Newton meets a stick
-/// stiffness no larger than the structure's next to it.
-pub const TANGENTIAL_STIFFNESS_FACTOR: f64 = 1.0;
-
-/// Per node of `nodes` (sorted, with tributary areas `area`) on the boundary faces `faces`:
-/// `A_i / h_i`, the node's area over the thickness of the element layer under it (the mean of
-/// twice the distance from each adjacent face's centre to its element's centre). `None` when a
-/// face belongs to no element.
-fn layer_stiffness(
-    mesh: &Mesh,
-    x: &[nalgebra::Vector3<f64>],
-    faces: &[[usize; 4]],
-    nodes: &[usize],
-    area: &[f64],
-) -> Option<Vec<f64>> {
-    use std::collections::{HashMap, HashSet};
-    let key = |f: &[usize]| {
-        let mut k = [f[0], f[1], f[2], f[3]];
-        k.sort_unstable();
-        k
-    };
-    let wanted: HashSet<[usize; 4]> = faces.iter().map(|f| key(f)).collect();
-    let mut element_of: HashMap<[usize; 4], usize> = HashMap::new();
-    for (e, conn) in mesh.elements.iter().enumerate() {
-        for f in crate::element::hex8::FACE_NODES {
-            let k = key(&f.map(|i| conn[i]));
-            if wanted.contains(&k) {
-                element_of.insert(k, e);
-            }
-        }
-    }
-    let index: HashMap<usize, usize> = nodes.iter().enumerate().map(|(k, n)| (*n, k)).collect();
-    let mut h = vec![0.0; nodes.len()];
-    let mut count = vec![0usize; nodes.len()];
-    for f in faces {
-        let e = *element_of.get(&key(f))?;
-        let centre_f = f.iter().map(|n| x[*n]).sum::<nalgebra::Vector3<f64>>() / 4.0;
-        let centre_e = mesh.elements[e]
-            .iter()
-            .map(|n| x[*n])
-            .sum::<nalgebra::Vector3<f64>>()
-            / 8.0;
-        let hf = 2.0 * (centre_e - centre_f).norm();
-        for n in f {
-            if let Some(&k) = index.get(n) {
-                h[k] += hf;
-                count[k] += 1;
-            }
-        }
-    }
-    Some(
-        area.iter()
-            .zip(h.iter().zip(&count))
-            .map(|(a, (h, c))| a / (h / (*c).max(1) as f64))
-            .collect(),
-    )
-}
-
-/// The generating block of node `n` (`None` for a free node).
-fn block_of(mesh: &Mesh, n: usize) -> Option<usize> {
-    match mesh.places[n] {
-        crate::mesh::NodePlace::Block { block, .. } => Some(block),
-        crate::mesh::NodePlace::Free(_) => None,
-    }
-}
-
-/// How far the prescribed displacements can move nodes of `blocks`: per component the sum of
-/// `|value| max |amplitude|` over the prescribed entries acting on them, as a vector norm.
-fn prescribed_travel(mesh: &Mesh, prescribed: &[Prescribed], blocks: &[Option<usize>]) -> f64 {
-    let mut m = [0.0f64; 3];
-    for p in prescribed {
-        if p.nodes.iter().any(|&n| blocks.contains(&block_of(mesh, n))) {
-            let amp = p
-                .amplitude
-                .points
-                .iter()
-                .map(|(_, v)| v.abs())
-                .fold(0.0f64, f64::max);
-            m[p.component] += p.value.abs() * amp;
-        }
-    }
-    (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt()
-}
-
-/// Plane-strain modulus `E / (1 - nu^2)` of the body owning node `n` (0 for a free node).
-fn plane_modulus(mesh: &Mesh, bodies: &[Body], n: usize) -> f64 {
-    match mesh.places[n] {
-        crate::mesh::NodePlace::Block { block, .. } => bodies
-            .iter()
-            .find(|b| b.block == block)
-            .map(|b| {
-                let p = b.material.params();
-                p[0] / (1.0 - p[1] * p[1])
-            })
-            .unwrap_or(0.0),
-        crate::mesh::NodePlace::Free(_) => 0.0,
-    }
-}
-
-/// The contact modulus of a pair: the hitting body's plane-strain modulus against a rigid
-/// target, `1 / (1 / E*_1 + 1 / E*_2)` against a deformable one.
-fn contact_modulus(mesh: &Mesh, bodies: &[Body], hitting: &[usize], target: &Target) -> f64 {
-    let e1 = plane_modulus(mesh, bodies, hitting[0]);
-    match target {
-        Target::Faces { faces } => {
-            let e2 = plane_modulus(mesh, bodies, faces[0][0]);
-            if e1 > 0.0 && e2 > 0.0 {
-                1.0 / (1.0 / e1 + 1.0 / e2)
-            } else {
-                e1.max(e2)
-            }
-        }
-        Target::Rigid { .. } => e1,
-    }
-}
+/// Factor `c_T` of the default tangential penalty (see [`setup::TANGENTIAL_STIFFNESS_FACTOR`]).
+pub const TANGENTIAL_STIFFNESS_FACTOR: f64 = setup::TANGENTIAL_STIFFNESS_FACTOR;
 
 /// Validates and builds an amplitude, naming the field in errors.
 type AmplitudeBuilder<'a> = dyn Fn(&[(f64, f64)], &str) -> Result<Amplitude, SceneError> + 'a;
@@ -670,6 +541,7 @@ impl Scene {
         notes: &mut Vec<String>,
     ) -> Result<Vec<ContactPair>, SceneError> {
         let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+        let node_group = setup::node_groups(mesh);
         let mut out = Vec::new();
         for (ci, c) in self.contacts.iter().enumerate() {
             let at = format!("contacts[{ci}]");
@@ -683,11 +555,9 @@ impl Scene {
             // per hitting node: tributary area, and the stiffness A_i / h_i of the element
             // layer under it (none for a node set)
             let (hitting, area, layer) = if let Some(faces) = mesh.face_sets.get(&c.hitting) {
-                let mut nodes: Vec<usize> = faces.iter().flatten().copied().collect();
-                nodes.sort();
-                nodes.dedup();
-                let area = tributary_areas(mesh, faces, &nodes);
-                let layer = layer_stiffness(mesh, &x, faces, &nodes, &area);
+                let nodes = setup::face_set_nodes(faces);
+                let area = setup::tributary_areas(&x, faces, &nodes);
+                let layer = setup::layer_stiffness(mesh, &x, faces, &nodes, &area);
                 (nodes, area, layer)
             } else if let Some(nodes) = mesh.node_sets.get(&c.hitting) {
                 if nodes.is_empty() {
@@ -720,17 +590,14 @@ impl Scene {
                             format!("face set '{name}' is empty"),
                         ));
                     }
-                    let diag = faces
-                        .iter()
-                        .map(|f| (x[f[2]] - x[f[0]]).norm().max((x[f[3]] - x[f[1]]).norm()))
-                        .fold(0.0f64, f64::max);
+                    let diag = setup::largest_face_diameter(&x, faces);
                     // default: three face diagonals, plus how far the prescribed
                     // displacements can move the two bodies against each other
                     let radius = match c.search_radius {
                         Some(r) => r,
                         None => {
-                            let blocks = [block_of(mesh, hitting[0]), block_of(mesh, faces[0][0])];
-                            let travel = prescribed_travel(mesh, prescribed, &blocks);
+                            let groups = [node_group[hitting[0]], node_group[faces.nodes(0)[0]]];
+                            let travel = setup::prescribed_travel(&node_group, prescribed, &groups);
                             let r = 3.0 * diag + travel;
                             notes.push(format!(
                                 "{at} '{}': search radius {r:.4e} (3 face diagonals {:.4e} + the bodies' largest prescribed travel {travel:.4e})",
@@ -741,19 +608,7 @@ impl Scene {
                         }
                     };
                     positive(radius, &format!("{at}.search_radius"))?;
-                    let mut candidates = Vec::new();
-                    for &s in &hitting {
-                        let cands: Vec<usize> = faces
-                            .iter()
-                            .enumerate()
-                            .filter(|(_, f)| {
-                                let centre = (x[f[0]] + x[f[1]] + x[f[2]] + x[f[3]]) / 4.0;
-                                (x[s] - centre).norm() <= radius && !f.contains(&s)
-                            })
-                            .map(|(k, _)| k)
-                            .collect();
-                        candidates.push(cands);
-                    }
+                    let candidates = setup::candidates(&x, faces, &hitting, radius);
                     (
                         Target::Faces {
                             faces: faces.clone(),
@@ -909,22 +764,12 @@ impl Scene {
                     k
                 }
                 None => {
-                    let e = bodies
-                        .iter()
-                        .map(|b| b.material.params()[0])
-                        .fold(0.0f64, f64::max);
-                    let mean_area = area.iter().sum::<f64>() / area.len() as f64;
-                    let ks = springs
-                        .iter()
-                        .flat_map(|s| s.stiffness.iter().flatten().map(|v| v.abs()))
-                        .fold(0.0f64, f64::max);
-                    let k = if e > 0.0 { e * mean_area.sqrt() } else { ks };
-                    let k = if k > 0.0 { k } else { 1.0 };
+                    let (k, source) = setup::default_constraint_scale(bodies, springs, &area);
                     if c.normal == NormalLaw::Lagrange {
                         notes.push(format!(
                             "{at} '{}': constraint scale {k:.4e} (force per unit gap of the multiplier rows: {})",
                             c.name,
-                            if e > 0.0 {
+                            if source == setup::ScaleSource::Modulus {
                                 "the largest E times the square root of the mean tributary area"
                             } else {
                                 "the largest spring stiffness"
@@ -949,19 +794,22 @@ impl Scene {
                     (k, vec![1.0; hitting.len()])
                 }
                 (None, Some(layer)) => {
-                    let e_star = contact_modulus(mesh, bodies, &hitting, &target);
-                    let per_node: Vec<f64> = layer
-                        .iter()
-                        .map(|l| TANGENTIAL_STIFFNESS_FACTOR * e_star * l)
-                        .collect();
-                    let mean = per_node.iter().sum::<f64>() / per_node.len() as f64;
+                    let target_node = match &target {
+                        Target::Faces { faces } => Some(faces.nodes(0)[0]),
+                        Target::Rigid { .. } => None,
+                    };
+                    let e_star =
+                        setup::contact_modulus(&node_group, bodies, hitting[0], target_node);
+                    let t = setup::default_tangential(e_star, layer);
+                    let mean = t.mean;
                     if !(mean.is_finite() && mean > 0.0) {
                         return Err(invalid(
                             &format!("{at}.tangential_stiffness"),
                             format!("no default from the surface elements (mean stiffness {mean}): give one"),
                         ));
                     }
-                    let (lo, hi) = per_node
+                    let (lo, hi) = t
+                        .per_node
                         .iter()
                         .fold((f64::INFINITY, 0.0f64), |(a, b), k| (a.min(*k), b.max(*k)));
                     notes.push(format!(
@@ -969,7 +817,7 @@ impl Scene {
                         c.name,
                         TANGENTIAL_STIFFNESS_FACTOR
                     ));
-                    (mean, per_node.iter().map(|k| k / mean).collect())
+                    (mean, t.weight)
                 }
                 (None, None) => (100.0 * scale, vec![1.0; hitting.len()]),
             };

@@ -21,7 +21,7 @@ impl Engine<'_> {
         let np = self.params.len();
         let n = c.z.len();
         let nh = c.hist_prev.len();
-        let mut ev = Evaluation::<Dual64>::new(c.assembler, c.model.mesh.elements.len());
+        let mut ev = Evaluation::<Dual64>::new(c.assembler, c.model.mesh.n_elements());
         let mut out = PseudoLoads {
             rhs: vec![0.0; n * np],
             dzc: vec![vec![0.0; n]; np],
@@ -77,11 +77,11 @@ impl Engine<'_> {
     ) -> Result<PseudoLoads, AnalysisError> {
         let n = c.z.len();
         let converged = converged_frozen(c);
-        let unchanged = match unchanged_elements(forced, &converged) {
+        let unchanged = match unchanged_elements(&c.assembler.dofs, forced, &converged) {
             Some(u) if self.settings.restrict => u,
             _ => return self.pseudo_loads(c, forced),
         };
-        let mut ev = Evaluation::<Dual64>::new(c.assembler, c.model.mesh.elements.len());
+        let mut ev = Evaluation::<Dual64>::new(c.assembler, c.model.mesh.n_elements());
         let mut out = base.clone();
         for k in 0..self.params.len() {
             let z = duals(c.z, &base.dzc[k]);
@@ -116,12 +116,14 @@ impl Engine<'_> {
         self.solve(c, &mut rhs, np)?;
         // total derivatives: evaluate with z carrying dz/db. The update wants only the history
         // and the responses: elements frozen elastic keep their history and are skipped.
-        let skip = frozen.gauss.map(|g| history_unchanged(c.model, g));
+        let skip = frozen
+            .gauss
+            .map(|g| history_unchanged(c.model, &c.assembler.dofs, g));
         let update = Frozen {
             skip: skip.as_deref(),
             ..*frozen
         };
-        let mut ev = Evaluation::<Dual64>::new(c.assembler, c.model.mesh.elements.len());
+        let mut ev = Evaluation::<Dual64>::new(c.assembler, c.model.mesh.n_elements());
         let mut dresp = vec![vec![0.0; np]; nr];
         let mut dhist = vec![0.0; nh * np];
         let mut dz_all = Vec::with_capacity(np);

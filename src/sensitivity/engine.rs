@@ -7,7 +7,7 @@ use crate::assembly::Frozen;
 use crate::contact::{ContactChoice, ContactState};
 use crate::linalg::LinearSolver;
 use crate::material::Branch;
-use crate::model::{DesignParam, Lifted, Model};
+use crate::model::{node_dof, DesignParam, DofMap, Lifted, Model};
 use crate::scalar::Scalar;
 use crate::solver::{AnalysisError, Converged, Observer};
 use num_dual::Dual64;
@@ -40,9 +40,17 @@ pub(super) struct PseudoLoads {
 
 /// Per element: whether the Gauss-point branches of `a` and `b` agree on all its points
 /// (`None` when either leaves them free: every element counts as changed).
-pub(super) fn unchanged_elements(a: &Frozen<'_>, b: &Frozen<'_>) -> Option<Vec<bool>> {
+pub(super) fn unchanged_elements(
+    dofs: &DofMap,
+    a: &Frozen<'_>,
+    b: &Frozen<'_>,
+) -> Option<Vec<bool>> {
     let (a, b) = (a.gauss?, b.gauss?);
-    Some(a.chunks(8).zip(b.chunks(8)).map(|(a, b)| a == b).collect())
+    Some(
+        (0..dofs.element_body.len())
+            .map(|e| a[dofs.gauss(e)] == b[dofs.gauss(e)])
+            .collect(),
+    )
 }
 
 /// The branches of the converged state, frozen, over all elements.
@@ -240,7 +248,7 @@ impl<'a> Engine<'a> {
             if hit {
                 let a = p.amplitude.at(c.time);
                 for &n in &p.nodes {
-                    out[3 * n + p.component] += a;
+                    out[node_dof(n, p.component)] += a;
                 }
             }
         }
@@ -430,7 +438,8 @@ impl Observer for Engine<'_> {
                 for k in &kinks {
                     match k.kind {
                         KinkKind::Yield => {
-                            gauss[8 * k.at + k.point] = [Branch::Elastic, Branch::Plastic][side];
+                            let i = c.assembler.dofs.gauss(k.at).start + k.point;
+                            gauss[i] = [Branch::Elastic, Branch::Plastic][side];
                         }
                         KinkKind::Friction => {
                             contact[k.at].state = [ContactState::Stick, ContactState::Slip][side];
@@ -547,12 +556,13 @@ impl Reach {
 }
 
 /// The elements whose history an evaluation with Gauss-point branches `gauss` leaves
-/// unchanged and whose residual no response reads: all eight points frozen elastic (no
-/// history at all counts as elastic), and none of its nodes among the residual rows a response
-/// declares it reads ([`crate::response::ResponseKind::reads`]).
-pub fn history_unchanged(model: &Model, gauss: &[Branch]) -> Vec<bool> {
+/// unchanged and whose residual no response reads: all its points frozen elastic (no
+/// history at all counts as elastic), none of its nodes among the residual rows a response
+/// declares it reads, and not an element whose stress a response reads
+/// ([`crate::response::ResponseKind::reads`]).
+pub fn history_unchanged(model: &Model, dofs: &DofMap, gauss: &[Branch]) -> Vec<bool> {
     let mut reaction_node = vec![false; model.mesh.n_nodes()];
-    let mut stress_read = vec![false; model.mesh.elements.len()];
+    let mut stress_read = vec![false; model.mesh.n_elements()];
     for r in &model.responses {
         let reads = r.kind.reads();
         for &n in reads.residual_nodes {
@@ -568,13 +578,10 @@ pub fn history_unchanged(model: &Model, gauss: &[Branch]) -> Vec<bool> {
     }
     model
         .mesh
-        .elements
-        .iter()
+        .elements()
         .enumerate()
-        .map(|(e, conn)| {
-            gauss[8 * e..8 * e + 8]
-                .iter()
-                .all(|b| *b == Branch::Elastic)
+        .map(|(e, (_, conn))| {
+            gauss[dofs.gauss(e)].iter().all(|b| *b == Branch::Elastic)
                 && !conn.iter().any(|&n| reaction_node[n])
                 && !stress_read[e]
         })

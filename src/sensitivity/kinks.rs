@@ -105,10 +105,11 @@ impl Engine<'_> {
         }
         for (i, r) in c.eval.yield_ratio.iter().enumerate() {
             if *r != -1.0 && r.abs() < self.settings.kink_tol {
+                let (at, point) = c.assembler.dofs.gauss_owner(i);
                 v.push(Kink {
                     kind: KinkKind::Yield,
-                    at: i / 8,
-                    point: i % 8,
+                    at,
+                    point,
                     distance: *r,
                 });
             }

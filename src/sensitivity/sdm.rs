@@ -85,25 +85,22 @@ impl Engine<'_> {
         let model = c.model;
         let nh = c.hist_prev.len();
         let dofs = &c.assembler.dofs;
-        let mask: Vec<bool> = (0..model.mesh.elements.len())
+        let mask: Vec<bool> = (0..model.mesh.n_elements())
             .map(|e| {
                 let b = dofs.element_body[e];
                 let Some(body) = model.bodies.get(b) else {
                     return false;
                 };
-                let elastic = gauss[8 * e..8 * e + 8]
-                    .iter()
-                    .all(|g| *g == Branch::Elastic);
+                let elastic = gauss[dofs.gauss(e)].iter().all(|g| *g == Branch::Elastic);
                 let material_unchanged =
                     reach.material[b].iter().enumerate().all(|(i, changed)| {
                         !changed || (elastic && !body.material.enters_elastic_branch(i))
                     });
-                let h0 = dofs.history_offset[e];
-                let nh8 = 8 * body.material.history_len();
+                let hist = dofs.history(e);
                 material_unchanged
-                    && !model.mesh.elements[e].iter().any(|&n| reach.moved[n])
+                    && !model.mesh.element_nodes(e).iter().any(|&n| reach.moved[n])
                     && c.assembler.element_dofs(e).iter().all(|&i| dzc[i] == 0.0)
-                    && self.dhist[k * nh + h0..k * nh + h0 + nh8]
+                    && self.dhist[k * nh + hist.start..k * nh + hist.end]
                         .iter()
                         .all(|v| *v == 0.0)
             })
@@ -123,7 +120,7 @@ impl Engine<'_> {
     pub(super) fn probe_floor(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
         let t = Instant::now();
         let frozen = converged_frozen(c);
-        let mut ev = Evaluation::<f64>::new(c.assembler, c.model.mesh.elements.len());
+        let mut ev = Evaluation::<f64>::new(c.assembler, c.model.mesh.n_elements());
         c.assembler.evaluate(
             c.model,
             c.lifted,
@@ -153,11 +150,11 @@ impl Engine<'_> {
         c: &Converged<'_>,
         forced: &Frozen<'_>,
     ) -> Result<crate::linalg::SparseMatrix, AnalysisError> {
-        let ne = c.model.mesh.elements.len();
+        let ne = c.model.mesh.n_elements();
         let converged = converged_frozen(c);
         let mut k = c.tangent.clone();
         let mut ev = Evaluation::<f64>::new(c.assembler, ne);
-        let unchanged = match unchanged_elements(forced, &converged) {
+        let unchanged = match unchanged_elements(&c.assembler.dofs, forced, &converged) {
             Some(u) if self.settings.restrict => u,
             // over all elements
             _ => {
@@ -193,7 +190,7 @@ impl Engine<'_> {
         let np = self.params.len();
         let n = c.z.len();
         let nh = c.hist_prev.len();
-        let ne = c.model.mesh.elements.len();
+        let ne = c.model.mesh.n_elements();
         let converged = converged_frozen(c);
         let frozen = if self.settings.freeze_branches {
             Some(&converged)
@@ -299,7 +296,7 @@ impl Engine<'_> {
         // keep their history and are skipped (free branches: nothing is skipped)
         let skip = frozen
             .and_then(|f| f.gauss)
-            .map(|g| history_unchanged(c.model, g));
+            .map(|g| history_unchanged(c.model, &c.assembler.dofs, g));
         let update = frozen.map(|f| Frozen {
             skip: skip.as_deref(),
             ..*f

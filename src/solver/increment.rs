@@ -4,10 +4,10 @@
 use super::*;
 use crate::assembly::{Assembler, AssemblyFailure, Evaluation};
 use crate::contact::{ContactChoice, ContactState};
-use crate::element::hex8::ElementFailure;
+use crate::element::ElementFailure;
 use crate::linalg::{LinearSolver, SparseMatrix};
 use crate::material::Branch;
-use crate::model::{Lifted, Model};
+use crate::model::{node_dof, node_dofs, Lifted, Model};
 use std::time::Instant;
 
 /// The primal solver of one model.
@@ -51,7 +51,7 @@ impl<'m> Solver<'m> {
         let mut constrained = vec![false; n];
         for p in &model.prescribed {
             for &node in &p.nodes {
-                let d = 3 * node + p.component;
+                let d = node_dof(node, p.component);
                 if d >= assembler.dofs.n_nodal {
                     return Err(ModelError::NoNode {
                         prescribed: p.name.clone(),
@@ -72,16 +72,18 @@ impl<'m> Solver<'m> {
         }
         // unknowns no element or spring touches (e.g. nodes of unassembled blocks) are pinned
         let mut touched = vec![false; n];
-        for e in 0..model.mesh.elements.len() {
+        for e in 0..model.mesh.n_elements() {
             for &d in assembler.element_dofs(e) {
                 touched[d] = true;
             }
         }
         for s in &model.springs {
-            for i in 0..3 {
-                touched[3 * s.a + i] = true;
-                if let Some(b) = s.b {
-                    touched[3 * b + i] = true;
+            for d in node_dofs(s.a) {
+                touched[d] = true;
+            }
+            if let Some(b) = s.b {
+                for d in node_dofs(b) {
+                    touched[d] = true;
                 }
             }
         }
@@ -103,7 +105,7 @@ impl<'m> Solver<'m> {
         free?;
         warnings.extend(crate::precheck::never_touching(model, &lifted));
         if !model.contacts.is_empty() {
-            let mut eval = Evaluation::<f64>::new(&assembler, model.mesh.elements.len());
+            let mut eval = Evaluation::<f64>::new(&assembler, model.mesh.n_elements());
             let z = vec![0.0; n];
             let hist = crate::contact::assembly::initial_history(
                 model,
@@ -165,7 +167,7 @@ impl<'m> Solver<'m> {
         for (i, p) in self.model.prescribed.iter().enumerate() {
             let v = self.lifted.prescribed[i] * p.amplitude.at(t);
             for &node in &p.nodes {
-                z[3 * node + p.component] = v;
+                z[node_dof(node, p.component)] = v;
             }
         }
     }
@@ -197,7 +199,7 @@ impl<'m> Solver<'m> {
         self.force_history = (0.0, 0);
         let model = self.model;
         let n = self.assembler.dofs.n_total;
-        let ne = model.mesh.elements.len();
+        let ne = model.mesh.n_elements();
         let mut res = Results::default();
         let mut z = vec![0.0; n];
         let mut hist = crate::contact::assembly::initial_history(
@@ -224,7 +226,8 @@ impl<'m> Solver<'m> {
         res.contact_flat = self.assembler.contact.flat.clone();
         res.contact.push(eval.contact.clone());
         res.stresses.push(vec![nalgebra::Matrix3::zeros(); ne]);
-        res.branches.push(vec![Branch::Elastic; 8 * ne]);
+        res.branches
+            .push(vec![Branch::Elastic; self.assembler.dofs.n_gauss()]);
         let mut t_prev = 0.0;
         // the converged state before `z` and its time: the extrapolating predictor's
         let mut previous: Option<(Vec<f64>, f64)> = None;

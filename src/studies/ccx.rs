@@ -39,7 +39,7 @@
 
 use crate::contact::geometry::RigidSurface;
 use crate::contact::{ContactPair, Friction, Target};
-use crate::element::{Hex8Formulation, Kinematics};
+use crate::element::{Hex8Formulation, Kinematics, Shape};
 use crate::model::{Amplitude, DesignParam, Material, Model};
 use crate::response::ResponseKind;
 use crate::sensitivity::{run_sensitivity, Method, Parameter, Settings};
@@ -277,7 +277,13 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         let _ = writeln!(s, "{},{:.12e},{:.12e},{:.12e}", i + 1, p.x, p.y, p.z);
     }
     let mut next_node = x.len() + 1;
-    let mut next_elem = model.mesh.elements.len() + 1;
+    let mut next_elem = model.mesh.n_elements() + 1;
+    if let Some(g) = model.mesh.groups.iter().find(|g| g.shape != Shape::Hex8) {
+        return Err(CcxError::Unsupported(format!(
+            "{} elements have no CalculiX export yet",
+            g.shape.name()
+        )));
+    }
     let mut element_types = Vec::new();
     let mut nlgeom = false;
     let mut young_max: f64 = 0.0;
@@ -295,8 +301,8 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         nlgeom |= body.kinematics == Kinematics::Large;
         element_types.push(ty);
         let _ = writeln!(s, "*ELEMENT,TYPE={ty},ELSET=B{b}");
-        for e in model.mesh.block_elements[body.block].clone() {
-            let c = model.mesh.elements[e];
+        for e in model.mesh.group_elements(body.group) {
+            let c = model.mesh.element_nodes(e);
             let ids: Vec<String> = c.iter().map(|n| (n + 1).to_string()).collect();
             let _ = writeln!(s, "{},{}", e + 1, ids.join(","));
         }
@@ -320,7 +326,7 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
     }
     // every face of every element, to find the free faces and their CalculiX numbers
     let mut face_of: HashMap<[usize; 4], Vec<(usize, usize)>> = HashMap::new();
-    for (e, c) in model.mesh.elements.iter().enumerate() {
+    for (e, (_, c)) in model.mesh.elements().enumerate() {
         for (k, f) in CCX_FACES.iter().enumerate() {
             let nodes = [c[f[0]], c[f[1]], c[f[2]], c[f[3]]];
             face_of.entry(sorted4(&nodes)).or_default().push((e, k));
@@ -350,7 +356,7 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         slave.sort_unstable();
         let covered: HashSet<usize> = slave
             .iter()
-            .flat_map(|&(e, k)| CCX_FACES[k].map(|l| model.mesh.elements[e][l]))
+            .flat_map(|&(e, k)| CCX_FACES[k].map(|l| model.mesh.element_nodes(e)[l]))
             .collect();
         if !slave.is_empty() && covered.len() == hitting.len() {
             let _ = writeln!(contact_text, "*SURFACE,NAME=SLAVE{ci},TYPE=ELEMENT");
@@ -366,7 +372,8 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         let _ = writeln!(contact_text, "*SURFACE,NAME=MASTER{ci},TYPE=ELEMENT");
         match &pair.target {
             Target::Faces { faces } => {
-                for f in faces {
+                for k in 0..faces.len() {
+                    let f = &crate::contact::quad_nodes(faces, k);
                     let owners = face_of.get(&sorted4(f)).ok_or_else(|| {
                         CcxError::Unsupported(format!(
                             "pair '{}': target face {f:?} is not an element face",

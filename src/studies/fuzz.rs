@@ -713,7 +713,7 @@ pub fn check_increment(c: &Converged<'_>, element_size: f64, scale: &mut f64) ->
         // residual as an internal force that does not add up to zero
         for sp in model.springs.iter().filter(|sp| sp.b.is_none()) {
             let f: f64 = (0..3)
-                .map(|j| sp.stiffness[comp][j] * c.z[3 * sp.a + j])
+                .map(|j| sp.stiffness[comp][j] * c.z[crate::model::node_dof(sp.a, j)])
                 .sum();
             sum -= f;
             largest = largest.max(f.abs());

@@ -269,14 +269,14 @@ pub fn model_size(model: &crate::model::Model) -> ModelSize {
     let mut fixed = vec![false; map.n_nodal];
     for p in &model.prescribed {
         for &node in &p.nodes {
-            if let Some(f) = fixed.get_mut(3 * node + p.component) {
+            if let Some(f) = fixed.get_mut(crate::model::node_dof(node, p.component)) {
                 *f = true;
             }
         }
     }
     let prescribed = fixed.iter().filter(|f| **f).count();
     ModelSize {
-        elements: model.mesh.elements.len(),
+        elements: model.mesh.n_elements(),
         unknowns: map.n_total,
         dofs: map.n_total - prescribed,
     }

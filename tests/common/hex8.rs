@@ -33,7 +33,7 @@ pub fn one_body_model(
         mesh,
         bodies: vec![Body {
             name: "b".into(),
-            block: 0,
+            group: 0,
             material,
             kinematics,
             formulation,

@@ -43,7 +43,7 @@ pub struct Directional {
 /// Evaluate `model` at `(z, hist, t)` with the tangent and, in dual numbers, along `v`.
 pub fn directional(model: &Model, z: &[f64], hist: &[f64], t: f64, v: &[f64]) -> Directional {
     let asm = Assembler::new(model, &[]).unwrap();
-    let ne = model.mesh.elements.len();
+    let ne = model.mesh.n_elements();
     let mut k = SparseMatrix::new(asm.pattern.clone());
     let mut ev = Evaluation::<f64>::new(&asm, ne);
     let lifted = model.lifted::<f64>(&[]);

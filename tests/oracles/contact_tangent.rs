@@ -98,7 +98,7 @@ fn contact_tangent_with_the_anchor_on_another_face() {
     let mut hist = res.histories[0].clone();
     // each node's contact face at this state (the evaluation below keeps it: the contact
     // face is searched from the state, not from the history)
-    let ne = model.mesh.elements.len();
+    let ne = model.mesh.n_elements();
     let lifted = model.lifted::<f64>(&[]);
     let mut ev = Evaluation::<f64>::new(&asm, ne);
     asm.evaluate(&model, &lifted, z, &hist, 1.0, None, None, &mut ev)
@@ -111,10 +111,12 @@ fn contact_tangent_with_the_anchor_on_another_face() {
         let face = ev.contact.choice[flat + i].face;
         // a candidate face that shares no node with the contact face: the tangent then
         // seeds 3 + 4 x 3 + 4 x 3 + 1 = 28 unknowns, the widest dual
-        if let Some(&other) = cands
-            .iter()
-            .find(|&&f| faces[f].iter().all(|n| !faces[face].contains(n)))
-        {
+        if let Some(&other) = cands.iter().find(|&&f| {
+            faces
+                .nodes(f)
+                .iter()
+                .all(|n| !faces.nodes(face).contains(n))
+        }) {
             hist[at] = other as f64;
             moved += 1;
         }
@@ -122,9 +124,10 @@ fn contact_tangent_with_the_anchor_on_another_face() {
         if outside.is_none() {
             outside = (0..faces.len())
                 .find(|f| {
-                    faces[*f]
+                    faces
+                        .nodes(*f)
                         .iter()
-                        .any(|n| cands.iter().all(|&c| !faces[c].contains(n)))
+                        .any(|n| cands.iter().all(|&c| !faces.nodes(c).contains(n)))
                 })
                 .map(|f| (f, i));
         }

@@ -229,7 +229,7 @@ fn real_part_of_seeded_dual_evaluation_equals_f64() {
     let (model, z) =
         deformed_cantilever(Kinematics::Large, Hex8Formulation::IncompatibleModes, 0.0);
     let asm = Assembler::new(&model, &[]).unwrap();
-    let ne = model.mesh.elements.len();
+    let ne = model.mesh.n_elements();
     let mut ev = Evaluation::<f64>::new(&asm, ne);
     asm.evaluate(
         &model,
@@ -324,7 +324,7 @@ fn incompatible_mode_gradients_integrate_to_zero() {
     // field the mode's force vanishes on a distorted element.
     let mesh = distorted_mesh();
     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
-    let conn = mesh.elements[0];
+    let conn = mesh.element_nodes(0);
     let x_ref: [Vector3<f64>; 8] = std::array::from_fn(|a| x[conn[a]]);
     let grad_u = Matrix3::new(0.01, 0.002, 0.0, 0.0, -0.003, 0.001, 0.0, 0.0, 0.004);
     let mut dofs: Vec<Vector3<f64>> = x_ref.iter().map(|p| grad_u * p).collect();
@@ -401,7 +401,7 @@ fn tangents_over_complementary_element_sets_add_up() {
         ..CantileverSpec::large_deflection()
     };
     let model = cantilever(&spec).build().unwrap();
-    let ne = model.mesh.elements.len();
+    let ne = model.mesh.n_elements();
     assert!(ne > 1024, "{ne} elements");
     let asm = Assembler::new(&model, &[]).unwrap();
     let lifted = model.lifted::<f64>(&[]);

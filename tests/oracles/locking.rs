@@ -582,7 +582,7 @@ fn punch_curve(
     println!(
         "{formulation:?} {kinematics:?} {m:?} {size:?}: {} elements, {} increments, {} Newton \
          iterations, {:.2} s",
-        model.mesh.elements.len(),
+        model.mesh.n_elements(),
         res.records.len(),
         res.records.iter().map(|r| r.iterations).sum::<usize>(),
         t0.elapsed().as_secs_f64()

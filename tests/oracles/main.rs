@@ -17,4 +17,5 @@ mod element;
 mod friction_laws;
 mod locking;
 mod materials;
+mod mesh_in_code;
 mod plasticity;

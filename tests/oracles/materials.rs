@@ -141,14 +141,15 @@ impl fricsens::solver::Observer for SkipCheck {
     ) -> Result<(), fricsens::solver::AnalysisError> {
         use fricsens::assembly::{Evaluation, Frozen};
         use num_dual::Dual64;
-        let ne = c.model.mesh.elements.len();
+        let ne = c.model.mesh.n_elements();
         let frozen = Frozen {
             gauss: Some(&c.eval.branches),
             contact: &c.eval.contact.choice,
             skip: None,
             ..Frozen::default()
         };
-        let skip = fricsens::sensitivity::history_unchanged(c.model, &c.eval.branches);
+        let skip =
+            fricsens::sensitivity::history_unchanged(c.model, &c.assembler.dofs, &c.eval.branches);
         let update = Frozen {
             skip: Some(&skip),
             ..frozen

@@ -54,7 +54,7 @@ fn indentation_deck_has_every_keyword_block_and_the_mesh_one_for_one() {
     );
     assert_eq!(
         block_lines(&deck.text, "*ELEMENT,TYPE=C3D8I"),
-        model.mesh.elements.len()
+        model.mesh.n_elements()
     );
     assert_eq!(deck.element_types, vec!["C3D8I"]);
     assert!(!deck.nlgeom, "the indentation is small kinematics");
@@ -63,7 +63,7 @@ fn indentation_deck_has_every_keyword_block_and_the_mesh_one_for_one() {
     let reference = deck.reference_nodes[0].unwrap();
     assert_eq!(reference, deck.nodes - 1);
     assert!(reference > model.mesh.n_nodes());
-    assert!(deck.elements > model.mesh.elements.len());
+    assert!(deck.elements > model.mesh.n_elements());
     // the same increments: DIRECT, 0.5 then 0.25
     assert!(deck
         .text
