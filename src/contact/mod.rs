@@ -51,65 +51,10 @@ pub mod geometry;
 
 use crate::load::Amplitude;
 use crate::scalar::Scalar;
-use friction::{
-    Coulomb, FrictionBranch, FrictionLaw, PressureDependentCoulomb, RegularizedCoulomb,
-    UserFriction, UserFrictionError,
-};
+pub use friction::Friction;
+use friction::{FrictionBranch, FrictionLaw};
 use geometry::{project_on_quad, Projection, RigidSurface};
 use nalgebra::Vector3;
-
-/// A shipped friction law (enum dispatch; see [`friction::FrictionLaw`]).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(tag = "law", rename_all = "kebab-case")]
-pub enum Friction {
-    /// Coulomb friction (`law = "coulomb"`).
-    Coulomb(Coulomb),
-    /// Regularised Coulomb friction (`law = "regularized-coulomb"`).
-    RegularizedCoulomb(RegularizedCoulomb),
-    /// Coulomb friction with a pressure-dependent coefficient (`law = "pressure-dependent"`).
-    PressureDependent(PressureDependentCoulomb),
-    /// A law defined outside the crate ([`friction::UserFriction`]); not written to scene
-    /// files.
-    #[serde(skip)]
-    User(UserFriction),
-}
-
-/// Call `$body` with `$f` bound to the concrete law inside a [`Friction`].
-#[macro_export]
-macro_rules! with_friction {
-    ($fr:expr, $f:ident => $body:expr) => {
-        match $fr {
-            $crate::contact::Friction::Coulomb($f) => $body,
-            $crate::contact::Friction::RegularizedCoulomb($f) => $body,
-            $crate::contact::Friction::PressureDependent($f) => $body,
-            $crate::contact::Friction::User($f) => $body,
-        }
-    };
-}
-
-impl Friction {
-    /// A user's law (see [`friction::UserFriction`]): any [`friction::FrictionLaw`] written
-    /// generic over the scalar.
-    pub fn user<L: FrictionLaw + Clone + 'static>(law: L) -> Result<Self, UserFrictionError> {
-        UserFriction::new(law).map(Friction::User)
-    }
-    /// Parameter values of the law, in the order of [`Friction::param_names`].
-    pub fn params(&self) -> &[f64] {
-        with_friction!(self, f => f.params())
-    }
-    /// Names of the law's parameters (`mu`; `mu0`, `p0`, `n`; ...).
-    pub fn param_names(&self) -> &'static [&'static str] {
-        with_friction!(self, f => f.param_names())
-    }
-    /// Set parameter `i` (in the order of [`Friction::params`]) to `v`.
-    pub fn set_param(&mut self, i: usize, v: f64) {
-        with_friction!(self, f => f.params_mut()[i] = v)
-    }
-    /// Short name of the law, as in scene files.
-    pub fn name(&self) -> &'static str {
-        with_friction!(self, f => f.name())
-    }
-}
 
 /// How the normal force is computed.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -8,7 +8,7 @@ use crate::scalar::Scalar;
 use nalgebra::Matrix3;
 
 /// St Venant-Kirchhoff hyperelastic material.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct StVenantKirchhoff {
     params: [f64; 2],
 }
@@ -22,19 +22,17 @@ impl StVenantKirchhoff {
     }
 }
 
+crate::law_params!(
+    StVenantKirchhoff,
+    "svk",
+    ["E", "nu"],
+    check = |p| {
+        crate::law::positive(p[0], "E")?;
+        crate::law::poisson(p[1], "nu")
+    }
+);
+
 impl MaterialLaw for StVenantKirchhoff {
-    fn name(&self) -> &'static str {
-        "svk"
-    }
-    fn param_names(&self) -> &'static [&'static str] {
-        &["E", "nu"]
-    }
-    fn params(&self) -> &[f64] {
-        &self.params
-    }
-    fn params_mut(&mut self) -> &mut [f64] {
-        &mut self.params
-    }
     fn update<S: Scalar>(
         &self,
         p: &[S],

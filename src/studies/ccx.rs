@@ -313,6 +313,15 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
                     body.name
                 )))
             }
+            // a material registered later is not exported until this function learns it
+            #[allow(unreachable_patterns)]
+            other => {
+                return Err(CcxError::Unsupported(format!(
+                    "body '{}': material '{}' is not exported",
+                    body.name,
+                    other.name()
+                )))
+            }
         }
     }
     // every face of every element, to find the free faces and their CalculiX numbers
