@@ -205,6 +205,70 @@ impl ContactPair {
     pub fn history_len(&self) -> usize {
         self.anchor_len() + usize::from(self.augmented())
     }
+
+    /// The stick anchor stored in a hitting node's history `h` (its [`ContactPair::history_len`]
+    /// scalars), `None` without friction.
+    pub fn anchor<S: Scalar>(&self, h: &[S]) -> Option<StoredAnchor<S>> {
+        (self.anchor_len() > 0).then(|| match self.target {
+            Target::Faces { .. } => StoredAnchor::Face {
+                face: h[0].value() as usize,
+                xi: [h[1], h[2]],
+            },
+            Target::Rigid { .. } => StoredAnchor::Offset(Vector3::new(h[0], h[1], h[2])),
+        })
+    }
+
+    /// Store a stick anchor in a hitting node's history `h` (a pair with friction).
+    pub fn set_anchor<S: Scalar>(&self, h: &mut [S], anchor: StoredAnchor<S>) {
+        debug_assert!(
+            self.anchor_len() == 3,
+            "a frictionless pair stores no anchor"
+        );
+        h[..3].copy_from_slice(&match anchor {
+            StoredAnchor::Face { face, xi } => [S::lift(face as f64), xi[0], xi[1]],
+            StoredAnchor::Offset(a) => [a[0], a[1], a[2]],
+        });
+    }
+
+    /// Keep a hitting node's stick anchor: copy its scalars from the committed history `from`
+    /// to the new one `to` unchanged (with their derivative parts).
+    pub fn keep_anchor<S: Scalar>(&self, from: &[S], to: &mut [S]) {
+        let n = self.anchor_len();
+        to[..n].copy_from_slice(&from[..n]);
+    }
+
+    /// The augmented Lagrangian's multiplier estimate `lambda_bar` in a hitting node's history
+    /// `h`, `None` for other normal laws.
+    pub fn lambda_bar<S: Scalar>(&self, h: &[S]) -> Option<S> {
+        self.augmented().then(|| h[self.anchor_len()])
+    }
+
+    /// Store the multiplier estimate `lambda_bar` in a hitting node's history `h` (an augmented
+    /// pair).
+    pub fn set_lambda_bar<S: Scalar>(&self, h: &mut [S], lambda_bar: S) {
+        debug_assert!(
+            self.augmented(),
+            "only the augmented Lagrangian has an estimate"
+        );
+        h[self.anchor_len()] = lambda_bar;
+    }
+}
+
+/// A hitting node's stick anchor as its history stores it ([`ContactPair::anchor`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StoredAnchor<S> {
+    /// Material point of a deformable target: the face (index into the target's faces) and
+    /// the anchor's convected coordinates on it.
+    Face {
+        /// Index into `Target::Faces::faces` (not clamped: a frozen or stale face number is
+        /// the reader's to check).
+        face: usize,
+        /// Convected coordinates of the anchor on the face.
+        xi: [S; 2],
+    },
+    /// Material point of a rigid target: the anchor minus the hitting node's reference
+    /// position, in the body's frame.
+    Offset(Vector3<S>),
 }
 
 /// Contact state of a hitting node.
