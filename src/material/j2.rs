@@ -458,6 +458,9 @@ fn algorithmic_tangent<S: Scalar>(
 }
 
 impl MaterialLaw for J2Plasticity {
+    fn elastic_constants(&self) -> (f64, f64) {
+        (self.params[0], self.params[1])
+    }
     /// The trial deviator `2 mu dev(E - E_p)` moves linearly along the step. The step
     /// crosses the elastic domain when the point of its path nearest the origin lies inside
     /// the yield surface (radius `sqrt(2/3) k(alpha)`) and the end lies on the other side of

@@ -146,6 +146,15 @@ impl Material {
     pub fn enters_elastic_branch(&self, index: usize) -> bool {
         with_material!(self, m => m.enters_elastic_branch(index))
     }
+    /// Young's modulus and Poisson's ratio of the initial elastic response
+    /// ([`MaterialLaw::elastic_constants`]).
+    pub fn elastic_constants(&self) -> (f64, f64) {
+        with_material!(self, m => m.elastic_constants())
+    }
+    /// Young's modulus of the initial elastic response.
+    pub fn young(&self) -> f64 {
+        self.elastic_constants().0
+    }
     /// History scalars per Gauss point.
     pub fn history_len(&self) -> usize {
         with_material!(self, m => m.history_len())
@@ -188,6 +197,10 @@ pub struct PointResponse<S: Scalar> {
 /// A constitutive law: parameters as plain values (scene data, named through [`Law`]),
 /// evaluated with parameters lifted to the scalar type so any of them can be a design parameter.
 pub trait MaterialLaw: Law {
+    /// Young's modulus and Poisson's ratio of the law's initial (small-strain) elastic
+    /// response: the stiffness scale from which the scene derives default penalties and
+    /// contact scales, and the solver its force floor.
+    fn elastic_constants(&self) -> (f64, f64);
     /// Whether parameter `index` enters the stress of a point frozen on the elastic branch
     /// ([`Branch::Elastic`]). Elastic laws: every parameter (the default); a plastic law says
     /// which act only on its plastic branch, so a design derivative with respect to them

@@ -51,6 +51,9 @@ crate::law_params!(
 );
 
 impl MaterialLaw for NeoHookean {
+    fn elastic_constants(&self) -> (f64, f64) {
+        (self.params[0], self.params[1])
+    }
     fn update<S: Scalar>(
         &self,
         p: &[S],

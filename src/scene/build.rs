@@ -572,8 +572,8 @@ fn plane_modulus(mesh: &Mesh, bodies: &[Body], n: usize) -> f64 {
             .iter()
             .find(|b| b.block == block)
             .map(|b| {
-                let p = b.material.params();
-                p[0] / (1.0 - p[1] * p[1])
+                let (young, nu) = b.material.elastic_constants();
+                young / (1.0 - nu * nu)
             })
             .unwrap_or(0.0),
         crate::mesh::NodePlace::Free(_) => 0.0,
@@ -873,7 +873,7 @@ impl Scene {
                 None => {
                     let e = bodies
                         .iter()
-                        .map(|b| b.material.params()[0])
+                        .map(|b| b.material.young())
                         .fold(0.0f64, f64::max);
                     let mean_area = area.iter().sum::<f64>() / area.len() as f64;
                     let ks = springs

@@ -901,7 +901,7 @@ pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcom
     let e_max = model
         .bodies
         .iter()
-        .map(|b| b.material.params()[0])
+        .map(|b| b.material.young())
         .fold(0.0f64, f64::max);
     let mut checker = Checker {
         element_size: h,
