@@ -15,7 +15,8 @@
 //! exact derivatives from it through [`fricsens::contact::friction::UserFriction`], which
 //! differentiates the law on its own inputs with a dual number and applies the chain rule.
 //!
-//! What a user writes: the struct and its [`FrictionLaw`] implementation (about 30 lines,
+//! What a user writes: the struct, one `law_params!` line (its name and parameter names: the
+//! [`fricsens::law::Law`] trait) and its [`FrictionLaw`] implementation (about 30 lines,
 //! `SaturatingCoulomb` below), then one line to put it on a contact pair:
 //! `model.contacts[0].friction = Some(Friction::user(law)?)`. Its parameters are design
 //! parameters by name (`ground.mu`, `ground.t_max`).
@@ -45,19 +46,19 @@ pub struct SaturatingCoulomb {
     params: [f64; 2],
 }
 
+// Its name and named parameters (the `Law` trait, shared with the shipped laws and materials):
+// the parameters are the field `params`, in the order of the names, and must be finite.
+fricsens::law_params!(
+    SaturatingCoulomb,
+    "saturating-coulomb",
+    ["mu", "t_max"],
+    check = |p| {
+        fricsens::law::nonnegative(p[0], "mu")?;
+        fricsens::law::positive(p[1], "t_max")
+    }
+);
+
 impl FrictionLaw for SaturatingCoulomb {
-    fn name(&self) -> &'static str {
-        "saturating-coulomb"
-    }
-    fn param_names(&self) -> &'static [&'static str] {
-        &["mu", "t_max"]
-    }
-    fn params(&self) -> &[f64] {
-        &self.params
-    }
-    fn params_mut(&mut self) -> &mut [f64] {
-        &mut self.params
-    }
     fn return_map<S: Scalar>(
         &self,
         p: &[S],

@@ -7,66 +7,10 @@
 
 use crate::element::{ElementFamily, Hex8Formulation, Kinematics, Spring};
 pub use crate::load::Amplitude;
-use crate::material::{J2Plasticity, MaterialLaw, NeoHookean, StVenantKirchhoff};
+pub use crate::material::Material;
 use crate::mesh::{BlockGeometry, Mesh};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
-
-/// The constitutive law of a body (enum dispatch over the shipped laws).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(tag = "law", rename_all = "kebab-case")]
-pub enum Material {
-    /// St Venant-Kirchhoff elasticity.
-    Svk(StVenantKirchhoff),
-    /// J2 elastoplasticity with isotropic hardening.
-    J2(J2Plasticity),
-    /// Compressible Neo-Hookean hyperelasticity.
-    NeoHookean(NeoHookean),
-}
-
-/// Call `$body` with `$m` bound to the concrete law inside a [`Material`].
-#[macro_export]
-macro_rules! with_material {
-    ($mat:expr, $m:ident => $body:expr) => {
-        match $mat {
-            $crate::model::Material::Svk($m) => $body,
-            $crate::model::Material::J2($m) => $body,
-            $crate::model::Material::NeoHookean($m) => $body,
-        }
-    };
-}
-
-impl Material {
-    /// Parameter values.
-    pub fn params(&self) -> &[f64] {
-        with_material!(self, m => m.params())
-    }
-    /// Parameter names.
-    pub fn param_names(&self) -> &'static [&'static str] {
-        with_material!(self, m => m.param_names())
-    }
-    /// Whether parameter `index` enters the stress of a point frozen elastic
-    /// ([`crate::material::MaterialLaw::enters_elastic_branch`]).
-    pub fn enters_elastic_branch(&self, index: usize) -> bool {
-        with_material!(self, m => m.enters_elastic_branch(index))
-    }
-    /// History scalars per Gauss point.
-    pub fn history_len(&self) -> usize {
-        with_material!(self, m => m.history_len())
-    }
-    /// Short name.
-    pub fn name(&self) -> &'static str {
-        with_material!(self, m => m.name())
-    }
-    /// Names of the history entries per Gauss point.
-    pub fn history_names(&self) -> &'static [&'static str] {
-        with_material!(self, m => m.history_names())
-    }
-    /// Change parameter `index`.
-    pub fn set_param(&mut self, index: usize, v: f64) {
-        with_material!(self, m => m.params_mut()[index] = v)
-    }
-}
 
 /// A deformable body: one element group of the mesh with one material.
 #[derive(Clone, Debug)]

@@ -3,7 +3,8 @@
 //! A scene (built-in or read from TOML) builds a model; the solver runs it and calls an observer
 //! after every converged increment; a sensitivity run differentiates every response with respect
 //! to the named design parameters by one of the methods. Kernels are generic over [`Scalar`];
-//! a law of your own implements [`MaterialLaw`] or [`FrictionLaw`].
+//! a law of your own implements [`Law`] (its named parameters) and [`MaterialLaw`] or
+//! [`FrictionLaw`].
 //!
 //! ```
 //! use fricsens::prelude::*;
@@ -20,6 +21,7 @@
 
 pub use crate::contact::friction::FrictionLaw;
 pub use crate::design::{Parameter, ParameterError};
+pub use crate::law::Law;
 pub use crate::material::MaterialLaw;
 pub use crate::model::Model;
 pub use crate::response::{Response, ResponseKind};

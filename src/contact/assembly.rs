@@ -12,7 +12,7 @@ use super::geometry::{closest_on_quads, closest_on_quads_keeping};
 use super::quad_nodes;
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
-    KernelParams, Target, TargetGeom,
+    KernelParams, StoredAnchor, Target, TargetGeom,
 };
 use crate::mesh::FaceSet;
 use crate::model::{node_dof, node_dofs, Lifted, Model};
@@ -229,30 +229,20 @@ pub fn evaluate<S: Scalar>(
                 },
                 Target::Rigid { surface, .. } => TargetGeom::Rigid { surface, d },
             };
-            let na = pair.anchor_len();
-            let lambda_bar = if pair.augmented() {
-                hist_old[h0 + na]
-            } else {
-                S::zero()
-            };
-            let anchor = if na > 0 {
-                Some(match &pair.target {
-                    Target::Faces { faces } => {
-                        let af = hist_old[h0].value() as usize;
-                        let f = quad_nodes(faces, af.min(faces.len() - 1));
-                        AnchorGeom::Quad {
-                            reference: f.map(|n| lifted.coords[n]),
-                            displacement: f.map(|n| node_disp(z, n)),
-                            xi: [hist_old[h0 + 1], hist_old[h0 + 2]],
-                        }
-                    }
-                    Target::Rigid { .. } => AnchorGeom::Rigid {
-                        offset: Vector3::new(hist_old[h0], hist_old[h0 + 1], hist_old[h0 + 2]),
-                        d,
-                    },
-                })
-            } else {
-                None
+            let h_old = &hist_old[h0..h0 + nh];
+            let lambda_bar = pair.lambda_bar(h_old).unwrap_or(S::zero());
+            let stored = pair.anchor(h_old);
+            let anchor = match (stored, &pair.target) {
+                (Some(StoredAnchor::Face { face: af, xi }), Target::Faces { faces }) => {
+                    let f = quad_nodes(faces, af.min(faces.len() - 1));
+                    Some(AnchorGeom::Quad {
+                        reference: f.map(|n| lifted.coords[n]),
+                        displacement: f.map(|n| node_disp(z, n)),
+                        xi,
+                    })
+                }
+                (Some(StoredAnchor::Offset(offset)), _) => Some(AnchorGeom::Rigid { offset, d }),
+                _ => None,
             };
             let kernel = |par: &KernelParams<'_, S>, state| {
                 node_kernel(
@@ -308,29 +298,41 @@ pub fn evaluate<S: Scalar>(
             out.traction[flat] = (ko.force - ko.projection.normal * ko.p_n).map(|v| v.value());
             out.distance[flat] = (ko.normal_distance, ko.slip_ratio);
             out.gap[flat] = ko.projection.gap.value();
+            let h_new = &mut hist_new[h0..h0 + nh];
             if pair.augmented() {
                 // the estimate is updated by the solver's augmentation, not within Newton
-                hist_new[h0 + na] = lambda_bar;
+                pair.set_lambda_bar(h_new, lambda_bar);
             }
             // ---- history: the stick anchor ----
             let mut anchor_face = face;
-            if na > 0 {
+            if let Some(old) = stored {
                 match (&pair.target, ko.state) {
                     (_, ContactState::Stick) => {
-                        hist_new[h0..h0 + 3].copy_from_slice(&hist_old[h0..h0 + 3]);
-                        anchor_face = hist_old[h0].value() as usize;
+                        // the anchor stays: its scalars are kept as stored (with their
+                        // derivative parts)
+                        pair.keep_anchor(h_old, h_new);
+                        anchor_face = match old {
+                            StoredAnchor::Face { face, .. } => face,
+                            // a rigid target has no anchor face; the number recorded is the
+                            // offset's first component truncated, as it always was (the
+                            // solver compares whole choice vectors)
+                            StoredAnchor::Offset(a) => a[0].value() as usize,
+                        };
                     }
                     (Target::Rigid { .. }, _) => {
                         // offset from the node's reference position, in the body's frame:
                         // sep = u - d - offset
                         let a = (u - d) - ko.new_separation;
-                        hist_new[h0..h0 + 3].copy_from_slice(&[a[0], a[1], a[2]]);
+                        pair.set_anchor(h_new, StoredAnchor::Offset(a));
                     }
-                    (Target::Faces { faces }, ContactState::Open | ContactState::Closed) => {
-                        hist_new[h0] = S::lift(face as f64);
-                        hist_new[h0 + 1] = ko.projection.xi[0];
-                        hist_new[h0 + 2] = ko.projection.xi[1];
-                        let _ = faces;
+                    (Target::Faces { .. }, ContactState::Open | ContactState::Closed) => {
+                        pair.set_anchor(
+                            h_new,
+                            StoredAnchor::Face {
+                                face,
+                                xi: ko.projection.xi,
+                            },
+                        );
                     }
                     (Target::Faces { faces }, ContactState::Slip) => {
                         // re-project the new anchor: which face is a real-part decision
@@ -353,9 +355,13 @@ pub fn evaluate<S: Scalar>(
                         };
                         let nodes = quad_nodes(faces, anchor_face).map(|n| node_pos(lifted, z, n));
                         let pa = project_on_quad_s(&ko.new_anchor, &nodes).map_err(err)?;
-                        hist_new[h0] = S::lift(anchor_face as f64);
-                        hist_new[h0 + 1] = pa[0];
-                        hist_new[h0 + 2] = pa[1];
+                        pair.set_anchor(
+                            h_new,
+                            StoredAnchor::Face {
+                                face: anchor_face,
+                                xi: pa,
+                            },
+                        );
                     }
                 }
             }
@@ -410,15 +416,16 @@ fn local_tangent<S: Scalar>(
     let seeds = match &pair.target {
         Target::Faces { faces } => {
             // the anchor face's nodes that are not on the contact face
-            let off_face = if pair.anchor_len() > 0 {
-                let h0 = layout.history[p] + pair.history_len() * i;
-                let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
-                quad_nodes(faces, af)
-                    .iter()
-                    .filter(|n| !quad_nodes(faces, face).contains(n))
-                    .count()
-            } else {
-                0
+            let nh = pair.history_len();
+            let h0 = layout.history[p] + nh * i;
+            let off_face = match pair.anchor(&hist_old[h0..h0 + nh]) {
+                Some(StoredAnchor::Face { face: af, .. }) => {
+                    quad_nodes(faces, af.min(faces.len() - 1))
+                        .iter()
+                        .filter(|n| !quad_nodes(faces, face).contains(n))
+                        .count()
+                }
+                _ => 0,
             };
             4 + 3 * (4 + off_face)
         }
@@ -529,40 +536,27 @@ fn local_tangent_n<S: Scalar, const N: usize>(
         }
         Target::Rigid { surface, .. } => (TargetGeom::Rigid { surface, d }, None),
     };
-    let na = pair.anchor_len();
-    let lambda_bar = if pair.augmented() {
-        Ad::<N>::from_re(hist_old[h0 + na].value())
-    } else {
-        Ad::<N>::from_re(0.0)
-    };
-    let anchor = if na > 0 {
-        Some(match &pair.target {
-            Target::Faces { faces } => {
-                let af = (hist_old[h0].value() as usize).min(faces.len() - 1);
-                let mut displacement = [Vector3::zeros(); 4];
-                for (a, &n) in quad_nodes(faces, af).iter().enumerate() {
-                    displacement[a] = node_ad(n, &mut slots)?;
-                }
-                AnchorGeom::Quad {
-                    reference: quad_nodes(faces, af).map(xref),
-                    displacement,
-                    xi: [
-                        Ad::<N>::from_re(hist_old[h0 + 1].value()),
-                        Ad::<N>::from_re(hist_old[h0 + 2].value()),
-                    ],
-                }
+    let h_old = &hist_old[h0..h0 + nh];
+    let lambda_bar = Ad::<N>::from_re(pair.lambda_bar(h_old).map_or(0.0, |v| v.value()));
+    let re = |v: S| Ad::<N>::from_re(v.value());
+    let anchor = match (pair.anchor(h_old), &pair.target) {
+        (Some(StoredAnchor::Face { face: af, xi }), Target::Faces { faces }) => {
+            let af = af.min(faces.len() - 1);
+            let mut displacement = [Vector3::zeros(); 4];
+            for (a, &n) in quad_nodes(faces, af).iter().enumerate() {
+                displacement[a] = node_ad(n, &mut slots)?;
             }
-            Target::Rigid { .. } => AnchorGeom::Rigid {
-                offset: Vector3::new(
-                    Ad::<N>::from_re(hist_old[h0].value()),
-                    Ad::<N>::from_re(hist_old[h0 + 1].value()),
-                    Ad::<N>::from_re(hist_old[h0 + 2].value()),
-                ),
-                d,
-            },
-        })
-    } else {
-        None
+            Some(AnchorGeom::Quad {
+                reference: quad_nodes(faces, af).map(xref),
+                displacement,
+                xi: xi.map(re),
+            })
+        }
+        (Some(StoredAnchor::Offset(offset)), _) => Some(AnchorGeom::Rigid {
+            offset: offset.map(re),
+            d,
+        }),
+        _ => None,
     };
     let lam_col = nb - 1;
     let lambda = seed(z[layout.lambda[p] + i].value(), lam_col, &mut slots);
@@ -650,7 +644,7 @@ pub fn initial_history<S: Scalar>(
                 Target::Rigid { surface, .. } => {
                     let pr = surface.project(&x, &d).map_err(err)?;
                     let a = (pr.point - x) - d;
-                    h[h0..h0 + 3].copy_from_slice(&[a[0], a[1], a[2]]);
+                    pair.set_anchor(&mut h[h0..h0 + nh], StoredAnchor::Offset(a));
                 }
                 Target::Faces { faces } => {
                     let quads: Vec<[Vector3<f64>; 4]> = pair.candidates[i]
@@ -663,9 +657,10 @@ pub fn initial_history<S: Scalar>(
                     let nodes = quad_nodes(faces, f).map(|n| lifted.coords[n]);
                     let pr =
                         super::geometry::project_on_quad(&x, &nodes, [0.0, 0.0]).map_err(err)?;
-                    h[h0] = S::lift(f as f64);
-                    h[h0 + 1] = pr.xi[0];
-                    h[h0 + 2] = pr.xi[1];
+                    pair.set_anchor(
+                        &mut h[h0..h0 + nh],
+                        StoredAnchor::Face { face: f, xi: pr.xi },
+                    );
                 }
             }
         }
@@ -700,9 +695,9 @@ pub fn augment(
             continue;
         }
         let nh = pair.history_len();
-        let na = pair.anchor_len();
         for i in 0..n {
-            hist[layout.history[p] + nh * i + na] = eval.normal_force[first + i];
+            let h0 = layout.history[p] + nh * i;
+            pair.set_lambda_bar(&mut hist[h0..h0 + nh], eval.normal_force[first + i]);
         }
         changed = true;
     }

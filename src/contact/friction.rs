@@ -21,6 +21,7 @@
 //! | `t_trial`, `t` | trial and returned tangential force (vectors in the tangent plane) |
 //! | `slip_ratio` | `|t_trial| / limit - 1`: zero on the stick/slip transition |
 
+use crate::law::Law;
 use crate::scalar::{safe_norm, Scalar};
 use nalgebra::Vector3;
 use num_dual::DualSVec64;
@@ -45,16 +46,9 @@ pub struct FrictionUpdate<S: Scalar> {
     pub slip_ratio: f64,
 }
 
-/// A tangential law: its parameters (design parameters too) and its return map.
-pub trait FrictionLaw: Send + Sync + std::fmt::Debug {
-    /// Short name used in scene files.
-    fn name(&self) -> &'static str;
-    /// Names of the parameters, in the order of `params`.
-    fn param_names(&self) -> &'static [&'static str];
-    /// Parameter values, in the order of [`FrictionLaw::param_names`].
-    fn params(&self) -> &[f64];
-    /// Parameter values, mutable (to set a design parameter).
-    fn params_mut(&mut self) -> &mut [f64];
+/// A tangential law: its parameters (design parameters too, named through [`Law`]) and its
+/// return map.
+pub trait FrictionLaw: Law {
     /// The return map. `p` are the parameters lifted to `S`, `p_n >= 0` the normal force,
     /// `margin` the round-off of `|t_trial|` (a trial within it of the slip surface sticks),
     /// `frozen` imposes a branch (SDM's perturbed evaluations).
@@ -66,6 +60,128 @@ pub trait FrictionLaw: Send + Sync + std::fmt::Debug {
         margin: f64,
         frozen: Option<FrictionBranch>,
     ) -> FrictionUpdate<S>;
+}
+
+/// The shipped friction laws, one line each: `Variant(Type) = "scene name", example VALUE;`
+/// (the example: the parameters at which `fricsens compare-laws` compares the laws on the
+/// strip pull-out, `mu = mu0 = 0.5`, the pressure-dependent law's reference force `p0 = 0.1`
+/// about the strip's mean nodal normal force). A new law is its code (the law, [`Law`] with
+/// its `check`, [`FrictionLaw`]) plus a line here: the [`Friction`] enum, its scene format,
+/// [`crate::with_friction!`], [`Friction::NAMES`] and the law comparison's list are generated
+/// from this list.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! friction_registry {
+    ($callback:ident! $args:tt) => {
+        $crate::$callback! { $args
+            /// Coulomb friction (`law = "coulomb"`).
+            Coulomb(Coulomb) = "coulomb", example Coulomb::new(0.5);
+            /// Regularised Coulomb friction (`law = "regularized-coulomb"`).
+            RegularizedCoulomb(RegularizedCoulomb) = "regularized-coulomb", example RegularizedCoulomb::new(0.5);
+            /// Coulomb friction with a pressure-dependent coefficient (`law = "pressure-dependent"`).
+            PressureDependent(PressureDependentCoulomb) = "pressure-dependent", example PressureDependentCoulomb::new(0.5, 0.1, 0.2);
+        }
+    };
+}
+
+/// Call `$body` with `$f` bound to the concrete law inside a [`Friction`] (one arm per
+/// registered law, and one for [`Friction::User`]).
+#[macro_export]
+macro_rules! with_friction {
+    ($fr:expr, $f:ident => $body:expr) => {
+        $crate::friction_registry!(__friction_dispatch!($fr, $f, $body))
+    };
+}
+
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __friction_dispatch {
+    (($fr:expr, $f:ident, $body:expr)
+     $($(#[$doc:meta])* $variant:ident($law:ty) = $tag:literal, example $example:expr;)+) => {
+        match $fr {
+            $($crate::contact::Friction::$variant($f) => $body,)+
+            $crate::contact::Friction::User($f) => $body,
+        }
+    };
+}
+
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __friction_enum {
+    (() $($(#[$doc:meta])* $variant:ident($law:ty) = $tag:literal, example $example:expr;)+) => {
+        /// A friction law (enum dispatch over the registered laws, see [`FrictionLaw`], and a
+        /// user's law), as written in scene files: `law = "NAME"` and the law's parameters by
+        /// name.
+        #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+        // the enum's name in serde's messages ("expected internally tagged enum ..."), as
+        // before the scene read the model's own type
+        #[serde(tag = "law", rename = "FrictionSpec")]
+        pub enum Friction {
+            $($(#[$doc])* #[serde(rename = $tag)] $variant($law),)+
+            /// A law defined outside the crate ([`UserFriction`]); a scene holding one builds
+            /// and runs, but cannot be written to a scene file.
+            #[serde(skip)]
+            User(UserFriction),
+        }
+
+        impl Friction {
+            /// Scene names of the registered laws, in registration order.
+            pub const NAMES: &'static [&'static str] = &[$($tag),+];
+            /// One instance of each registered law, in registration order, at the parameters
+            /// the law comparison uses.
+            pub fn examples() -> Vec<Friction> {
+                vec![$(Friction::$variant($example)),+]
+            }
+        }
+    };
+}
+
+friction_registry!(__friction_enum!());
+
+impl Law for Friction {
+    fn name(&self) -> &'static str {
+        crate::with_friction!(self, f => f.name())
+    }
+    fn param_names(&self) -> &'static [&'static str] {
+        crate::with_friction!(self, f => f.param_names())
+    }
+    fn params(&self) -> &[f64] {
+        crate::with_friction!(self, f => f.params())
+    }
+    fn params_mut(&mut self) -> &mut [f64] {
+        crate::with_friction!(self, f => f.params_mut())
+    }
+    fn check(&self) -> Result<(), crate::law::ParamError> {
+        crate::with_friction!(self, f => f.check())
+    }
+}
+
+impl Friction {
+    /// A user's law (see [`UserFriction`]): any [`FrictionLaw`] written generic over the
+    /// scalar.
+    pub fn user<L: FrictionLaw + Clone + 'static>(law: L) -> Result<Self, UserFrictionError> {
+        UserFriction::new(law).map(Friction::User)
+    }
+    /// Parameter values of the law, in the order of [`Friction::param_names`].
+    pub fn params(&self) -> &[f64] {
+        Law::params(self)
+    }
+    /// Names of the law's parameters (`mu`; `mu0`, `p0`, `n`; ...).
+    pub fn param_names(&self) -> &'static [&'static str] {
+        Law::param_names(self)
+    }
+    /// Set parameter `i` (in the order of [`Friction::params`]) to `v`.
+    pub fn set_param(&mut self, i: usize, v: f64) {
+        self.params_mut()[i] = v
+    }
+    /// Short name of the law, as in scene files.
+    pub fn name(&self) -> &'static str {
+        Law::name(self)
+    }
+    /// Whether the parameter values are admissible ([`Law::check`]).
+    pub fn check(&self) -> Result<(), crate::law::ParamError> {
+        Law::check(self)
+    }
 }
 
 /// The radial return onto a circle of radius `limit` shared by the Coulomb-type laws.
@@ -107,7 +223,7 @@ pub fn radial_return<S: Scalar>(
 }
 
 /// Coulomb friction with a penalty stick law: `limit = mu p_n`.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Coulomb {
     params: [f64; 1],
 }
@@ -119,19 +235,14 @@ impl Coulomb {
     }
 }
 
+crate::law_params!(
+    Coulomb,
+    "coulomb",
+    ["mu"],
+    check = |p| crate::law::nonnegative(p[0], "mu")
+);
+
 impl FrictionLaw for Coulomb {
-    fn name(&self) -> &'static str {
-        "coulomb"
-    }
-    fn param_names(&self) -> &'static [&'static str] {
-        &["mu"]
-    }
-    fn params(&self) -> &[f64] {
-        &self.params
-    }
-    fn params_mut(&mut self) -> &mut [f64] {
-        &mut self.params
-    }
     fn return_map<S: Scalar>(
         &self,
         p: &[S],
@@ -149,7 +260,7 @@ impl FrictionLaw for Coulomb {
 /// `|t_trial| << mu p_n` and tends to `mu p_n` for `|t_trial| >> mu p_n`. No branch: the law is
 /// differentiable everywhere, so sensitivities have no kinks (at the price of a force that
 /// only approaches the Coulomb limit). Parameters: `mu`.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RegularizedCoulomb {
     params: [f64; 1],
 }
@@ -161,19 +272,14 @@ impl RegularizedCoulomb {
     }
 }
 
+crate::law_params!(
+    RegularizedCoulomb,
+    "regularized-coulomb",
+    ["mu"],
+    check = |p| crate::law::nonnegative(p[0], "mu")
+);
+
 impl FrictionLaw for RegularizedCoulomb {
-    fn name(&self) -> &'static str {
-        "regularized-coulomb"
-    }
-    fn param_names(&self) -> &'static [&'static str] {
-        &["mu"]
-    }
-    fn params(&self) -> &[f64] {
-        &self.params
-    }
-    fn params_mut(&mut self) -> &mut [f64] {
-        &mut self.params
-    }
     fn return_map<S: Scalar>(
         &self,
         p: &[S],
@@ -220,7 +326,7 @@ impl FrictionLaw for RegularizedCoulomb {
 /// Coulomb friction with a pressure-dependent coefficient `mu(p_n) = mu0 (p_n / p0)^(-n)`
 /// (`p_n` the node's normal force, `p0` a reference force): the limit `mu(p_n) p_n` with the
 /// radial return of [`Coulomb`]. Parameters: `mu0`, `p0`, `n`.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct PressureDependentCoulomb {
     params: [f64; 3],
 }
@@ -235,19 +341,18 @@ impl PressureDependentCoulomb {
     }
 }
 
+crate::law_params!(
+    PressureDependentCoulomb,
+    "pressure-dependent",
+    ["mu0", "p0", "n"],
+    check = |p| {
+        crate::law::nonnegative(p[0], "mu0")?;
+        crate::law::positive(p[1], "p0")?;
+        crate::law::finite(p[2], "n")
+    }
+);
+
 impl FrictionLaw for PressureDependentCoulomb {
-    fn name(&self) -> &'static str {
-        "pressure-dependent"
-    }
-    fn param_names(&self) -> &'static [&'static str] {
-        &["mu0", "p0", "n"]
-    }
-    fn params(&self) -> &[f64] {
-        &self.params
-    }
-    fn params_mut(&mut self) -> &mut [f64] {
-        &mut self.params
-    }
     fn return_map<S: Scalar>(
         &self,
         p: &[S],
@@ -282,11 +387,7 @@ type UserJet = DualSVec64<USER_INPUTS>;
 /// name: the law evaluated on plain values, and on plain values with the Jacobian of its
 /// traction with respect to its inputs. The blanket implementation below gives it to every
 /// `FrictionLaw + Clone`; users never implement it.
-trait ErasedFrictionLaw: Send + Sync + std::fmt::Debug {
-    fn name(&self) -> &'static str;
-    fn param_names(&self) -> &'static [&'static str];
-    fn params(&self) -> &[f64];
-    fn params_mut(&mut self) -> &mut [f64];
+trait ErasedFrictionLaw: Law {
     fn return_map_f64(
         &self,
         p: &[f64],
@@ -309,18 +410,6 @@ trait ErasedFrictionLaw: Send + Sync + std::fmt::Debug {
 }
 
 impl<L: FrictionLaw + Clone + 'static> ErasedFrictionLaw for L {
-    fn name(&self) -> &'static str {
-        FrictionLaw::name(self)
-    }
-    fn param_names(&self) -> &'static [&'static str] {
-        FrictionLaw::param_names(self)
-    }
-    fn params(&self) -> &[f64] {
-        FrictionLaw::params(self)
-    }
-    fn params_mut(&mut self) -> &mut [f64] {
-        FrictionLaw::params_mut(self)
-    }
     fn return_map_f64(
         &self,
         p: &[f64],
@@ -366,7 +455,7 @@ impl<L: FrictionLaw + Clone + 'static> ErasedFrictionLaw for L {
 /// sensitivity methods through [`FrictionLaw`] alone.
 ///
 /// Write the law once, generic over the scalar, as the shipped laws are; wrap it with
-/// [`UserFriction::new`] and put it in [`crate::contact::Friction::User`]. The wrapper erases
+/// [`UserFriction::new`] and put it in [`Friction::User`]. The wrapper erases
 /// its type (the `Friction` enum is closed) and keeps every derivative exact:
 ///
 /// * on `f64` (residuals, SDM's perturbed unbalance, FDM's reruns) the law runs as written;
@@ -454,7 +543,7 @@ impl PartialEq for UserFriction {
     }
 }
 
-impl FrictionLaw for UserFriction {
+impl Law for UserFriction {
     fn name(&self) -> &'static str {
         self.law.name()
     }
@@ -467,6 +556,12 @@ impl FrictionLaw for UserFriction {
     fn params_mut(&mut self) -> &mut [f64] {
         self.law.params_mut()
     }
+    fn check(&self) -> Result<(), crate::law::ParamError> {
+        self.law.check()
+    }
+}
+
+impl FrictionLaw for UserFriction {
     fn return_map<S: Scalar>(
         &self,
         p: &[S],
@@ -524,6 +619,47 @@ impl FrictionLaw for UserFriction {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The registry is consistent: each registered law's scene name is its own [`Law::name`],
+    /// its example passes its own check, its scene table reads back equal, and the dispatch
+    /// reaches it.
+    #[test]
+    fn every_registered_law_names_itself_and_reads_back_its_table() {
+        #[derive(serde::Serialize, serde::Deserialize)]
+        struct Table {
+            friction: Friction,
+        }
+        let examples = Friction::examples();
+        assert_eq!(examples.len(), Friction::NAMES.len());
+        for (f, tag) in examples.into_iter().zip(Friction::NAMES) {
+            assert_eq!(f.name(), *tag);
+            assert_eq!(crate::with_friction!(&f, l => l.name()), *tag);
+            assert_eq!(f.check(), Ok(()), "{tag}");
+            let text = toml::to_string(&Table {
+                friction: f.clone(),
+            })
+            .unwrap();
+            assert!(text.contains(&format!("law = \"{tag}\"")), "{text}");
+            assert_eq!(toml::from_str::<Table>(&text).unwrap().friction, f);
+        }
+    }
+
+    #[test]
+    fn a_parameter_is_found_by_its_name() {
+        let mut f = PressureDependentCoulomb::new(0.5, 0.1, 0.2);
+        assert_eq!(f.param_index("p0"), Some(1));
+        assert_eq!(f.param("n"), Some(0.2));
+        *f.param_mut("mu0").unwrap() = 0.7;
+        assert_eq!(f.params(), [0.7, 0.1, 0.2]);
+        assert_eq!(f.param("mu"), None);
+        let err = PressureDependentCoulomb::new(0.5, 0.0, 0.2)
+            .check()
+            .unwrap_err();
+        assert_eq!(
+            (err.param, err.to_string().as_str()),
+            ("p0", "parameter p0: must be > 0, got 0")
+        );
+    }
     use num_dual::{Dual64, DualSVec64};
 
     #[test]

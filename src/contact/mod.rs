@@ -54,65 +54,10 @@ use crate::element::FaceFamily;
 use crate::load::Amplitude;
 use crate::mesh::FaceSet;
 use crate::scalar::Scalar;
-use friction::{
-    Coulomb, FrictionBranch, FrictionLaw, PressureDependentCoulomb, RegularizedCoulomb,
-    UserFriction, UserFrictionError,
-};
+pub use friction::Friction;
+use friction::{FrictionBranch, FrictionLaw};
 use geometry::{project_on_quad, Projection, RigidSurface};
 use nalgebra::Vector3;
-
-/// A shipped friction law (enum dispatch; see [`friction::FrictionLaw`]).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(tag = "law", rename_all = "kebab-case")]
-pub enum Friction {
-    /// Coulomb friction (`law = "coulomb"`).
-    Coulomb(Coulomb),
-    /// Regularised Coulomb friction (`law = "regularized-coulomb"`).
-    RegularizedCoulomb(RegularizedCoulomb),
-    /// Coulomb friction with a pressure-dependent coefficient (`law = "pressure-dependent"`).
-    PressureDependent(PressureDependentCoulomb),
-    /// A law defined outside the crate ([`friction::UserFriction`]); not written to scene
-    /// files.
-    #[serde(skip)]
-    User(UserFriction),
-}
-
-/// Call `$body` with `$f` bound to the concrete law inside a [`Friction`].
-#[macro_export]
-macro_rules! with_friction {
-    ($fr:expr, $f:ident => $body:expr) => {
-        match $fr {
-            $crate::contact::Friction::Coulomb($f) => $body,
-            $crate::contact::Friction::RegularizedCoulomb($f) => $body,
-            $crate::contact::Friction::PressureDependent($f) => $body,
-            $crate::contact::Friction::User($f) => $body,
-        }
-    };
-}
-
-impl Friction {
-    /// A user's law (see [`friction::UserFriction`]): any [`friction::FrictionLaw`] written
-    /// generic over the scalar.
-    pub fn user<L: FrictionLaw + Clone + 'static>(law: L) -> Result<Self, UserFrictionError> {
-        UserFriction::new(law).map(Friction::User)
-    }
-    /// Parameter values of the law, in the order of [`Friction::param_names`].
-    pub fn params(&self) -> &[f64] {
-        with_friction!(self, f => f.params())
-    }
-    /// Names of the law's parameters (`mu`; `mu0`, `p0`, `n`; ...).
-    pub fn param_names(&self) -> &'static [&'static str] {
-        with_friction!(self, f => f.param_names())
-    }
-    /// Set parameter `i` (in the order of [`Friction::params`]) to `v`.
-    pub fn set_param(&mut self, i: usize, v: f64) {
-        with_friction!(self, f => f.params_mut()[i] = v)
-    }
-    /// Short name of the law, as in scene files.
-    pub fn name(&self) -> &'static str {
-        with_friction!(self, f => f.name())
-    }
-}
 
 /// How the normal force is computed.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -264,6 +209,70 @@ impl ContactPair {
     pub fn history_len(&self) -> usize {
         self.anchor_len() + usize::from(self.augmented())
     }
+
+    /// The stick anchor stored in a hitting node's history `h` (its [`ContactPair::history_len`]
+    /// scalars), `None` without friction.
+    pub fn anchor<S: Scalar>(&self, h: &[S]) -> Option<StoredAnchor<S>> {
+        (self.anchor_len() > 0).then(|| match self.target {
+            Target::Faces { .. } => StoredAnchor::Face {
+                face: h[0].value() as usize,
+                xi: [h[1], h[2]],
+            },
+            Target::Rigid { .. } => StoredAnchor::Offset(Vector3::new(h[0], h[1], h[2])),
+        })
+    }
+
+    /// Store a stick anchor in a hitting node's history `h` (a pair with friction).
+    pub fn set_anchor<S: Scalar>(&self, h: &mut [S], anchor: StoredAnchor<S>) {
+        debug_assert!(
+            self.anchor_len() == 3,
+            "a frictionless pair stores no anchor"
+        );
+        h[..3].copy_from_slice(&match anchor {
+            StoredAnchor::Face { face, xi } => [S::lift(face as f64), xi[0], xi[1]],
+            StoredAnchor::Offset(a) => [a[0], a[1], a[2]],
+        });
+    }
+
+    /// Keep a hitting node's stick anchor: copy its scalars from the committed history `from`
+    /// to the new one `to` unchanged (with their derivative parts).
+    pub fn keep_anchor<S: Scalar>(&self, from: &[S], to: &mut [S]) {
+        let n = self.anchor_len();
+        to[..n].copy_from_slice(&from[..n]);
+    }
+
+    /// The augmented Lagrangian's multiplier estimate `lambda_bar` in a hitting node's history
+    /// `h`, `None` for other normal laws.
+    pub fn lambda_bar<S: Scalar>(&self, h: &[S]) -> Option<S> {
+        self.augmented().then(|| h[self.anchor_len()])
+    }
+
+    /// Store the multiplier estimate `lambda_bar` in a hitting node's history `h` (an augmented
+    /// pair).
+    pub fn set_lambda_bar<S: Scalar>(&self, h: &mut [S], lambda_bar: S) {
+        debug_assert!(
+            self.augmented(),
+            "only the augmented Lagrangian has an estimate"
+        );
+        h[self.anchor_len()] = lambda_bar;
+    }
+}
+
+/// A hitting node's stick anchor as its history stores it ([`ContactPair::anchor`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StoredAnchor<S> {
+    /// Material point of a deformable target: the face (index into the target's faces) and
+    /// the anchor's convected coordinates on it.
+    Face {
+        /// Index into `Target::Faces::faces` (not clamped: a frozen or stale face number is
+        /// the reader's to check).
+        face: usize,
+        /// Convected coordinates of the anchor on the face.
+        xi: [S; 2],
+    },
+    /// Material point of a rigid target: the anchor minus the hitting node's reference
+    /// position, in the body's frame.
+    Offset(Vector3<S>),
 }
 
 /// The four nodes of target face `f`, for the kernel's one face geometry, the bilinear quad

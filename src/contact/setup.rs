@@ -174,8 +174,8 @@ pub fn plane_modulus(node_group: &[Option<usize>], bodies: &[Body], n: usize) ->
             .iter()
             .find(|b| b.group == group)
             .map(|b| {
-                let p = b.material.params();
-                p[0] / (1.0 - p[1] * p[1])
+                let (young, nu) = b.material.elastic_constants();
+                young / (1.0 - nu * nu)
             })
             .unwrap_or(0.0),
         None => 0.0,
@@ -223,7 +223,7 @@ pub fn default_constraint_scale(
 ) -> (f64, ScaleSource) {
     let e = bodies
         .iter()
-        .map(|b| b.material.params()[0])
+        .map(|b| b.material.young())
         .fold(0.0f64, f64::max);
     let mean_area = area.iter().sum::<f64>() / area.len() as f64;
     let ks = springs

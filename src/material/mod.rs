@@ -10,8 +10,9 @@
 //! * Strain vectors carry engineering shears (`2 E12`); stress vectors carry tensor components.
 //! * The tangent is the 6x6 matrix `C` with `dS_voigt = C dE_voigt` in those conventions.
 //! * History is a flat slice of scalars per Gauss point, laid out by the material
-//!   ([`MaterialLaw::history_len`]). It is generic: `f64` for values, a dual number for values
-//!   with their design sensitivities.
+//!   ([`MaterialLaw::history_len`]) and read through the law's typed view (J2:
+//!   [`j2::J2History`]). It is generic: `f64` for values, a dual number for values with their
+//!   design sensitivities.
 //! * Branches (elastic/plastic) are decided on real parts; `frozen` forces the branch of a
 //!   converged state (SDM's perturbed evaluation must not flip a branch).
 //!
@@ -30,8 +31,139 @@ pub use j2::J2Plasticity;
 pub use neo_hookean::NeoHookean;
 pub use svk::StVenantKirchhoff;
 
+use crate::law::Law;
 use crate::scalar::Scalar;
 use nalgebra::{Matrix3, SMatrix, SVector};
+
+/// The shipped materials, one line each: `Variant(Type) = "scene name", example VALUE;`
+/// (the example: admissible parameters, used by the registry's tests). A new material is its
+/// file (the law, [`Law`] with its `check`, [`MaterialLaw`]) plus a line here: the
+/// [`Material`] enum, its scene format, [`crate::with_material!`] and [`Material::NAMES`] are
+/// generated from this list.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! material_registry {
+    ($callback:ident! $args:tt) => {
+        $crate::$callback! { $args
+            /// St Venant-Kirchhoff elasticity.
+            Svk(StVenantKirchhoff) = "svk", example StVenantKirchhoff::new(1000.0, 0.3);
+            /// J2 elastoplasticity with isotropic hardening.
+            J2(J2Plasticity) = "j2", example J2Plasticity::saturation(200e3, 0.3, 250.0, 1e3, 400.0, 20.0);
+            /// Compressible Neo-Hookean hyperelasticity.
+            NeoHookean(NeoHookean) = "neo-hookean", example NeoHookean::new(1000.0, 0.3);
+        }
+    };
+}
+
+/// Call `$body` with `$m` bound to the concrete law inside a [`Material`] (one arm per
+/// registered material).
+#[macro_export]
+macro_rules! with_material {
+    ($mat:expr, $m:ident => $body:expr) => {
+        $crate::material_registry!(__material_dispatch!($mat, $m, $body))
+    };
+}
+
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __material_dispatch {
+    (($mat:expr, $m:ident, $body:expr)
+     $($(#[$doc:meta])* $variant:ident($law:ty) = $tag:literal, example $example:expr;)+) => {
+        match $mat {
+            $($crate::material::Material::$variant($m) => $body,)+
+        }
+    };
+}
+
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __material_enum {
+    (() $($(#[$doc:meta])* $variant:ident($law:ty) = $tag:literal, example $example:expr;)+) => {
+        /// The constitutive law of a body (enum dispatch over the registered materials), as it
+        /// is written in scene files: `law = "NAME"` and the law's parameters by name.
+        #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+        // the enum's name in serde's messages ("expected internally tagged enum ..."), as
+        // before the scene read the model's own type
+        #[serde(tag = "law", rename = "MaterialSpec")]
+        pub enum Material {
+            $($(#[$doc])* #[serde(rename = $tag)] $variant($law),)+
+        }
+
+        impl Material {
+            /// Scene names of the registered materials, in registration order.
+            pub const NAMES: &'static [&'static str] = &[$($tag),+];
+            /// One admissible instance of each registered material, in registration order.
+            pub fn examples() -> Vec<Material> {
+                vec![$(Material::$variant($example)),+]
+            }
+        }
+    };
+}
+
+material_registry!(__material_enum!());
+
+impl Law for Material {
+    fn name(&self) -> &'static str {
+        with_material!(self, m => m.name())
+    }
+    fn param_names(&self) -> &'static [&'static str] {
+        with_material!(self, m => m.param_names())
+    }
+    fn params(&self) -> &[f64] {
+        with_material!(self, m => m.params())
+    }
+    fn params_mut(&mut self) -> &mut [f64] {
+        with_material!(self, m => m.params_mut())
+    }
+    fn check(&self) -> Result<(), crate::law::ParamError> {
+        with_material!(self, m => m.check())
+    }
+}
+
+impl Material {
+    /// Parameter values.
+    pub fn params(&self) -> &[f64] {
+        Law::params(self)
+    }
+    /// Parameter names.
+    pub fn param_names(&self) -> &'static [&'static str] {
+        Law::param_names(self)
+    }
+    /// Short name (the scene's `law`).
+    pub fn name(&self) -> &'static str {
+        Law::name(self)
+    }
+    /// Whether the parameter values are admissible ([`Law::check`]).
+    pub fn check(&self) -> Result<(), crate::law::ParamError> {
+        Law::check(self)
+    }
+    /// Change parameter `index`.
+    pub fn set_param(&mut self, index: usize, v: f64) {
+        self.params_mut()[index] = v
+    }
+    /// Whether parameter `index` enters the stress of a point frozen elastic
+    /// ([`MaterialLaw::enters_elastic_branch`]).
+    pub fn enters_elastic_branch(&self, index: usize) -> bool {
+        with_material!(self, m => m.enters_elastic_branch(index))
+    }
+    /// Young's modulus and Poisson's ratio of the initial elastic response
+    /// ([`MaterialLaw::elastic_constants`]).
+    pub fn elastic_constants(&self) -> (f64, f64) {
+        with_material!(self, m => m.elastic_constants())
+    }
+    /// Young's modulus of the initial elastic response.
+    pub fn young(&self) -> f64 {
+        self.elastic_constants().0
+    }
+    /// History scalars per Gauss point.
+    pub fn history_len(&self) -> usize {
+        with_material!(self, m => m.history_len())
+    }
+    /// Names of the history entries per Gauss point.
+    pub fn history_names(&self) -> &'static [&'static str] {
+        with_material!(self, m => m.history_names())
+    }
+}
 
 /// 6-vector in Voigt order `(11, 22, 33, 12, 23, 13)`.
 pub type Voigt<S> = SVector<S, 6>;
@@ -62,17 +194,13 @@ pub struct PointResponse<S: Scalar> {
     pub yield_ratio: f64,
 }
 
-/// A constitutive law: parameters as plain values (scene data), evaluated with parameters lifted
-/// to the scalar type so any of them can be a design parameter.
-pub trait MaterialLaw: Send + Sync + std::fmt::Debug {
-    /// Short name used in scene files and reports.
-    fn name(&self) -> &'static str;
-    /// Names of the parameters, in the order of [`MaterialLaw::params`].
-    fn param_names(&self) -> &'static [&'static str];
-    /// Parameter values.
-    fn params(&self) -> &[f64];
-    /// Parameter values, mutable (reruns with a perturbed design).
-    fn params_mut(&mut self) -> &mut [f64];
+/// A constitutive law: parameters as plain values (scene data, named through [`Law`]),
+/// evaluated with parameters lifted to the scalar type so any of them can be a design parameter.
+pub trait MaterialLaw: Law {
+    /// Young's modulus and Poisson's ratio of the law's initial (small-strain) elastic
+    /// response: the stiffness scale from which the scene derives default penalties and
+    /// contact scales, and the solver its force floor.
+    fn elastic_constants(&self) -> (f64, f64);
     /// Whether parameter `index` enters the stress of a point frozen on the elastic branch
     /// ([`Branch::Elastic`]). Elastic laws: every parameter (the default); a plastic law says
     /// which act only on its plastic branch, so a design derivative with respect to them
@@ -192,4 +320,38 @@ pub fn lame<S: Scalar>(young: S, poisson: S) -> (S, S) {
     let mu = young / ((poisson + 1.0) * 2.0);
     let lambda = young * poisson / ((poisson + 1.0) * (-(poisson * 2.0) + 1.0));
     (lambda, mu)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The registry is consistent: each registered material's scene name is its own
+    /// [`Law::name`], its example passes its own check, and its scene table reads back equal.
+    #[test]
+    fn every_registered_material_names_itself_and_reads_back_its_table() {
+        #[derive(serde::Serialize, serde::Deserialize)]
+        struct Table {
+            material: Material,
+        }
+        let examples = Material::examples();
+        assert_eq!(examples.len(), Material::NAMES.len());
+        for (m, tag) in examples.into_iter().zip(Material::NAMES) {
+            assert_eq!(m.name(), *tag);
+            assert_eq!(m.check(), Ok(()), "{tag}");
+            assert_eq!(m.param_names().len(), m.params().len(), "{tag}");
+            let text = toml::to_string(&Table {
+                material: m.clone(),
+            })
+            .unwrap();
+            assert!(text.contains(&format!("law = \"{tag}\"")), "{text}");
+            for name in m.param_names() {
+                assert!(
+                    text.contains(&format!("\n{name} = ")),
+                    "{tag}: {name} in {text}"
+                );
+            }
+            assert_eq!(toml::from_str::<Table>(&text).unwrap().material, m);
+        }
+    }
 }

@@ -23,7 +23,7 @@ use crate::scalar::{inv3, Scalar};
 use nalgebra::Matrix3;
 
 /// Compressible Neo-Hookean hyperelastic material.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct NeoHookean {
     params: [f64; 2],
 }
@@ -40,18 +40,19 @@ impl NeoHookean {
 /// Voigt index pairs `(11, 22, 33, 12, 23, 13)`.
 const VOIGT: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)];
 
+crate::law_params!(
+    NeoHookean,
+    "neo-hookean",
+    ["E", "nu"],
+    check = |p| {
+        crate::law::positive(p[0], "E")?;
+        crate::law::poisson(p[1], "nu")
+    }
+);
+
 impl MaterialLaw for NeoHookean {
-    fn name(&self) -> &'static str {
-        "neo-hookean"
-    }
-    fn param_names(&self) -> &'static [&'static str] {
-        &["E", "nu"]
-    }
-    fn params(&self) -> &[f64] {
-        &self.params
-    }
-    fn params_mut(&mut self) -> &mut [f64] {
-        &mut self.params
+    fn elastic_constants(&self) -> (f64, f64) {
+        (self.params[0], self.params[1])
     }
     fn update<S: Scalar>(
         &self,

@@ -8,7 +8,7 @@ use crate::scalar::Scalar;
 use nalgebra::Matrix3;
 
 /// St Venant-Kirchhoff hyperelastic material.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct StVenantKirchhoff {
     params: [f64; 2],
 }
@@ -22,18 +22,19 @@ impl StVenantKirchhoff {
     }
 }
 
+crate::law_params!(
+    StVenantKirchhoff,
+    "svk",
+    ["E", "nu"],
+    check = |p| {
+        crate::law::positive(p[0], "E")?;
+        crate::law::poisson(p[1], "nu")
+    }
+);
+
 impl MaterialLaw for StVenantKirchhoff {
-    fn name(&self) -> &'static str {
-        "svk"
-    }
-    fn param_names(&self) -> &'static [&'static str] {
-        &["E", "nu"]
-    }
-    fn params(&self) -> &[f64] {
-        &self.params
-    }
-    fn params_mut(&mut self) -> &mut [f64] {
-        &mut self.params
+    fn elastic_constants(&self) -> (f64, f64) {
+        (self.params[0], self.params[1])
     }
     fn update<S: Scalar>(
         &self,

@@ -3,9 +3,8 @@
 //! search radius, tangential penalty), responses.
 
 use super::*;
-use crate::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCoulomb};
 use crate::contact::geometry::RigidSurface;
-use crate::contact::{setup, ContactPair, Friction, NormalLaw, RigidMotion, Target};
+use crate::contact::{setup, ContactPair, NormalLaw, RigidMotion, Target};
 use crate::element::Spring;
 use crate::mesh::{Axis, Mesh};
 use crate::model::{Amplitude, Body, Model, NodalLoad, Prescribed};
@@ -81,7 +80,7 @@ impl Scene {
         let mut bodies = Vec::new();
         for (i, b) in self.bodies.iter().enumerate() {
             let at = format!("bodies[{i}]");
-            b.material.check(&format!("{at}.material"))?;
+            check_law(&b.material, &format!("{at}.material"))?;
             let block = mesh
                 .add_block(b.block.clone())
                 .map_err(|e| invalid(&at, e.to_string()))?;
@@ -91,7 +90,7 @@ impl Scene {
             bodies.push(Body {
                 name: b.block.name.clone(),
                 group,
-                material: b.material.build(),
+                material: b.material.clone(),
                 kinematics: b.kinematics,
                 formulation: b.formulation,
             });
@@ -726,25 +725,10 @@ impl Scene {
             } else {
                 (hitting, area, layer, candidates)
             };
-            let friction = match &c.friction {
-                None => None,
-                Some(FrictionSpec::Coulomb { mu }) => {
-                    nonnegative(*mu, &format!("{at}.friction.mu"))?;
-                    Some(Friction::Coulomb(Coulomb::new(*mu)))
-                }
-                Some(FrictionSpec::RegularizedCoulomb { mu }) => {
-                    nonnegative(*mu, &format!("{at}.friction.mu"))?;
-                    Some(Friction::RegularizedCoulomb(RegularizedCoulomb::new(*mu)))
-                }
-                Some(FrictionSpec::PressureDependent { mu0, p0, n }) => {
-                    nonnegative(*mu0, &format!("{at}.friction.mu0"))?;
-                    positive(*p0, &format!("{at}.friction.p0"))?;
-                    finite(*n, &format!("{at}.friction.n"))?;
-                    Some(Friction::PressureDependent(PressureDependentCoulomb::new(
-                        *mu0, *p0, *n,
-                    )))
-                }
-            };
+            if let Some(f) = &c.friction {
+                check_law(f, &format!("{at}.friction"))?;
+            }
+            let friction = c.friction.clone();
             match c.normal {
                 NormalLaw::Penalty { stiffness } => {
                     positive(stiffness, &format!("{at}.normal.stiffness"))?;

@@ -2,9 +2,9 @@
 //! naming the field, and reading and writing scenes.
 
 use super::builtin;
-use crate::contact::NormalLaw;
+use crate::contact::{Friction, NormalLaw};
 use crate::element::{Hex8Formulation, Kinematics};
-use crate::material::{J2Plasticity, NeoHookean, StVenantKirchhoff};
+use crate::law::Law;
 use crate::mesh::{Axis, BlockSpec};
 use crate::model::{Material, SolverSettings};
 use serde::{Deserialize, Serialize};
@@ -33,117 +33,6 @@ impl Component {
     }
 }
 
-/// Material of a body, with named parameters.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "law", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum MaterialSpec {
-    /// St Venant-Kirchhoff.
-    Svk {
-        /// Young's modulus `E` (stress).
-        #[serde(rename = "E")]
-        young: f64,
-        /// Poisson's ratio `nu`.
-        nu: f64,
-    },
-    /// J2 plasticity; linear hardening `sigma_y + H alpha`, plus the saturation term
-    /// `(sigma_inf - sigma_y)(1 - exp(-delta alpha))` when `sigma_inf` and `delta` are given.
-    J2 {
-        /// Young's modulus `E` (stress).
-        #[serde(rename = "E")]
-        young: f64,
-        /// Poisson's ratio `nu`.
-        nu: f64,
-        /// Initial yield stress `sigma_y`.
-        sigma_y: f64,
-        /// Linear hardening modulus `H` (stress per unit equivalent plastic strain).
-        #[serde(rename = "H")]
-        hardening: f64,
-        /// Saturation flow stress `sigma_inf` (with `delta`; `>= sigma_y`).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        sigma_inf: Option<f64>,
-        /// Saturation rate `delta` (per unit equivalent plastic strain; with `sigma_inf`).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        delta: Option<f64>,
-    },
-    /// Compressible Neo-Hookean hyperelasticity (`E`, `nu` its small-strain constants).
-    NeoHookean {
-        /// Young's modulus `E` (stress).
-        #[serde(rename = "E")]
-        young: f64,
-        /// Poisson's ratio `nu`.
-        nu: f64,
-    },
-}
-
-impl MaterialSpec {
-    pub(crate) fn build(&self) -> Material {
-        match self {
-            MaterialSpec::Svk { young, nu } => Material::Svk(StVenantKirchhoff::new(*young, *nu)),
-            MaterialSpec::NeoHookean { young, nu } => {
-                Material::NeoHookean(NeoHookean::new(*young, *nu))
-            }
-            MaterialSpec::J2 {
-                young,
-                nu,
-                sigma_y,
-                hardening,
-                sigma_inf,
-                delta,
-            } => Material::J2(match (sigma_inf, delta) {
-                (Some(si), Some(d)) => {
-                    J2Plasticity::saturation(*young, *nu, *sigma_y, *hardening, *si, *d)
-                }
-                _ => J2Plasticity::linear(*young, *nu, *sigma_y, *hardening),
-            }),
-        }
-    }
-
-    pub(crate) fn check(&self, at: &str) -> Result<(), SceneError> {
-        match self {
-            MaterialSpec::Svk { young, nu } | MaterialSpec::NeoHookean { young, nu } => {
-                positive(*young, &format!("{at}.E"))?;
-                poisson(*nu, &format!("{at}.nu"))
-            }
-            MaterialSpec::J2 {
-                young,
-                nu,
-                sigma_y,
-                hardening,
-                sigma_inf,
-                delta,
-            } => {
-                positive(*young, &format!("{at}.E"))?;
-                poisson(*nu, &format!("{at}.nu"))?;
-                positive(*sigma_y, &format!("{at}.sigma_y"))?;
-                finite(*hardening, &format!("{at}.H"))?;
-                if *hardening < 0.0 {
-                    return Err(invalid(
-                        &format!("{at}.H"),
-                        "softening (H < 0) is not supported",
-                    ));
-                }
-                if sigma_inf.is_some() != delta.is_some() {
-                    return Err(invalid(
-                        &format!("{at}.sigma_inf"),
-                        "saturation hardening needs both sigma_inf and delta",
-                    ));
-                }
-                if let (Some(si), Some(d)) = (sigma_inf, delta) {
-                    finite(*si, &format!("{at}.sigma_inf"))?;
-                    finite(*d, &format!("{at}.delta"))?;
-                    if si < sigma_y || *d < 0.0 {
-                        return Err(invalid(
-                            &format!("{at}.sigma_inf"),
-                            "needs sigma_inf >= sigma_y and delta >= 0",
-                        ));
-                    }
-                }
-                Ok(())
-            }
-        }
-    }
-}
-
 /// A deformable body: one generated block.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(from = "BodyToml", into = "BodyToml")]
@@ -151,7 +40,7 @@ pub struct BodySpec {
     /// The generated block of hex8 elements (its name is the body's name).
     pub block: BlockSpec,
     /// Constitutive law.
-    pub material: MaterialSpec,
+    pub material: Material,
     /// Small or large deformation (scene default: large).
     pub kinematics: Kinematics,
     /// Hex8 element formulation (scene default: incompatible modes).
@@ -169,7 +58,7 @@ struct BodyToml {
     x: Axis,
     y: Axis,
     z: Axis,
-    material: MaterialSpec,
+    material: Material,
     #[serde(default = "large")]
     kinematics: Kinematics,
     #[serde(default = "incompatible")]
@@ -348,31 +237,6 @@ pub enum TargetSpec {
     },
 }
 
-/// A friction law with named parameters.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "law", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum FrictionSpec {
-    /// Coulomb with penalty stick.
-    Coulomb {
-        /// Friction coefficient.
-        mu: f64,
-    },
-    /// Smooth (regularised) Coulomb: `t = t_trial / sqrt(1 + (|t_trial| / mu p_n)^2)`.
-    RegularizedCoulomb {
-        /// Friction coefficient.
-        mu: f64,
-    },
-    /// Pressure-dependent coefficient `mu0 (p_n / p0)^(-n)`.
-    PressureDependent {
-        /// Coefficient at the reference normal force.
-        mu0: f64,
-        /// Reference normal force (per hitting node).
-        p0: f64,
-        /// Exponent.
-        n: f64,
-    },
-}
-
 /// A contact pair.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -388,7 +252,7 @@ pub struct ContactSpec {
     pub normal: NormalLaw,
     /// Friction law; none = frictionless.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub friction: Option<FrictionSpec>,
+    pub friction: Option<Friction>,
     /// Tangential penalty stiffness per hitting node (force per length); default
     /// 100 x the constraint scale.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -614,39 +478,20 @@ pub(crate) fn invalid(field: &str, problem: impl Into<String>) -> SceneError {
     }
 }
 
+/// `v` is finite (worded as for a law's parameters, [`crate::law::ParamProblem`]).
 pub(crate) fn finite(v: f64, field: &str) -> Result<(), SceneError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
-        Err(invalid(field, format!("{v} is not a finite number")))
-    }
+    crate::law::finite(v, "").map_err(|e| invalid(field, e.problem.to_string()))
 }
 
+/// `v` is finite and positive.
 pub(crate) fn positive(v: f64, field: &str) -> Result<(), SceneError> {
-    finite(v, field)?;
-    if v > 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(field, format!("must be > 0, got {v}")))
-    }
+    crate::law::positive(v, "").map_err(|e| invalid(field, e.problem.to_string()))
 }
 
-pub(crate) fn nonnegative(v: f64, field: &str) -> Result<(), SceneError> {
-    finite(v, field)?;
-    if v >= 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(field, format!("must be >= 0, got {v}")))
-    }
-}
-
-pub(crate) fn poisson(v: f64, field: &str) -> Result<(), SceneError> {
-    finite(v, field)?;
-    if v > -1.0 && v < 0.5 {
-        Ok(())
-    } else {
-        Err(invalid(field, format!("must lie in (-1, 0.5), got {v}")))
-    }
+/// A law's own check ([`Law::check`]), its error naming the field `{at}.{parameter}`.
+pub(crate) fn check_law(law: &impl Law, at: &str) -> Result<(), SceneError> {
+    law.check()
+        .map_err(|e| invalid(&format!("{at}.{}", e.param), e.problem.to_string()))
 }
 
 /// The TOML path (`bodies[0].material.E`) of the entry a deserialization error points at, with

@@ -123,7 +123,7 @@ impl<'m> Solver<'m> {
         let e_max = model
             .bodies
             .iter()
-            .map(|b| b.material.params()[0])
+            .map(|b| b.material.young())
             .fold(0.0f64, f64::max);
         let h = model.mesh.smallest_edge(&lifted.coords);
         let force_floor = if h.is_finite() {

@@ -308,7 +308,7 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         }
         match &body.material {
             Material::Svk(_) => {
-                young_max = young_max.max(body.material.params()[0]);
+                young_max = young_max.max(body.material.young());
             }
             Material::J2(_) => {
                 return Err(CcxError::Unsupported(format!(
@@ -320,6 +320,15 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
                 return Err(CcxError::Unsupported(format!(
                     "body '{}': the Neo-Hookean material is not exported",
                     body.name
+                )))
+            }
+            // a material registered later is not exported until this function learns it
+            #[allow(unreachable_patterns)]
+            other => {
+                return Err(CcxError::Unsupported(format!(
+                    "body '{}': material '{}' is not exported",
+                    body.name,
+                    other.name()
                 )))
             }
         }
@@ -531,11 +540,11 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
     }
     // materials and sections, then the rigid bodies (their elements borrow material M0)
     for (b, body) in model.bodies.iter().enumerate() {
-        let p = body.material.params();
+        let (young, nu) = body.material.elastic_constants();
         let _ = writeln!(
             s,
             "*MATERIAL,NAME=M{b}\n*ELASTIC\n{:.12e},{:.12e}\n*SOLID SECTION,ELSET=B{b},MATERIAL=M{b}",
-            p[0], p[1]
+            young, nu
         );
     }
     s.push_str(&rigid_text);

@@ -13,7 +13,6 @@
 //! * how smooth each law's sensitivity history is: the largest jump of `du0/dmu` between
 //!   increments, relative to its largest value (the regularised law has no stick/slip switch).
 
-use crate::contact::friction::{Coulomb, PressureDependentCoulomb, RegularizedCoulomb};
 use crate::contact::Friction;
 use crate::scene::{strip_pullout, StripSpec};
 use crate::sensitivity::{
@@ -85,23 +84,6 @@ pub enum CompareLawsError {
     Scene(#[from] crate::scene::SceneError),
 }
 
-/// The laws at matching parameters: `mu = mu0 = 0.5`; the pressure-dependent law's reference
-/// force `p0 = 0.1` is about the strip's mean nodal normal force, so its coefficient is near
-/// 0.5 where the strip is pressed evenly.
-fn laws() -> Vec<(Friction, Vec<&'static str>)> {
-    vec![
-        (Friction::Coulomb(Coulomb::new(0.5)), vec!["mu"]),
-        (
-            Friction::RegularizedCoulomb(RegularizedCoulomb::new(0.5)),
-            vec!["mu"],
-        ),
-        (
-            Friction::PressureDependent(PressureDependentCoulomb::new(0.5, 0.1, 0.2)),
-            vec!["mu0", "p0", "n"],
-        ),
-    ]
-}
-
 /// Largest `|a - b|` over the path relative to the largest `|a|`, for parameter `p` of
 /// response 0.
 fn agreement(a: &SensitivityResults, b: &SensitivityResults, p: usize) -> f64 {
@@ -125,7 +107,10 @@ pub fn compare_laws(elements: usize) -> Result<LawComparison, CompareLawsError> 
         ..StripSpec::default()
     };
     let mut out = Vec::new();
-    for (friction, names) in laws() {
+    // the registered laws at matching parameters (`Friction::examples`), every parameter a
+    // design parameter
+    for friction in Friction::examples() {
+        let names = friction.param_names();
         let law = friction.name().to_string();
         let fail = |source| CompareLawsError::Analysis {
             law: law.clone(),

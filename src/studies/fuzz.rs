@@ -29,12 +29,15 @@
 //! report's robustness section and keeps every failing scene as TOML, the regression corpus
 //! (`tests/corpus/robustness/`) whose scenes the default test suite runs.
 
-use crate::contact::friction::FrictionLaw;
-use crate::contact::Target;
+use crate::contact::friction::{
+    Coulomb, FrictionLaw, PressureDependentCoulomb, RegularizedCoulomb,
+};
+use crate::contact::{Friction, Target};
+use crate::material::{J2Plasticity, Material, NeoHookean, StVenantKirchhoff};
 use crate::mesh::{Axis, BlockSpec, Zone};
 use crate::scene::{
-    BodySpec, Component, ContactSpec, FrictionSpec, MaterialSpec, MotionSpec, PrescribedSpec,
-    ResponseSpec, RigidSpec, Scene, StepSpec, TargetSpec,
+    BodySpec, Component, ContactSpec, MotionSpec, PrescribedSpec, ResponseSpec, RigidSpec, Scene,
+    StepSpec, TargetSpec,
 };
 use crate::solver::{AnalysisError, Converged, Observer, RunOptions, Solver};
 use std::time::Instant;
@@ -162,15 +165,15 @@ fn axis(r: &mut Rng, length: f64, n: usize, fine: Option<bool>) -> Axis {
     }
 }
 
-fn material(r: &mut Rng, e: f64) -> MaterialSpec {
+fn material(r: &mut Rng, e: f64) -> Material {
     let nu = if r.chance(0.15) {
         r.uniform(0.45, 0.49)
     } else {
         r.uniform(0.0, 0.45)
     };
     match r.weighted(&[0.35, 0.2, 0.45]) {
-        0 => MaterialSpec::Svk { young: e, nu },
-        1 => MaterialSpec::NeoHookean { young: e, nu },
+        0 => Material::Svk(StVenantKirchhoff::new(e, nu)),
+        1 => Material::NeoHookean(NeoHookean::new(e, nu)),
         _ => {
             let sigma_y = e * r.log_uniform(3e-4, 1e-2);
             let hardening = if r.chance(0.2) {
@@ -178,22 +181,13 @@ fn material(r: &mut Rng, e: f64) -> MaterialSpec {
             } else {
                 e * r.log_uniform(1e-3, 0.2)
             };
-            let (sigma_inf, delta) = if r.chance(0.25) {
-                (
-                    Some(sigma_y * r.uniform(1.1, 3.0)),
-                    Some(r.log_uniform(5.0, 500.0)),
-                )
+            Material::J2(if r.chance(0.25) {
+                let sigma_inf = sigma_y * r.uniform(1.1, 3.0);
+                let delta = r.log_uniform(5.0, 500.0);
+                J2Plasticity::saturation(e, nu, sigma_y, hardening, sigma_inf, delta)
             } else {
-                (None, None)
-            };
-            MaterialSpec::J2 {
-                young: e,
-                nu,
-                sigma_y,
-                hardening,
-                sigma_inf,
-                delta,
-            }
+                J2Plasticity::linear(e, nu, sigma_y, hardening)
+            })
         }
     }
 }
@@ -216,7 +210,7 @@ fn body(r: &mut Rng, block: BlockSpec, e: f64) -> BodySpec {
     }
 }
 
-fn friction(r: &mut Rng, force_scale: f64) -> Option<FrictionSpec> {
+fn friction(r: &mut Rng, force_scale: f64) -> Option<Friction> {
     let mu = if r.chance(0.1) {
         0.0
     } else {
@@ -224,13 +218,13 @@ fn friction(r: &mut Rng, force_scale: f64) -> Option<FrictionSpec> {
     };
     match r.weighted(&[0.12, 0.55, 0.18, 0.15]) {
         0 => None,
-        1 => Some(FrictionSpec::Coulomb { mu }),
-        2 => Some(FrictionSpec::RegularizedCoulomb { mu }),
-        _ => Some(FrictionSpec::PressureDependent {
-            mu0: mu,
-            p0: force_scale * r.log_uniform(0.1, 10.0),
-            n: r.uniform(0.0, 0.3),
-        }),
+        1 => Some(Friction::Coulomb(Coulomb::new(mu))),
+        2 => Some(Friction::RegularizedCoulomb(RegularizedCoulomb::new(mu))),
+        _ => Some(Friction::PressureDependent(PressureDependentCoulomb::new(
+            mu,
+            force_scale * r.log_uniform(0.1, 10.0),
+            r.uniform(0.0, 0.3),
+        ))),
     }
 }
 
@@ -911,7 +905,7 @@ pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcom
     let e_max = model
         .bodies
         .iter()
-        .map(|b| b.material.params()[0])
+        .map(|b| b.material.young())
         .fold(0.0f64, f64::max);
     let mut checker = Checker {
         element_size: h,

@@ -27,8 +27,9 @@
 use fricsens::element::hex8;
 use fricsens::element::{Hex8Formulation, Kinematics};
 use fricsens::material::Branch;
+use fricsens::material::{J2Plasticity, Material};
 use fricsens::model::Model;
-use fricsens::scene::{cantilever, CantileverSpec, MaterialSpec};
+use fricsens::scene::{cantilever, CantileverSpec};
 use fricsens::solver::{AnalysisError, Converged, Observer, Results, RunOptions, Solver};
 
 const L: f64 = 10.0;
@@ -93,14 +94,7 @@ fn plastic_cantilever() -> Model {
     };
     let mut scene = cantilever(&spec);
     scene.name = "plastic-cantilever".into();
-    scene.bodies[0].material = MaterialSpec::J2 {
-        young: E,
-        nu: NU,
-        sigma_y: SY,
-        hardening: E / 1000.0,
-        sigma_inf: None,
-        delta: None,
-    };
+    scene.bodies[0].material = Material::J2(J2Plasticity::linear(E, NU, SY, E / 1000.0));
     scene.loads[0].value = -LOAD_FACTOR * beam_first_yield_load();
     let step = scene.steps[0].clone();
     scene.steps = LEVELS

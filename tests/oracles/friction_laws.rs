@@ -132,7 +132,7 @@ fn a_user_law_with_too_many_parameters_is_a_typed_error() {
     use nalgebra::Vector3;
     #[derive(Clone, Debug)]
     struct Many(Vec<f64>);
-    impl FrictionLaw for Many {
+    impl fricsens::law::Law for Many {
         fn name(&self) -> &'static str {
             "many"
         }
@@ -145,6 +145,8 @@ fn a_user_law_with_too_many_parameters_is_a_typed_error() {
         fn params_mut(&mut self) -> &mut [f64] {
             &mut self.0
         }
+    }
+    impl FrictionLaw for Many {
         fn return_map<S: Scalar>(
             &self,
             _p: &[S],

@@ -13,7 +13,8 @@ use crate::common::{
 
 use fricsens::element::hex8::{self, Hex8Input, Hex8Output};
 use fricsens::element::{Hex8Formulation, Kinematics};
-use fricsens::material::{Branch, J2Plasticity, MaterialLaw, StVenantKirchhoff};
+use fricsens::law::Law;
+use fricsens::material::{Branch, J2Plasticity, StVenantKirchhoff};
 use fricsens::mesh::{Axis, BlockSpec, Mesh, NodePlace, Zone};
 use fricsens::model::{Material, Model};
 use fricsens::scene::{cantilever, CantileverSpec};

@@ -8,41 +8,36 @@
 use crate::common;
 
 use fricsens::element::Kinematics;
+use fricsens::material::{J2Plasticity, Material, NeoHookean, StVenantKirchhoff};
 use fricsens::model::Model;
-use fricsens::scene::{strip_pullout, MaterialSpec, StripSpec};
+use fricsens::scene::{strip_pullout, StripSpec};
 
-fn materials() -> Vec<(&'static str, MaterialSpec, Vec<&'static str>)> {
+fn materials() -> Vec<(&'static str, Material, Vec<&'static str>)> {
     // the pull force over the strip's section peaks at 1.5 / (0.02 x 0.1) = 750: a yield stress
     // of 500 makes the pulled half yield, and the friction holds the rest elastic
-    let j2 = |sigma_inf, delta| MaterialSpec::J2 {
-        young: 1e5,
-        nu: 0.3,
-        sigma_y: 500.0,
-        hardening: 1e4,
-        sigma_inf,
-        delta,
+    let j2 = |saturation: Option<(f64, f64)>| {
+        Material::J2(match saturation {
+            Some((sigma_inf, delta)) => {
+                J2Plasticity::saturation(1e5, 0.3, 500.0, 1e4, sigma_inf, delta)
+            }
+            None => J2Plasticity::linear(1e5, 0.3, 500.0, 1e4),
+        })
     };
     vec![
         (
             "svk",
-            MaterialSpec::Svk {
-                young: 1e5,
-                nu: 0.3,
-            },
+            Material::Svk(StVenantKirchhoff::new(1e5, 0.3)),
             vec!["E", "nu"],
         ),
-        ("j2 linear", j2(None, None), vec!["E", "sigma_y", "H"]),
+        ("j2 linear", j2(None), vec!["E", "sigma_y", "H"]),
         (
             "j2 saturation",
-            j2(Some(700.0), Some(50.0)),
+            j2(Some((700.0, 50.0))),
             vec!["sigma_y", "H", "sigma_inf", "delta"],
         ),
         (
             "neo-hookean",
-            MaterialSpec::NeoHookean {
-                young: 1e5,
-                nu: 0.3,
-            },
+            Material::NeoHookean(NeoHookean::new(1e5, 0.3)),
             vec!["E", "nu"],
         ),
     ]
@@ -51,7 +46,7 @@ fn materials() -> Vec<(&'static str, MaterialSpec, Vec<&'static str>)> {
 /// The frictional strip pull-out (`shared/oracles.md` section 7, 20 elements) under large
 /// deformation: pulled to 1.5 and released, so the plastic zone unloads and the friction turns
 /// round.
-fn model(material: &MaterialSpec) -> Model {
+fn model(material: &Material) -> Model {
     let spec = StripSpec {
         elements: 20,
         ..StripSpec::default()

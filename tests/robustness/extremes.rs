@@ -7,15 +7,18 @@
 
 use crate::common::{fricsens, scratch_path, sens, try_solve};
 
+use fricsens::contact::friction::Coulomb;
 use fricsens::contact::ContactState;
+use fricsens::contact::Friction;
 use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::material::{Material, StVenantKirchhoff};
 use fricsens::mesh::{Axis, BlockSpec, NodePlace};
 use fricsens::model::{Amplitude, DesignParam, Model, NodalLoad, SolverSettings};
 use fricsens::response::{Response, ResponseKind};
 use fricsens::scene::{
     cantilever, jenkins, klarbring_2dof, sliding_block, uniaxial_j2, uniaxial_svk, BodySpec,
-    CantileverSpec, Component, ContactSpec, FreeNodeSpec, FrictionSpec, LoadSpec, MaterialSpec,
-    PrescribedSpec, ResponseSpec, RigidSpec, Scene, SpringSpec, StepSpec, StudySpec, TargetSpec,
+    CantileverSpec, Component, ContactSpec, FreeNodeSpec, LoadSpec, PrescribedSpec, ResponseSpec,
+    RigidSpec, Scene, SpringSpec, StepSpec, StudySpec, TargetSpec,
 };
 use fricsens::sensitivity::{
     run_sensitivity, IncrementSensitivity, Method, Parameter, SensitivityResults, Settings,
@@ -52,7 +55,7 @@ fn cycle(t: f64) -> f64 {
 fn mu_zero_derivatives_are_the_right_derivatives_of_the_closed_forms() {
     // Jenkins: k = 1, N = 1, U_a = 1
     let mut scene = jenkins(10);
-    scene.contacts[0].friction = Some(FrictionSpec::Coulomb { mu: 0.0 });
+    scene.contacts[0].friction = Some(Friction::Coulomb(Coulomb::new(0.0)));
     let model = scene.build().unwrap();
     let ddm = sens(&model, &["plane.mu"], Method::Ddm, 0.0);
     // in slip T is linear in mu (T = s mu N): a forward difference has no truncation error
@@ -72,7 +75,7 @@ fn mu_zero_derivatives_are_the_right_derivatives_of_the_closed_forms() {
     }
     // Klarbring: k11 = 1, k12 = 0.5, F_n = -1, F_t = 0.6 cycle(t)
     let mut scene = klarbring_2dof(10);
-    scene.contacts[0].friction = Some(FrictionSpec::Coulomb { mu: 0.0 });
+    scene.contacts[0].friction = Some(Friction::Coulomb(Coulomb::new(0.0)));
     let model = scene.build().unwrap();
     let ddm = sens(&model, &["plane.mu"], Method::Ddm, 0.0);
     let fwd = sens(&model, &["plane.mu"], Method::Fdm, 1e-3);
@@ -147,7 +150,7 @@ fn mu_zero_derivatives_are_the_right_derivatives_of_the_closed_forms() {
 #[test]
 fn mu_ten_sticks_with_zero_mu_sensitivity() {
     let mut scene = jenkins(10);
-    scene.contacts[0].friction = Some(FrictionSpec::Coulomb { mu: 10.0 });
+    scene.contacts[0].friction = Some(Friction::Coulomb(Coulomb::new(10.0)));
     let eps_t = scene.contacts[0].tangential_stiffness.unwrap();
     let model = scene.build().unwrap();
     let ddm = sens(&model, &["plane.mu"], Method::Ddm, 0.0);
@@ -279,7 +282,7 @@ fn ring_model(formulation: Hex8Formulation, young: f64, nu: f64, nr: usize, nt: 
                 y: Axis::uniform(1.0, nt),
                 z: Axis::uniform(th, 1),
             },
-            material: MaterialSpec::Svk { young, nu },
+            material: Material::Svk(StVenantKirchhoff::new(young, nu)),
             kinematics: Kinematics::Small,
             formulation,
         }],

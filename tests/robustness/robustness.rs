@@ -5,11 +5,14 @@
 
 use crate::common::{fricsens, scratch_path, solve};
 
+use fricsens::contact::friction::{PressureDependentCoulomb, RegularizedCoulomb};
+use fricsens::contact::Friction;
 use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::law::Law;
+use fricsens::material::Material;
 use fricsens::model::Model;
 use fricsens::scene::{
-    builtin, FrictionSpec, MaterialSpec, PrescribedSpec, RigidSpec, Scene, SceneError, StepSpec,
-    TargetSpec,
+    builtin, PrescribedSpec, RigidSpec, Scene, SceneError, StepSpec, TargetSpec,
 };
 use fricsens::scene::{cantilever, CantileverSpec, Component, ResponseSpec};
 use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings};
@@ -178,7 +181,7 @@ fn a_string_for_a_number_is_a_type_error_at_its_table() {
     rejects(&text, &["field `steps[0].end`:", "invalid type: string"]);
 }
 
-fn material(s: &mut Scene) -> &mut MaterialSpec {
+fn material(s: &mut Scene) -> &mut Material {
     &mut s.bodies[0].material
 }
 
@@ -186,9 +189,7 @@ fn material(s: &mut Scene) -> &mut MaterialSpec {
 fn youngs_modulus_must_be_positive() {
     for e in [0.0, -1.0, -1e300] {
         let text = edited("contact-patch", |s| {
-            if let MaterialSpec::Svk { young, .. } = material(s) {
-                *young = e;
-            }
+            *material(s).param_mut("E").unwrap() = e;
         });
         rejects(&text, &["field `bodies[0].material.E`:", "must be > 0"]);
     }
@@ -198,9 +199,7 @@ fn youngs_modulus_must_be_positive() {
 fn poissons_ratio_must_lie_in_its_open_interval() {
     for nu in [0.5, -1.0, 0.7, -1.5, 0.5000001] {
         let text = edited("contact-patch", |s| {
-            if let MaterialSpec::Svk { nu: v, .. } = material(s) {
-                *v = nu;
-            }
+            *material(s).param_mut("nu").unwrap() = nu;
         });
         rejects(&text, &["field `bodies[0].material.nu`:", "(-1, 0.5)"]);
     }
@@ -214,26 +213,22 @@ fn friction_coefficients_must_not_be_negative() {
     let text = replaced("contact-patch", "mu = 0.3", "mu = -0.1");
     rejects(&text, &["field `contacts[0].friction.mu`:", "must be >= 0"]);
     let text = edited("contact-patch", |s| {
-        s.contacts[0].friction = Some(FrictionSpec::RegularizedCoulomb { mu: -1.0 })
+        s.contacts[0].friction = Some(Friction::RegularizedCoulomb(RegularizedCoulomb::new(-1.0)))
     });
     rejects(&text, &["field `contacts[0].friction.mu`:", "must be >= 0"]);
     let text = edited("contact-patch", |s| {
-        s.contacts[0].friction = Some(FrictionSpec::PressureDependent {
-            mu0: -0.3,
-            p0: 1.0,
-            n: 0.1,
-        })
+        s.contacts[0].friction = Some(Friction::PressureDependent(PressureDependentCoulomb::new(
+            -0.3, 1.0, 0.1,
+        )))
     });
     rejects(
         &text,
         &["field `contacts[0].friction.mu0`:", "must be >= 0"],
     );
     let text = edited("contact-patch", |s| {
-        s.contacts[0].friction = Some(FrictionSpec::PressureDependent {
-            mu0: 0.3,
-            p0: 0.0,
-            n: 0.1,
-        })
+        s.contacts[0].friction = Some(Friction::PressureDependent(PressureDependentCoulomb::new(
+            0.3, 0.0, 0.1,
+        )))
     });
     rejects(&text, &["field `contacts[0].friction.p0`:", "must be > 0"]);
 }

@@ -5,7 +5,8 @@
 
 use crate::common::solve;
 
-use fricsens::scene::{cantilever, CantileverSpec, Component, MaterialSpec, PrescribedSpec};
+use fricsens::material::{J2Plasticity, Material};
+use fricsens::scene::{cantilever, CantileverSpec, Component, PrescribedSpec};
 
 #[test]
 fn displacement_controlled_plastic_cantilever_needs_no_cutback() {
@@ -21,14 +22,7 @@ fn displacement_controlled_plastic_cantilever_needs_no_cutback() {
         ..CantileverSpec::large_deflection()
     };
     let mut scene = cantilever(&spec);
-    scene.bodies[0].material = MaterialSpec::J2 {
-        young: 200e3,
-        nu: 0.3,
-        sigma_y: 250.0,
-        hardening: 200.0,
-        sigma_inf: None,
-        delta: None,
-    };
+    scene.bodies[0].material = Material::J2(J2Plasticity::linear(200e3, 0.3, 250.0, 200.0));
     scene.loads.clear();
     // tip deflection 3x the first-yield deflection of beam theory, w_y = 2 sigma_y L^2 / (3 E h)
     let w_yield = 2.0 * 250.0 * 10.0f64.powi(2) / (3.0 * 200e3 * 1.0);

@@ -5,10 +5,7 @@ use super::*;
 /// Contact patch test: a block pressed by a uniform pressure onto another with a matching mesh;
 /// symmetry planes x = 0 and z = 0, the lower block's bottom fixed in y.
 pub fn contact_patch(friction: Option<f64>) -> Scene {
-    let material = MaterialSpec::Svk {
-        young: 1000.0,
-        nu: 0.3,
-    };
+    let material = Material::Svk(StVenantKirchhoff::new(1000.0, 0.3));
     let axes = || {
         [
             Axis::uniform(2.0, 4),
@@ -57,7 +54,7 @@ pub fn contact_patch(friction: Option<f64>) -> Scene {
             hitting: "upper.ymin".into(),
             target: TargetSpec::Faces("lower.ymax".into()),
             normal: NormalLaw::Lagrange,
-            friction: friction.map(|mu| FrictionSpec::Coulomb { mu }),
+            friction: friction.map(|mu| Friction::Coulomb(Coulomb::new(mu))),
             tangential_stiffness: None,
             constraint_scale: None,
             activation: None,
@@ -81,10 +78,7 @@ pub fn contact_patch(friction: Option<f64>) -> Scene {
 /// base (8 x 1, faces 1.0 long) and pulled 3 units along it: its hitting nodes cross several
 /// target faces. Plane strain (z fixed), small kinematics, E = 1000, nu = 0.3.
 pub fn sliding_block(friction: Option<f64>) -> Scene {
-    let svk = || MaterialSpec::Svk {
-        young: 1000.0,
-        nu: 0.3,
-    };
+    let svk = || Material::Svk(StVenantKirchhoff::new(1000.0, 0.3));
     let axes = |n: [usize; 2], l: [f64; 2]| {
         [
             Axis::uniform(l[0], n[0]),
@@ -138,7 +132,7 @@ pub fn sliding_block(friction: Option<f64>) -> Scene {
             hitting: "slider.ymin".into(),
             target: TargetSpec::Faces("base.ymax".into()),
             normal: NormalLaw::Lagrange,
-            friction: friction.map(|mu| FrictionSpec::Coulomb { mu }),
+            friction: friction.map(|mu| Friction::Coulomb(Coulomb::new(mu))),
             tangential_stiffness: None,
             constraint_scale: None,
             // the slider travels 3 units: every face it may reach is a candidate

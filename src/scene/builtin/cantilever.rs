@@ -98,10 +98,7 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
                     }],
                 },
             },
-            material: MaterialSpec::Svk {
-                young: c.young,
-                nu: c.nu,
-            },
+            material: Material::Svk(StVenantKirchhoff::new(c.young, c.nu)),
             kinematics: c.kinematics,
             formulation: c.formulation,
         }],

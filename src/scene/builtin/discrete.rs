@@ -49,7 +49,7 @@ pub fn klarbring_2dof(increments_per_unit: usize) -> Scene {
                 motion: vec![],
             },
             normal: NormalLaw::Lagrange,
-            friction: Some(FrictionSpec::Coulomb { mu: 0.3 }),
+            friction: Some(Friction::Coulomb(Coulomb::new(0.3))),
             // The oracle's stick is rigid; the penalty leaves an elastic slip |t| / eps_T in
             // stick phases (1e-7 here). Slipping states, where the worked values are, do not
             // depend on it. A stiffer penalty buys little: the stick force's round-off grows
@@ -150,7 +150,7 @@ pub fn jenkins(increments_per_unit: usize) -> Scene {
                 motion: vec![],
             },
             normal: NormalLaw::Lagrange,
-            friction: Some(FrictionSpec::Coulomb { mu: 0.3 }),
+            friction: Some(Friction::Coulomb(Coulomb::new(0.3))),
             tangential_stiffness: Some(1e6),
             constraint_scale: Some(1.0),
             activation: None,

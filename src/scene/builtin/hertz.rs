@@ -76,10 +76,7 @@ pub fn hertz(h: &HertzSpec) -> Scene {
                 },
                 Axis::uniform(thickness, 1),
             ],
-            MaterialSpec::Svk {
-                young: h.young,
-                nu: h.nu,
-            },
+            Material::Svk(StVenantKirchhoff::new(h.young, h.nu)),
             Kinematics::Small,
         )],
         free_nodes: vec![],

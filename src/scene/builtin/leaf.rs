@@ -132,17 +132,10 @@ impl LeafSpringSpec {
 pub fn leaf_spring(s: &LeafSpringSpec) -> Scene {
     let h = s.thickness;
     let c = s.clearance;
-    let j2 = MaterialSpec::J2 {
-        young: s.young,
-        nu: s.nu,
-        sigma_y: s.sigma_y,
-        hardening: s.hardening,
-        sigma_inf: None,
-        delta: None,
-    };
+    let j2 = Material::J2(J2Plasticity::linear(s.young, s.nu, s.sigma_y, s.hardening));
     let element = s.upper_length / s.elements_along as f64;
     let lower_elements = ((s.lower_length / element).round() as usize).max(1);
-    let friction = Some(FrictionSpec::Coulomb { mu: s.mu });
+    let friction = Some(Friction::Coulomb(Coulomb::new(s.mu)));
     // The block's nose is a half cylinder (radius 5 mm, a rounded box as wide as its corner
     // radius) whose lowest line touches the upper leaf 10 mm from its tip. The leaf's top
     // slopes away from it on both sides, so the contact stays on the nose; as the leaf bends,
@@ -355,10 +348,7 @@ impl StackedLeavesSpec {
 /// incompatible-mode hex8 with one element through each leaf's thickness.
 pub fn stacked_leaves(s: &StackedLeavesSpec) -> Scene {
     let h = s.thickness;
-    let svk = MaterialSpec::Svk {
-        young: s.young,
-        nu: 0.0,
-    };
+    let svk = Material::Svk(StVenantKirchhoff::new(s.young, 0.0));
     let axes = || {
         [
             Axis::uniform(s.length, s.elements_along),
@@ -399,7 +389,7 @@ pub fn stacked_leaves(s: &StackedLeavesSpec) -> Scene {
             hitting: "upper.xmax & upper.ymin".into(),
             target: TargetSpec::Faces("lower.ymax".into()),
             normal: NormalLaw::Lagrange,
-            friction: Some(FrictionSpec::Coulomb { mu: s.mu }),
+            friction: Some(Friction::Coulomb(Coulomb::new(s.mu))),
             tangential_stiffness: None,
             constraint_scale: None,
             activation: None,

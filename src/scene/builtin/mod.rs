@@ -2,8 +2,10 @@
 //! the closed forms it is checked against.
 
 use super::*;
-use crate::contact::NormalLaw;
+use crate::contact::friction::Coulomb;
+use crate::contact::{Friction, NormalLaw};
 use crate::element::{Hex8Formulation, Kinematics};
+use crate::material::{J2Plasticity, Material, StVenantKirchhoff};
 use crate::mesh::{Axis, BlockSpec, Zone};
 use crate::model::SolverSettings;
 use crate::sensitivity::{IncrementSensitivity, SensitivityResults};
@@ -236,7 +238,7 @@ pub(crate) fn block_body(
     name: &str,
     origin: [f64; 3],
     axes: [Axis; 3],
-    material: MaterialSpec,
+    material: Material,
     kinematics: Kinematics,
 ) -> BodySpec {
     let [x, y, z] = axes;

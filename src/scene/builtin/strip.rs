@@ -59,10 +59,7 @@ pub fn strip_pullout(s: &StripSpec) -> Scene {
                 Axis::uniform(s.thickness, 1),
                 Axis::uniform(s.width, 1),
             ],
-            MaterialSpec::Svk {
-                young: s.young,
-                nu: 0.0,
-            },
+            Material::Svk(StVenantKirchhoff::new(s.young, 0.0)),
             Kinematics::Small,
         )],
         free_nodes: vec![],
@@ -95,7 +92,7 @@ pub fn strip_pullout(s: &StripSpec) -> Scene {
                 motion: vec![],
             },
             normal: NormalLaw::Lagrange,
-            friction: Some(FrictionSpec::Coulomb { mu: s.mu }),
+            friction: Some(Friction::Coulomb(Coulomb::new(s.mu))),
             // 10 x the axial stiffness EA/h of one element: the elastic slip (mu n h / eps_T)
             // stays below 1e-4 of u0, and Newton is not crippled by a tangent dominated by
             // the penalty (1e4 x EA/h made the slip front advance one node per iteration)

@@ -9,14 +9,7 @@ use super::*;
 /// face), the strain, and the equivalent plastic strain of Gauss point 0.
 pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene {
     let mut scene = uniaxial_cube(
-        MaterialSpec::J2 {
-            young: 200e3,
-            nu: 0.3,
-            sigma_y: 250.0,
-            hardening: 10e3,
-            sigma_inf: None,
-            delta: None,
-        },
+        Material::J2(J2Plasticity::linear(200e3, 0.3, 250.0, 10e3)),
         kinematics,
         0.01,
         vec![(0.0, 0.0), (1.0, 1.0), (3.0, -1.0)],
@@ -49,10 +42,7 @@ pub fn uniaxial_j2(kinematics: Kinematics, increments_per_unit: usize) -> Scene 
 /// the nominal stress P11 (the reaction on the unit face).
 pub fn uniaxial_svk(lambda_max: f64, increments: usize) -> Scene {
     let mut scene = uniaxial_cube(
-        MaterialSpec::Svk {
-            young: 1000.0,
-            nu: 0.3,
-        },
+        Material::Svk(StVenantKirchhoff::new(1000.0, 0.3)),
         Kinematics::Large,
         lambda_max - 1.0,
         ramp(),
@@ -72,7 +62,7 @@ pub fn uniaxial_svk(lambda_max: f64, increments: usize) -> Scene {
 /// its `xmax` face prescribed (`value * amplitude(t)`); responses `stress` (reaction on
 /// `xmax`, x) and `strain` (its displacement).
 pub(crate) fn uniaxial_cube(
-    material: MaterialSpec,
+    material: Material,
     kinematics: Kinematics,
     value: f64,
     amplitude: Vec<(f64, f64)>,
