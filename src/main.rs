@@ -716,8 +716,8 @@ fn fuzz(
                         o.seconds
                     )
                 });
-                if let Some(c) = &corpus {
-                    let _ = std::fs::write(c.join(format!("seed-{seed}.toml")), scene.to_toml());
+                if let (Some(c), Ok(text)) = (&corpus, scene.to_toml()) {
+                    let _ = std::fs::write(c.join(format!("seed-{seed}.toml")), text);
                 }
             }
             pb.inc(1);
@@ -777,20 +777,21 @@ fn main() -> ExitCode {
             Ok(())
         }
         Command::Scenes { show: Some(name) } => match builtin(&name) {
-            Some(s) => {
-                outp!("{}", s.to_toml());
-                Ok(())
-            }
+            Some(s) => s.to_toml().map_err(|e| e.to_string()).map(|text| {
+                outp!("{}", text);
+            }),
             None => Err(format!(
                 "unknown built-in scene '{name}' (see `fricsens scenes`)"
             )),
         },
         Command::Fuzz {
             show: Some(seed), ..
-        } => {
-            outp!("{}", fricsens::studies::fuzz::generate(seed).to_toml());
-            Ok(())
-        }
+        } => fricsens::studies::fuzz::generate(seed)
+            .to_toml()
+            .map_err(|e| e.to_string())
+            .map(|text| {
+                outp!("{}", text);
+            }),
         Command::Fuzz {
             seeds,
             start,

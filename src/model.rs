@@ -129,20 +129,7 @@ impl Default for SolverSettings {
     }
 }
 
-/// Unknowns per node (three displacement components).
-pub const NODE_DOFS: usize = 3;
-
-/// The global unknown of component `c` of node `n` (nodal unknowns come first, node-major).
-#[inline]
-pub fn node_dof(n: usize, c: usize) -> usize {
-    NODE_DOFS * n + c
-}
-
-/// The three global unknowns of node `n`.
-#[inline]
-pub fn node_dofs(n: usize) -> std::ops::Range<usize> {
-    NODE_DOFS * n..NODE_DOFS * (n + 1)
-}
+pub use crate::element::{node_dof, node_dofs, NODE_DOFS};
 
 /// Where each unknown and each history scalar lives, computed from the element families.
 ///

@@ -208,12 +208,12 @@ impl Response {
         match &self.kind {
             ResponseKind::Reaction { nodes, component } => {
                 nodes.iter().fold(S::zero(), |acc, n| {
-                    acc + residual[crate::model::node_dof(*n, *component)]
+                    acc + residual[crate::element::node_dof(*n, *component)]
                 })
             }
             ResponseKind::Displacement { nodes, component } => {
                 let sum = nodes.iter().fold(S::zero(), |acc, n| {
-                    acc + z[crate::model::node_dof(*n, *component)]
+                    acc + z[crate::element::node_dof(*n, *component)]
                 });
                 sum / nodes.len() as f64
             }

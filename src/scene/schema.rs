@@ -432,6 +432,14 @@ impl StudySpec {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SceneError {
+    /// The scene holds what a scene file cannot say (a user's friction law, defined in code).
+    #[error("scene '{scene}' cannot be written as TOML: {why}")]
+    NotWritable {
+        /// The scene's name.
+        scene: String,
+        /// The serializer's message.
+        why: String,
+    },
     /// The TOML text does not parse as a scene.
     #[error("{file}: {message}")]
     Parse {
@@ -629,7 +637,10 @@ impl Scene {
     }
 
     /// Serialise to TOML.
-    pub fn to_toml(&self) -> String {
-        toml::to_string(self).expect("a scene always serialises")
+    pub fn to_toml(&self) -> Result<String, SceneError> {
+        toml::to_string(self).map_err(|e| SceneError::NotWritable {
+            scene: self.name.clone(),
+            why: e.to_string(),
+        })
     }
 }

@@ -174,3 +174,19 @@ fn a_user_law_with_too_many_parameters_is_a_typed_error() {
         "{err}"
     );
 }
+
+#[test]
+fn a_scene_with_a_user_law_builds_but_is_not_written_as_toml() {
+    // a scene file cannot name a law defined in code: writing one is a typed error, not a panic
+    let mut scene = strip_pullout(&StripSpec {
+        elements: 10,
+        ..StripSpec::default()
+    });
+    scene.contacts[0].friction = Some(Friction::user(Coulomb::new(0.5)).unwrap());
+    assert!(scene.build().is_ok());
+    let err = scene.to_toml().unwrap_err();
+    assert!(
+        matches!(err, fricsens::scene::SceneError::NotWritable { .. }),
+        "{err}"
+    );
+}

@@ -883,7 +883,7 @@ fn hard_increments_fail_with_a_useful_error_and_cutbacks_rescue_large_ones() {
     let dir = scratch_path("extremes");
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("dead-load.toml");
-    std::fs::write(&file, scene.to_toml()).unwrap();
+    std::fs::write(&file, scene.to_toml().unwrap()).unwrap();
     let out = fricsens()
         .args(["run", &file.display().to_string(), "--out"])
         .arg(dir.join("out"))

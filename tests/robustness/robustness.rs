@@ -46,13 +46,13 @@ fn rejects(text: &str, needles: &[&str]) -> String {
 fn edited(name: &str, edit: impl FnOnce(&mut Scene)) -> String {
     let mut s = builtin(name).unwrap();
     edit(&mut s);
-    s.to_toml()
+    s.to_toml().unwrap()
 }
 
 /// The TOML of built-in scene `name` with the first `from` replaced by `to`.
 #[track_caller]
 fn replaced(name: &str, from: &str, to: &str) -> String {
-    let text = builtin(name).unwrap().to_toml();
+    let text = builtin(name).unwrap().to_toml().unwrap();
     assert!(text.contains(from), "`{from}` not in the TOML of {name}");
     text.replacen(from, to, 1)
 }
@@ -71,7 +71,7 @@ fn the_builtin_scenes_used_below_are_valid() {
         "sliding-block",
         "jenkins",
     ] {
-        let text = builtin(name).unwrap().to_toml();
+        let text = builtin(name).unwrap().to_toml().unwrap();
         parse_build(&text, name).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
 }
@@ -148,7 +148,7 @@ fn missing_required_fields_are_named_by_their_path() {
         rejects(&text, &[&format!("field `{path}`:"), "missing field"]);
     }
     // in later entries of arrays of tables
-    let text = builtin("contact-patch").unwrap().to_toml();
+    let text = builtin("contact-patch").unwrap().to_toml().unwrap();
     let second = text.rfind("E = 1000.0\n").unwrap();
     let text = format!(
         "{}{}",
@@ -166,7 +166,7 @@ fn missing_required_fields_are_named_by_their_path() {
         &["field `bodies[0].origin[0]`:", "invalid type: string"],
     );
     // a whole missing table
-    let text = builtin("contact-patch").unwrap().to_toml();
+    let text = builtin("contact-patch").unwrap().to_toml().unwrap();
     let start = text.find("[[steps]]").unwrap();
     let end = start + text[start..].find("\n\n").unwrap();
     let text = format!("{}{}", &text[..start], &text[end..]);
@@ -1230,7 +1230,7 @@ fn mutated_builtin() -> impl Strategy<Value = String> {
         prop::collection::vec(mutation(), 1..4),
     )
         .prop_map(|(name, ms)| {
-            let mut text = builtin(name).unwrap().to_toml();
+            let mut text = builtin(name).unwrap().to_toml().unwrap();
             for m in &ms {
                 text = apply(&text, m);
             }

@@ -9,7 +9,7 @@ use fricsens::scene::{builtin, builtin_list, indentation, Scene};
 fn every_builtin_scene_round_trips_through_toml() {
     for (name, _) in builtin_list() {
         let scene = builtin(name).unwrap();
-        let text = scene.to_toml();
+        let text = scene.to_toml().unwrap();
         let back = Scene::from_toml(&text, name).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(back, scene, "{name}: TOML round trip changed the scene");
         // the same analysis: identical models (node count, unknowns, increments)
@@ -21,7 +21,7 @@ fn every_builtin_scene_round_trips_through_toml() {
 
 #[test]
 fn malformed_scene_files_name_the_file_and_the_field() {
-    let good = builtin("cantilever-small").unwrap().to_toml();
+    let good = builtin("cantilever-small").unwrap().to_toml().unwrap();
     // an impossible value
     let bad = good.replace("E = 100000.0", "E = -1.0");
     let err = Scene::from_toml(&bad, "beam.toml")
