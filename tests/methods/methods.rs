@@ -86,7 +86,7 @@ fn default_ddm_equals_a_fresh_factorization_on_every_builtin_scene() {
 /// The J2 beam the issue measured against JAX-FEM and torch-fem: a cantilever of plain hex8
 /// (10 x 4 x 4 elements), small strain, J2 with linear hardening, its tip pushed down over 15
 /// increments (to six times the first-yield deflection 2 sigma_y L^2 / (3 E h) = 0.83) and pulled back by one.
-fn j2_beam() -> Scene {
+pub(crate) fn j2_beam() -> Scene {
     Scene::from_toml(
         r#"
 name = "j2-beam"

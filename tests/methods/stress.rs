@@ -9,69 +9,28 @@
 
 use crate::common::params;
 
-use fricsens::scene::Scene;
+use fricsens::response::StressMeasure;
+use fricsens::scene::{ResponseSpec, Scene};
 use fricsens::sensitivity::{run_sensitivity, Method, SensitivityResults, Settings};
 
 /// The J2 beam of `methods` (10 x 4 x 4 plain hex8, clamped, tip pushed down 5 in 15
 /// increments, then back to 3), with stress responses of a clamp element (plastic) and an
-/// element near the tip and the neutral axis (elastic).
+/// element near the tip and the neutral axis (elastic), beside its tip force.
 fn beam_with_stress_responses() -> Scene {
-    Scene::from_toml(
-        r#"
-name = "j2-beam-stress"
-[[bodies]]
-name = "beam"
-origin = [0.0, 0.0, 0.0]
-kinematics = "small"
-formulation = "full"
-x = { length = 100.0, zones = [{ fraction = 1.0, elements = 10, ratio = 1.0 }] }
-y = { length = 10.0, zones = [{ fraction = 1.0, elements = 4, ratio = 1.0 }] }
-z = { length = 10.0, zones = [{ fraction = 1.0, elements = 4, ratio = 1.0 }] }
-material = { law = "j2", E = 200000.0, nu = 0.3, sigma_y = 250.0, H = 2000.0 }
-
-[[prescribed]]
-name = "clamp"
-set = "beam.xmin"
-components = ["x", "y", "z"]
-
-[[prescribed]]
-name = "tip"
-set = "beam.xmax"
-components = ["y"]
-value = -5.0
-amplitude = [[0.0, 0.0], [15.0, 1.0], [16.0, 0.6]]
-
-[[steps]]
-end = 15.0
-increments = 15
-[[steps]]
-end = 16.0
-increments = 1
-
-[[responses]]
-kind = "stress"
-name = "clamp-mises"
-body = "beam"
-element = 0
-measure = "von-mises"
-
-[[responses]]
-kind = "stress"
-name = "clamp-sxx"
-body = "beam"
-element = 0
-measure = "xx"
-
-[[responses]]
-kind = "stress"
-name = "tip-sxy"
-body = "beam"
-element = 59
-measure = "xy"
-"#,
-        "j2-beam-stress",
-    )
-    .unwrap()
+    let mut scene = crate::methods::j2_beam();
+    for (name, element, measure) in [
+        ("clamp-mises", 0, StressMeasure::VonMises),
+        ("clamp-sxx", 0, StressMeasure::Xx),
+        ("tip-sxy", 59, StressMeasure::Xy),
+    ] {
+        scene.responses.push(ResponseSpec::Stress {
+            name: name.into(),
+            body: "beam".into(),
+            element,
+            measure,
+        });
+    }
+    scene
 }
 
 const NAMES: [&str; 2] = ["sigma_y", "E"];
