@@ -577,6 +577,19 @@ impl Mesh {
         let (nx, ny, nz) = (tx.len(), ty.len(), tz.len());
         let first = self.places.len();
         let id = |i: usize, j: usize, k: usize| first + i + nx * (j + ny * k);
+        // the hex8 of cell (i, j, k), in the element's node order
+        let cell = |i: usize, j: usize, k: usize| {
+            [
+                id(i, j, k),
+                id(i + 1, j, k),
+                id(i + 1, j + 1, k),
+                id(i, j + 1, k),
+                id(i, j, k + 1),
+                id(i + 1, j, k + 1),
+                id(i + 1, j + 1, k + 1),
+                id(i, j + 1, k + 1),
+            ]
+        };
         for &z in &tz {
             for &y in &ty {
                 for &x in &tx {
@@ -591,16 +604,7 @@ impl Mesh {
         for k in 0..nz - 1 {
             for j in 0..ny - 1 {
                 for i in 0..nx - 1 {
-                    connectivity.extend_from_slice(&[
-                        id(i, j, k),
-                        id(i + 1, j, k),
-                        id(i + 1, j + 1, k),
-                        id(i, j + 1, k),
-                        id(i, j, k + 1),
-                        id(i + 1, j, k + 1),
-                        id(i + 1, j + 1, k + 1),
-                        id(i, j + 1, k + 1),
-                    ]);
+                    connectivity.extend_from_slice(&cell(i, j, k));
                 }
             }
         }
@@ -633,16 +637,7 @@ impl Mesh {
         for k in 0..nz - 1 {
             for j in 0..ny - 1 {
                 for i in 0..nx - 1 {
-                    let conn = [
-                        id(i, j, k),
-                        id(i + 1, j, k),
-                        id(i + 1, j + 1, k),
-                        id(i, j + 1, k),
-                        id(i, j, k + 1),
-                        id(i + 1, j, k + 1),
-                        id(i + 1, j + 1, k + 1),
-                        id(i, j + 1, k + 1),
-                    ];
+                    let conn = cell(i, j, k);
                     let on = [
                         i == 0,
                         i == nx - 2,

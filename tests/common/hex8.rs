@@ -201,3 +201,54 @@ pub fn deformed_cantilever(
     }
     (model, z)
 }
+
+/// The patch test: the boundary nodes of `mesh` follow an affine displacement field; every
+/// node must follow it and every element carry its exact, uniform stress (St Venant-Kirchhoff).
+pub fn patch_test(mesh: Mesh, kinematics: Kinematics, formulation: Hex8Formulation) {
+    let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+    let grad_u = Matrix3::new(
+        0.010, 0.004, -0.002, 0.003, -0.006, 0.005, -0.001, 0.002, 0.008,
+    );
+    let mut model = one_body_model(
+        mesh.clone(),
+        Material::Svk(StVenantKirchhoff::new(1000.0, 0.3)),
+        kinematics,
+        formulation,
+    );
+    for n in boundary_nodes(&mesh) {
+        let u = grad_u * x[n];
+        for c in 0..3 {
+            prescribe(&mut model, vec![n], c, u[c]);
+        }
+    }
+    let res = solve(&model);
+    let z = &res.states[1];
+    for (n, xn) in x.iter().enumerate() {
+        let u = grad_u * xn;
+        for c in 0..3 {
+            assert!(
+                (z[3 * n + c] - u[c]).abs() < 1e-10 * u.norm().max(1e-3),
+                "{kinematics:?} {formulation:?} node {n} comp {c}: {} vs {}",
+                z[3 * n + c],
+                u[c]
+            );
+        }
+    }
+    let f = Matrix3::identity() + grad_u;
+    let strain = match kinematics {
+        Kinematics::Large => (f.transpose() * f - Matrix3::identity()) * 0.5,
+        Kinematics::Small => (grad_u + grad_u.transpose()) * 0.5,
+    };
+    let (lambda, mu) = fricsens::material::lame(1000.0, 0.3);
+    let s = strain * (2.0 * mu) + Matrix3::identity() * (lambda * strain.trace());
+    let sigma = match kinematics {
+        Kinematics::Large => f * s * f.transpose() / f.determinant(),
+        Kinematics::Small => s,
+    };
+    for c in &res.stresses[1] {
+        assert!(
+            (c - sigma).norm() <= 1e-10 * sigma.norm(),
+            "{kinematics:?} {formulation:?}: element stress {c} vs {sigma}"
+        );
+    }
+}
