@@ -109,6 +109,10 @@ fn stress_responses_are_differentiated_by_every_method() {
         let truncation =
             (f1.increments[k].derivatives[r][p] - f2.increments[k].derivatives[r][p]).abs();
         let size = f1.increments[k].values[r].abs();
+        // the last term is DDM's own accuracy: its sensitivity solve is converged to 1e-13 of
+        // the solution (the default exact tangent), so 1e-12 of the response's logarithmic
+        // scale size / b bounds it; it matters only where truncation and round-off vanish (the
+        // first, elastic increments, where FDM of a linear response is exact)
         truncation + force_tol * size / (h * params[p].value) + 1e-12 * size / params[p].value
     };
     // measured: the largest |DDM - FDM| is 0.64 of the estimate
