@@ -28,8 +28,6 @@ pub struct Assembler {
     /// The sparsity pattern of the tangent, fixed over the run (every candidate contact pair
     /// included), shared with the linear solvers that factor it.
     pub pattern: std::sync::Arc<SparsePattern>,
-    /// Pattern block of each spring.
-    spring_block: Vec<usize>,
     /// Pattern block of each element (`usize::MAX` for unassembled ones).
     elem_block: Vec<usize>,
     /// Contact blocks and offsets.
@@ -184,15 +182,6 @@ impl Assembler {
             .filter(|d| !d.is_empty())
             .map(|d| d.to_vec())
             .collect();
-        let mut spring_block = Vec::new();
-        for s in &model.springs {
-            spring_block.push(blocks.len());
-            let mut d: Vec<usize> = dofs.node_dofs(s.a).collect();
-            if let Some(b) = s.b {
-                d.extend(dofs.node_dofs(b));
-            }
-            blocks.push(d);
-        }
         let mut contact = ContactLayout::new(model, dofs.first_lambda, dofs.first_contact_history);
         for pair_blocks in contact.blocks.iter_mut() {
             for nb in pair_blocks.iter_mut() {
@@ -230,7 +219,6 @@ impl Assembler {
             stress_slot,
             dofs,
             pattern,
-            spring_block,
             elem_block,
             contact,
         })
@@ -346,9 +334,11 @@ impl Assembler {
         }
         out.min_det_f = f64::INFINITY;
         let want_k = tangent.is_some();
-        // elements left out of this evaluation
+        // elements left out of this evaluation. The masks are drawn from Gauss points and
+        // histories: a spring, which has neither, is always evaluated (it costs nothing).
         let skip = frozen.and_then(|f| f.skip);
-        let skipped = |e: usize| skip.is_some_and(|s| s[e]);
+        let skipped =
+            |e: usize| skip.is_some_and(|s| s[e]) && self.dofs.element_springs[e] == usize::MAX;
         let ne = model.mesh.n_elements();
         let mut locals: Vec<Local<S>> = Vec::new();
         // element tangents of one chunk, allocated once per evaluation (not per element)
@@ -430,42 +420,6 @@ impl Assembler {
             }
             start = end;
         }
-        // springs
-        let node_u = |n: usize| {
-            let d = self.dofs.node_dofs(n);
-            Vector3::from_column_slice(&z[d])
-        };
-        for (s, spring) in model.springs.iter().enumerate() {
-            let ua = node_u(spring.a);
-            let ub = match spring.b {
-                Some(b) => node_u(b),
-                None => Vector3::zeros(),
-            };
-            let f = spring.force(&ua, &ub, S::one());
-            for i in 0..3 {
-                out.residual[self.dofs.node_dof(spring.a, i)] += f[i];
-                if let Some(b) = spring.b {
-                    out.residual[self.dofs.node_dof(b, i)] -= f[i];
-                }
-            }
-            if let Some(k) = tangent.as_deref_mut() {
-                let ks = spring.stiffness;
-                let n = if spring.b.is_some() { 6 } else { 3 };
-                let mut local = vec![0.0; n * n];
-                for i in 0..3 {
-                    for j in 0..3 {
-                        local[i * n + j] = ks[i][j];
-                        if n == 6 {
-                            local[(i + 3) * n + j + 3] = ks[i][j];
-                            local[i * n + j + 3] = -ks[i][j];
-                            local[(i + 3) * n + j] = -ks[i][j];
-                        }
-                    }
-                }
-                k.add_block(self.spring_block[s], &local)
-                    .expect("spring block of this pattern");
-            }
-        }
         // contact
         if !model.contacts.is_empty() {
             let mut local = Vec::new();
@@ -536,15 +490,31 @@ impl Assembler {
         let Some(family) = self.dofs.element_family[e] else {
             return loc;
         };
-        let b = self.dofs.element_body[e];
-        let body = &model.bodies[b];
-        let (x_ref, nn) = Self::reference_nodes(model, &lifted.coords, e);
         let gdofs = self.element_dofs(e);
         let nd = gdofs.len();
         let mut d = [Vector3::<S>::zeros(); MAX_GEN];
         for (a, da) in d.iter_mut().enumerate().take(nd / 3) {
             *da = Vector3::new(z[gdofs[3 * a]], z[gdofs[3 * a + 1]], z[gdofs[3 * a + 2]]);
         }
+        // a discrete element: its spring set's stiffness is its section
+        if let Some(set) = model.springs.get(self.dofs.element_springs[e]) {
+            let mut out = ElementOutput {
+                force: &mut loc.force[..nd],
+                tangent: k_out,
+                hist_new: &mut [],
+                branches: &mut [],
+                yield_ratio: &mut [],
+                cauchy: Matrix3::zeros(),
+                min_det_f: f64::INFINITY,
+            };
+            if let Err(f) = family.evaluate_discrete(&set.k(), &d[..nd / 3], &mut out) {
+                loc.failure = Some(f);
+            }
+            return loc;
+        }
+        let b = self.dofs.element_body[e];
+        let body = &model.bodies[b];
+        let (x_ref, nn) = Self::reference_nodes(model, &lifted.coords, e);
         let hist = self.dofs.history(e);
         let nh = hist.len();
         let gauss = self.dofs.gauss(e);

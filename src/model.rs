@@ -5,10 +5,10 @@
 //! any design parameter replaced by a value of that type (seeded dual for DDM, perturbed `f64`
 //! for SDM), so that every kernel sees its parameters as `S`.
 
-use crate::element::{ElementFamily, Hex8Formulation, Kinematics, Spring};
+use crate::element::{ElementFamily, Hex8Formulation, Kinematics, Shape, SpringSet};
 pub use crate::load::Amplitude;
 pub use crate::material::Material;
-use crate::mesh::{BlockGeometry, Mesh};
+use crate::mesh::{BlockGeometry, Mesh, MeshError};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
 
@@ -146,8 +146,11 @@ pub struct DofMap {
     pub element_internal: Vec<Option<usize>>,
     /// Total number of unknowns.
     pub n_total: usize,
-    /// Body of each element (`usize::MAX` for an element no body owns: not assembled).
+    /// Body of each element (`usize::MAX` for an element no body owns: a spring, or not
+    /// assembled).
     pub element_body: Vec<usize>,
+    /// Spring set of each element (`usize::MAX` for an element of no [`SpringSet`]).
+    pub element_springs: Vec<usize>,
     /// Family of each element (`None`: not assembled).
     pub element_family: Vec<Option<ElementFamily>>,
     /// First history scalar of each element (`n_gauss * history_len` per element).
@@ -219,8 +222,8 @@ pub struct Model {
     pub mesh: Mesh,
     /// Deformable bodies (each one element group).
     pub bodies: Vec<Body>,
-    /// Linear springs.
-    pub springs: Vec<Spring>,
+    /// Linear springs: element groups of the discrete shapes with their stiffness.
+    pub springs: Vec<SpringSet>,
     /// Prescribed displacements.
     pub prescribed: Vec<Prescribed>,
     /// Nodal loads.
@@ -314,6 +317,28 @@ pub struct Lifted<S: Scalar> {
 }
 
 impl Model {
+    /// Add a linear spring of stiffness `stiffness` (row-major 3x3) between nodes `a` and `b`,
+    /// or from `a` to the ground (`b = None`): a group of one `line2` (`point1`) element and
+    /// its [`SpringSet`]. Returns the set's index.
+    pub fn add_spring(
+        &mut self,
+        name: &str,
+        a: usize,
+        b: Option<usize>,
+        stiffness: [[f64; 3]; 3],
+    ) -> Result<usize, MeshError> {
+        let group = match b {
+            Some(b) => self.mesh.add_group(Shape::Line2, vec![a, b])?,
+            None => self.mesh.add_group(Shape::Point1, vec![a])?,
+        };
+        self.springs.push(SpringSet {
+            name: name.to_string(),
+            group,
+            stiffness,
+        });
+        Ok(self.springs.len() - 1)
+    }
+
     /// Every amplitude of the load path: prescribed displacements, nodal loads and the
     /// translations of rigid targets.
     pub fn amplitudes(&self) -> impl Iterator<Item = &Amplitude> {
@@ -371,6 +396,18 @@ impl Model {
                 hist += history_len[e];
             }
         }
+        let mut element_springs = vec![usize::MAX; ne];
+        for (s, set) in self.springs.iter().enumerate() {
+            // a discrete shape gives its spring family; a solid one a continuum family, whose
+            // evaluation with a stiffness is a typed failure (ElementFailure::Section)
+            let shape = self.mesh.groups[set.group].shape;
+            let family = ElementFamily::new(shape, Hex8Formulation::Full);
+            for e in self.mesh.group_elements(set.group) {
+                element_springs[e] = s;
+                element_family[e] = Some(family);
+                history_offset[e] = hist;
+            }
+        }
         let first_lambda = next;
         let first_contact_history = hist;
         for c in &self.contacts {
@@ -399,6 +436,7 @@ impl Model {
             element_internal,
             n_total: next,
             element_body,
+            element_springs,
             element_family,
             history_offset,
             n_history: hist,

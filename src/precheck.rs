@@ -15,6 +15,7 @@
 
 use crate::assembly::{Assembler, Evaluation};
 use crate::contact::Target;
+use crate::element::Shape;
 use crate::model::{Lifted, Model};
 use nalgebra::{Matrix6, Vector3, Vector6};
 
@@ -131,8 +132,8 @@ pub fn rigid_body_modes(
             continue;
         }
         let tied = model.springs.iter().any(|s| {
-            s.b.is_some()
-                && (group_of(s.a) == Some(body.group) || s.b.and_then(group_of) == Some(body.group))
+            let g = &model.mesh.groups[s.group];
+            g.shape == Shape::Line2 && g.nodes.iter().any(|&n| group_of(n) == Some(body.group))
         });
         if tied {
             continue;
@@ -160,10 +161,10 @@ pub fn rigid_body_modes(
         for &n in &nodes {
             let r = lifted.coords[n] - centre;
             for c in 0..3 {
-                let grounded = model
-                    .springs
-                    .iter()
-                    .any(|s| s.b.is_none() && s.a == n && s.stiffness[c][c] > 0.0);
+                let grounded = model.springs.iter().any(|s| {
+                    let g = &model.mesh.groups[s.group];
+                    g.shape == Shape::Point1 && g.nodes.contains(&n) && s.stiffness[c][c] > 0.0
+                });
                 if constrained[crate::model::node_dof(n, c)] || grounded {
                     add(r, c);
                 }

@@ -6,7 +6,7 @@
 //! The scene layer validates its fields, writes its notes and calls these; a model built in
 //! code calls them directly.
 
-use crate::element::Spring;
+use crate::element::SpringSet;
 use crate::mesh::{FaceSet, Mesh};
 use crate::model::{Body, Prescribed};
 use nalgebra::Vector3;
@@ -129,11 +129,14 @@ pub fn candidates(
         .collect()
 }
 
-/// The element group of each node (the first group with an element on it; `None` for a node
-/// on no element).
+/// The solid element group of each node (the first solid group with an element on it; `None`
+/// for a node on no solid element, such as a node held by springs alone).
 pub fn node_groups(mesh: &Mesh) -> Vec<Option<usize>> {
     let mut g = vec![None; mesh.n_nodes()];
     for (k, group) in mesh.groups.iter().enumerate() {
+        if !group.shape.is_solid() {
+            continue;
+        }
         for &n in &group.nodes {
             if g[n].is_none() {
                 g[n] = Some(k);
@@ -218,7 +221,7 @@ pub enum ScaleSource {
 /// largest spring stiffness; 1 when that is not positive.
 pub fn default_constraint_scale(
     bodies: &[Body],
-    springs: &[Spring],
+    springs: &[SpringSet],
     area: &[f64],
 ) -> (f64, ScaleSource) {
     let e = bodies
@@ -309,7 +312,7 @@ pub fn pair_between_faces(
     name: &str,
     mesh: &Mesh,
     bodies: &[Body],
-    springs: &[Spring],
+    springs: &[SpringSet],
     prescribed: &[Prescribed],
     hitting: &FaceSet,
     target: &FaceSet,

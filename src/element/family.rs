@@ -4,6 +4,12 @@
 //! element: its nodes, Gauss points and internal unknowns, and its evaluation (internal
 //! force, tangent, history update, branches) for any scalar `S` and material law `M`.
 //!
+//! Two kinds of family: continuum ones (hex8), whose section is a body's material law at
+//! Gauss points ([`ElementFamily::evaluate`]), and discrete ones (the springs `Spring1`,
+//! `Spring2`), whose section is a constant stiffness and which have no Gauss point, history or
+//! branch ([`ElementFamily::evaluate_discrete`]). Either is an element of the mesh, numbered,
+//! assembled and differentiated in the same loop.
+//!
 //! ## Why an enum
 //! The evaluation is generic over the scalar (`f64`, `Dual64`, `DualSVec64<N>`) and the
 //! material; a trait with generic methods cannot be a trait object, and one vtable per scalar
@@ -18,7 +24,7 @@
 //! the stack scratch of the assembly's element loop, which therefore allocates nothing.
 
 use super::hex8::{self, ElementFailure, Hex8Formulation, Hex8Input, Hex8Output, Kinematics};
-use super::Shape;
+use super::{spring, Shape};
 use crate::material::{Branch, MaterialLaw};
 use crate::scalar::Scalar;
 use nalgebra::{Matrix3, Vector3};
@@ -38,6 +44,10 @@ pub const MAX_DOFS: usize = 3 * MAX_GEN;
 pub enum ElementFamily {
     /// Eight-node hexahedron: plain, incompatible modes or F-bar ([`super::hex8`]).
     Hex8(Hex8Formulation),
+    /// A linear spring from a `point1` element's node to the ground ([`super::spring`]).
+    Spring1,
+    /// A linear spring between the two nodes of a `line2` element ([`super::spring`]).
+    Spring2,
 }
 
 /// Everything one element evaluation needs besides its unknowns (the slice form of
@@ -79,10 +89,13 @@ pub struct ElementOutput<'a, S: Scalar> {
 
 impl ElementFamily {
     /// The family of an element of shape `shape` integrated with `formulation` (the hex8
-    /// formulations; a shape with formulations of its own will take them here).
+    /// formulations; a shape with formulations of its own will take them here). The discrete
+    /// shapes give the springs, which have no formulation.
     pub fn new(shape: Shape, formulation: Hex8Formulation) -> Self {
         match shape {
             Shape::Hex8 => ElementFamily::Hex8(formulation),
+            Shape::Point1 => ElementFamily::Spring1,
+            Shape::Line2 => ElementFamily::Spring2,
         }
     }
 
@@ -90,6 +103,18 @@ impl ElementFamily {
     pub fn shape(self) -> Shape {
         match self {
             ElementFamily::Hex8(_) => Shape::Hex8,
+            ElementFamily::Spring1 => Shape::Point1,
+            ElementFamily::Spring2 => Shape::Line2,
+        }
+    }
+
+    /// Whether it is a discrete element, whose section is a stiffness
+    /// ([`ElementFamily::evaluate_discrete`]) instead of a material law at Gauss points
+    /// ([`ElementFamily::evaluate`]).
+    pub fn is_discrete(self) -> bool {
+        match self {
+            ElementFamily::Hex8(_) => false,
+            ElementFamily::Spring1 | ElementFamily::Spring2 => true,
         }
     }
 
@@ -102,6 +127,7 @@ impl ElementFamily {
     pub fn n_gauss(self) -> usize {
         match self {
             ElementFamily::Hex8(_) => 8,
+            ElementFamily::Spring1 | ElementFamily::Spring2 => 0,
         }
     }
 
@@ -109,6 +135,7 @@ impl ElementFamily {
     pub fn internal_dofs(self) -> usize {
         match self {
             ElementFamily::Hex8(f) => f.internal_dofs(),
+            ElementFamily::Spring1 | ElementFamily::Spring2 => 0,
         }
     }
 
@@ -122,11 +149,13 @@ impl ElementFamily {
     pub fn has_pointwise_strain(self) -> bool {
         match self {
             ElementFamily::Hex8(f) => f != Hex8Formulation::FBar,
+            ElementFamily::Spring1 | ElementFamily::Spring2 => true,
         }
     }
 
     /// Evaluate internal force (and the tangent if asked), the updated history and the
-    /// branch of every Gauss point.
+    /// branch of every Gauss point of a continuum family (a discrete one is a typed failure:
+    /// it has no material, see [`ElementFamily::evaluate_discrete`]).
     pub fn evaluate<S: Scalar, M: MaterialLaw>(
         self,
         input: &ElementInput<'_, S, M>,
@@ -169,6 +198,43 @@ impl ElementFamily {
                 out.min_det_f = o.min_det_f;
                 r
             }
+            ElementFamily::Spring1 | ElementFamily::Spring2 => Err(ElementFailure::Section {
+                family: self.name(),
+                expected: "a stiffness",
+                got: "a material",
+            }),
+        }
+    }
+
+    /// Evaluate a discrete family: internal force (and the tangent if asked) of a spring with
+    /// stiffness `k` and nodal displacements `dofs`. A continuum family is a typed failure
+    /// (its section is a material, see [`ElementFamily::evaluate`]).
+    pub fn evaluate_discrete<S: Scalar>(
+        self,
+        k: &Matrix3<S>,
+        dofs: &[Vector3<S>],
+        out: &mut ElementOutput<'_, S>,
+    ) -> Result<(), ElementFailure> {
+        match self {
+            ElementFamily::Spring1 | ElementFamily::Spring2 => {
+                spring::evaluate(k, dofs, out.force, out.tangent.as_deref_mut())
+            }
+            ElementFamily::Hex8(_) => Err(ElementFailure::Section {
+                family: self.name(),
+                expected: "a material",
+                got: "a stiffness",
+            }),
+        }
+    }
+
+    /// Short name (`hex8`, `hex8-incompatible-modes`, `hex8-f-bar`, `spring1`, `spring2`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ElementFamily::Hex8(Hex8Formulation::Full) => "hex8",
+            ElementFamily::Hex8(Hex8Formulation::IncompatibleModes) => "hex8-incompatible-modes",
+            ElementFamily::Hex8(Hex8Formulation::FBar) => "hex8-f-bar",
+            ElementFamily::Spring1 => "spring1",
+            ElementFamily::Spring2 => "spring2",
         }
     }
 
@@ -192,6 +258,8 @@ impl ElementFamily {
                     None => Ok(false),
                 }
             }
+            // no Gauss point, nothing to write
+            ElementFamily::Spring1 | ElementFamily::Spring2 => Ok(true),
         }
     }
 
@@ -199,6 +267,7 @@ impl ElementFamily {
     pub fn reference_volume<S: Scalar>(self, x_ref: &[Vector3<S>]) -> Result<S, ElementFailure> {
         match self {
             ElementFamily::Hex8(_) => hex8::reference_volume(nodes8(x_ref)?),
+            ElementFamily::Spring1 | ElementFamily::Spring2 => Ok(S::zero()),
         }
     }
 }

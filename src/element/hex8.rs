@@ -247,6 +247,18 @@ pub enum ElementFailure {
         /// Gauss point (0-7).
         gauss_point: usize,
     },
+    /// The element was evaluated with the wrong kind of section: a material for a spring, a
+    /// stiffness for a continuum element (a model whose layout does not match its elements;
+    /// not recoverable).
+    #[error("a {family} element takes {expected}, it was given {got}")]
+    Section {
+        /// The family's name.
+        family: &'static str,
+        /// The section it takes.
+        expected: &'static str,
+        /// The section it was given.
+        got: &'static str,
+    },
 }
 
 /// Everything one element evaluation needs besides its unknowns.

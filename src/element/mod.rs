@@ -1,5 +1,5 @@
 //! Element kernels: element shapes and face families ([`shape`]), element families evaluated
-//! generically over the scalar ([`family`]), the hex8 continuum element and linear springs.
+//! generically over the scalar ([`family`]), the hex8 continuum element and linear springs (discrete families).
 
 pub mod family;
 pub mod hex8;
@@ -9,7 +9,7 @@ pub mod spring;
 pub use family::{ElementFamily, ElementInput, ElementOutput};
 pub use hex8::{ElementFailure, Hex8Formulation, Kinematics};
 pub use shape::{FaceFamily, FaceTopology, Shape, ShapeError};
-pub use spring::Spring;
+pub use spring::SpringSet;
 
 /// Unknowns per node (three displacement components).
 pub const NODE_DOFS: usize = 3;

@@ -18,6 +18,10 @@ use nalgebra::Vector3;
 pub enum Shape {
     /// Eight-node hexahedron (trilinear), nodes as in [`hex8::NODE_XI`].
     Hex8,
+    /// One node: a discrete element tied to the ground (a grounded spring).
+    Point1,
+    /// Two nodes: a discrete element between them (a spring).
+    Line2,
 }
 
 /// One face of an element shape: its family and its local node numbers, counter-clockwise
@@ -35,7 +39,7 @@ pub struct FaceTopology {
 #[non_exhaustive]
 pub enum ShapeError {
     /// No registered shape has this name.
-    #[error("unknown element shape '{name}' (known: hex8)")]
+    #[error("unknown element shape '{name}' (known: hex8, point1, line2)")]
     UnknownShape {
         /// The name asked for.
         name: String,
@@ -44,12 +48,24 @@ pub enum ShapeError {
 
 impl Shape {
     /// Every registered shape.
-    pub const ALL: [Shape; 1] = [Shape::Hex8];
+    pub const ALL: [Shape; 3] = [Shape::Hex8, Shape::Point1, Shape::Line2];
 
-    /// Short name (`hex8`), as in scene and mesh files.
+    /// Short name (`hex8`, `point1`, `line2`), as in scene and mesh files.
     pub fn name(self) -> &'static str {
         match self {
             Shape::Hex8 => "hex8",
+            Shape::Point1 => "point1",
+            Shape::Line2 => "line2",
+        }
+    }
+
+    /// Whether it fills a volume. Only solids have a boundary, faces for contact and edges
+    /// that measure the mesh: a discrete element (a spring between two nodes) is no part of
+    /// the geometry, however far apart its nodes are.
+    pub fn is_solid(self) -> bool {
+        match self {
+            Shape::Hex8 => true,
+            Shape::Point1 | Shape::Line2 => false,
         }
     }
 
@@ -67,20 +83,25 @@ impl Shape {
     pub fn n_nodes(self) -> usize {
         match self {
             Shape::Hex8 => 8,
+            Shape::Point1 => 1,
+            Shape::Line2 => 2,
         }
     }
 
-    /// The faces, outward oriented.
+    /// The faces, outward oriented (none for a discrete element).
     pub fn faces(self) -> &'static [FaceTopology] {
         match self {
             Shape::Hex8 => &hex8::FACES,
+            Shape::Point1 | Shape::Line2 => &[],
         }
     }
 
-    /// The edges (pairs of local node numbers).
+    /// The geometric edges (pairs of local node numbers; none for a discrete element, see
+    /// [`Shape::is_solid`]).
     pub fn edges(self) -> &'static [[usize; 2]] {
         match self {
             Shape::Hex8 => &hex8::EDGES,
+            Shape::Point1 | Shape::Line2 => &[],
         }
     }
 
@@ -88,6 +109,8 @@ impl Shape {
     pub fn vtk_cell(self) -> vtkio::model::CellType {
         match self {
             Shape::Hex8 => vtkio::model::CellType::Hexahedron,
+            Shape::Point1 => vtkio::model::CellType::Vertex,
+            Shape::Line2 => vtkio::model::CellType::Line,
         }
     }
 }
@@ -170,6 +193,10 @@ mod tests {
             assert_eq!(differ, 1);
         }
         assert_eq!(Shape::from_name("hex8"), Ok(Shape::Hex8));
+        for s in Shape::ALL {
+            assert_eq!(Shape::from_name(s.name()), Ok(s));
+            assert_eq!(s.is_solid(), !s.faces().is_empty());
+        }
     }
 
     #[test]

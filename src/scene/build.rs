@@ -5,7 +5,7 @@
 use super::*;
 use crate::contact::geometry::RigidSurface;
 use crate::contact::{setup, ContactPair, NormalLaw, RigidMotion, Target};
-use crate::element::Spring;
+use crate::element::{Shape, SpringSet};
 use crate::mesh::{Axis, Mesh};
 use crate::model::{Amplitude, Body, Model, NodalLoad, Prescribed};
 use crate::response::{Response, ResponseKind};
@@ -109,19 +109,17 @@ impl Scene {
             mesh.node_sets.insert(f.name.clone(), vec![n]);
         }
         self.add_intersections(&mut mesh)?;
+        // the node sets are complete; the springs' element groups are still to be added
+        let node_sets = mesh.node_sets.clone();
         let set = |name: &str, field: &str| -> Result<Vec<usize>, SceneError> {
-            match mesh.node_sets.get(name) {
+            match node_sets.get(name) {
                 Some(v) if !v.is_empty() => Ok(v.clone()),
                 Some(_) => Err(invalid(field, format!("node set '{name}' is empty"))),
                 None => Err(invalid(
                     field,
                     format!(
                         "no node set named '{name}' (sets: {})",
-                        mesh.node_sets
-                            .keys()
-                            .cloned()
-                            .collect::<Vec<_>>()
-                            .join(", ")
+                        node_sets.keys().cloned().collect::<Vec<_>>().join(", ")
                     ),
                 )),
             }
@@ -142,12 +140,18 @@ impl Scene {
             for r in s.stiffness.iter().flatten() {
                 finite(*r, &format!("{at}.stiffness"))?;
             }
-            springs.push(Spring {
-                a: one(&s.a, &format!("{at}.a"))?,
-                b: match &s.b {
-                    Some(b) => Some(one(b, &format!("{at}.b"))?),
-                    None => None,
-                },
+            // one group of one discrete element per spring, after every block's group
+            let group = match &s.b {
+                Some(b) => {
+                    let nodes = vec![one(&s.a, &format!("{at}.a"))?, one(b, &format!("{at}.b"))?];
+                    mesh.add_group(Shape::Line2, nodes)
+                }
+                None => mesh.add_group(Shape::Point1, vec![one(&s.a, &format!("{at}.a"))?]),
+            }
+            .map_err(|e| invalid(&at, e.to_string()))?;
+            springs.push(SpringSet {
+                name: at,
+                group,
                 stiffness: s.stiffness,
             });
         }
@@ -534,7 +538,7 @@ impl Scene {
         &self,
         mesh: &Mesh,
         bodies: &[Body],
-        springs: &[Spring],
+        springs: &[SpringSet],
         prescribed: &[Prescribed],
         amplitude: &AmplitudeBuilder<'_>,
         notes: &mut Vec<String>,

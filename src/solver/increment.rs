@@ -7,7 +7,7 @@ use crate::contact::{ContactChoice, ContactState};
 use crate::element::ElementFailure;
 use crate::linalg::{LinearSolver, SparseMatrix};
 use crate::material::Branch;
-use crate::model::{node_dof, node_dofs, Lifted, Model};
+use crate::model::{node_dof, Lifted, Model};
 use std::time::Instant;
 
 /// The primal solver of one model.
@@ -70,21 +70,12 @@ impl<'m> Solver<'m> {
                 constrained[d] = true;
             }
         }
-        // unknowns no element or spring touches (e.g. nodes of unassembled blocks) are pinned
+        // unknowns no element (springs included) touches (e.g. nodes of unassembled blocks)
+        // are pinned
         let mut touched = vec![false; n];
         for e in 0..model.mesh.n_elements() {
             for &d in assembler.element_dofs(e) {
                 touched[d] = true;
-            }
-        }
-        for s in &model.springs {
-            for d in node_dofs(s.a) {
-                touched[d] = true;
-            }
-            if let Some(b) = s.b {
-                for d in node_dofs(b) {
-                    touched[d] = true;
-                }
             }
         }
         for pair_blocks in &assembler.contact.blocks {

@@ -33,6 +33,7 @@ use crate::contact::friction::{
     Coulomb, FrictionLaw, PressureDependentCoulomb, RegularizedCoulomb,
 };
 use crate::contact::{Friction, Target};
+use crate::element::Shape;
 use crate::material::{J2Plasticity, Material, NeoHookean, StVenantKirchhoff};
 use crate::mesh::{Axis, BlockSpec, Zone};
 use crate::scene::{
@@ -705,9 +706,18 @@ pub fn check_increment(c: &Converged<'_>, element_size: f64, scale: &mut f64) ->
         }
         // springs to the ground are supports too: their force `K u` on the node is in the
         // residual as an internal force that does not add up to zero
-        for sp in model.springs.iter().filter(|sp| sp.b.is_none()) {
+        let grounded = model.springs.iter().flat_map(|sp| {
+            let g = &model.mesh.groups[sp.group];
+            let nodes = if g.shape == Shape::Point1 {
+                &g.nodes[..]
+            } else {
+                &[]
+            };
+            nodes.iter().map(move |&a| (sp, a))
+        });
+        for (sp, a) in grounded {
             let f: f64 = (0..3)
-                .map(|j| sp.stiffness[comp][j] * c.z[crate::model::node_dof(sp.a, j)])
+                .map(|j| sp.stiffness[comp][j] * c.z[crate::model::node_dof(a, j)])
                 .sum();
             sum -= f;
             largest = largest.max(f.abs());

@@ -19,3 +19,4 @@ mod locking;
 mod materials;
 mod mesh_in_code;
 mod plasticity;
+mod springs;
