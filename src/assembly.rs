@@ -31,7 +31,7 @@ pub struct Assembler {
     /// Pattern block of each element (`usize::MAX` for unassembled ones).
     elem_block: Vec<usize>,
     /// Contact blocks and offsets.
-    pub contact: ContactLayout,
+    pub(crate) contact: ContactLayout,
     /// Elements whose stress a response reads ([`crate::response::Reads::stress_elements`]),
     /// sorted: their stress is kept in the evaluation's scalar ([`Evaluation::stress`]).
     pub stress_elements: Vec<usize>,
@@ -170,7 +170,7 @@ impl<S: Scalar> Local<S> {
 }
 
 /// Largest element history (the most Gauss points of any family x 16 scalars).
-pub const MAX_HISTORY: usize = MAX_GAUSS * 16;
+pub(crate) const MAX_HISTORY: usize = MAX_GAUSS * 16;
 
 impl Assembler {
     /// Number the unknowns and build the sparsity pattern (once per model).
@@ -222,6 +222,18 @@ impl Assembler {
             elem_block,
             contact,
         })
+    }
+
+    /// First history scalar of contact pair `pair` (its hitting nodes' histories follow,
+    /// `ContactPair::history_len()` scalars each).
+    pub fn contact_history(&self, pair: usize) -> usize {
+        self.contact.history[pair]
+    }
+
+    /// First flat hitting-node index of contact pair `pair` in the per-node result arrays
+    /// ([`Evaluation::contact`]).
+    pub fn contact_flat(&self, pair: usize) -> usize {
+        self.contact.flat[pair]
     }
 
     /// Global unknowns of element `e`.

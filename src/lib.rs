@@ -43,7 +43,7 @@ pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod output;
-pub mod precheck;
+pub(crate) mod precheck;
 pub mod prelude;
 pub mod response;
 pub mod scalar;

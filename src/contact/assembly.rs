@@ -22,7 +22,7 @@ use num_dual::DualSVec64;
 
 /// Local unknowns of one hitting node's block.
 #[derive(Clone, Debug)]
-pub struct NodeBlock {
+pub(crate) struct NodeBlock {
     /// Global unknowns of the block: 3 of the hitting node, 3 per target node, the multiplier.
     pub dofs: Vec<usize>,
     /// Target nodes of the block, in block order.
@@ -33,7 +33,7 @@ pub struct NodeBlock {
 
 /// Contact layout of a model.
 #[derive(Clone, Debug, Default)]
-pub struct ContactLayout {
+pub(crate) struct ContactLayout {
     /// `blocks[pair][node]`.
     pub blocks: Vec<Vec<NodeBlock>>,
     /// First multiplier unknown of each pair.
@@ -132,7 +132,7 @@ fn closest_face<S: Scalar>(
 }
 
 /// Rigid translation of a pair's target at time `t`.
-pub fn rigid_translation<S: Scalar>(pair: &ContactPair, values: &[S], t: f64) -> Vector3<S> {
+pub(crate) fn rigid_translation<S: Scalar>(pair: &ContactPair, values: &[S], t: f64) -> Vector3<S> {
     let mut d = Vector3::zeros();
     if let Target::Rigid { motion, .. } = &pair.target {
         for (m, v) in motion.iter().zip(values) {
@@ -146,7 +146,7 @@ pub fn rigid_translation<S: Scalar>(pair: &ContactPair, values: &[S], t: f64) ->
 /// unknowns it couples (`index`: positions in the node's block; every other entry of the block
 /// is zero). A block spans all candidate faces; the tangent only the contact and anchor faces.
 #[derive(Clone, Debug)]
-pub struct LocalTangent {
+pub(crate) struct LocalTangent {
     /// Positions of the rows and columns in the node's block.
     pub index: Vec<usize>,
     /// Row-major `index.len()` squared values.
@@ -156,7 +156,7 @@ pub struct LocalTangent {
 /// Evaluate every contact pair: adds to `residual`, writes the friction history into
 /// `hist_new`, fills `out`, and returns the local tangents (block-major, dense) if wanted.
 #[allow(clippy::too_many_arguments)]
-pub fn evaluate<S: Scalar>(
+pub(crate) fn evaluate<S: Scalar>(
     model: &Model,
     layout: &ContactLayout,
     lifted: &Lifted<S>,
@@ -619,7 +619,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
 /// The history at t = 0: zero for the materials; for every frictional hitting node the stick
 /// anchor at the projection of its reference position (generic, so shape parameters that move
 /// the reference position carry into the anchor's sensitivity).
-pub fn initial_history<S: Scalar>(
+pub(crate) fn initial_history<S: Scalar>(
     model: &Model,
     layout: &ContactLayout,
     n_history: usize,
@@ -671,7 +671,7 @@ pub fn initial_history<S: Scalar>(
 /// Augmented-Lagrangian update after a converged pass: for every augmented pair whose largest
 /// penetration exceeds its tolerance, the multiplier estimates of `hist` become the converged
 /// normal forces. Returns whether anything changed (then the increment is solved again).
-pub fn augment(
+pub(crate) fn augment(
     model: &Model,
     layout: &ContactLayout,
     eval: &ContactEval<f64>,

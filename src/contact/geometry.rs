@@ -111,7 +111,7 @@ use nalgebra::Vector3;
 use crate::scalar::{lift_vec, re_vec, safe_norm, Scalar};
 
 /// `ξ` tolerance of the "inside" test: `|ξ^α| ≤ 1 + QUAD_INSIDE_TOLERANCE`.
-pub const QUAD_INSIDE_TOLERANCE: f64 = 1e-10;
+pub(crate) const QUAD_INSIDE_TOLERANCE: f64 = 1e-10;
 
 /// Maximum number of closest-point Newton iterations (real parts).
 pub const MAX_NEWTON_ITERATIONS: usize = 60;
@@ -213,7 +213,8 @@ pub struct Projection<S> {
 
 impl<S: Scalar> Projection<S> {
     /// The real parts.
-    pub fn to_real(&self) -> Projection<f64> {
+    #[cfg(test)]
+    pub(crate) fn to_real(&self) -> Projection<f64> {
         Projection {
             xi: [self.xi[0].value(), self.xi[1].value()],
             point: re_vec(&self.point),
@@ -526,7 +527,7 @@ fn finish_interior<S: Scalar>(
 /// (coincident/collinear nodes, zero area, re-entrant corner, fold at the projection point),
 /// [`GeometryError::NoConvergence`], [`GeometryError::AmbiguousProjection`] (singular Newton
 /// matrix at the solution).
-pub fn project_on_quad<S: Scalar>(
+pub(crate) fn project_on_quad<S: Scalar>(
     x: &Vector3<S>,
     nodes: &[Vector3<S>; 4],
     xi_start: [f64; 2],
@@ -814,7 +815,7 @@ fn check_finite_inputs<S: Scalar>(
 ///
 /// # Errors
 /// [`GeometryError::NonFinite`], [`GeometryError::InvalidSurface`] for a zero normal.
-pub fn project_on_plane<S: Scalar>(
+pub(crate) fn project_on_plane<S: Scalar>(
     x: &Vector3<S>,
     point: &Vector3<S>,
     normal: &Vector3<S>,
@@ -847,7 +848,7 @@ pub fn project_on_plane<S: Scalar>(
 /// # Errors
 /// [`GeometryError::NonFinite`], [`GeometryError::InvalidSurface`] (zero axis, radius not
 /// positive), [`GeometryError::AmbiguousProjection`] for a point on the axis.
-pub fn project_on_cylinder<S: Scalar>(
+pub(crate) fn project_on_cylinder<S: Scalar>(
     x: &Vector3<S>,
     axis_point: &Vector3<S>,
     axis: &Vector3<S>,
@@ -896,7 +897,7 @@ pub fn project_on_cylinder<S: Scalar>(
 ///
 /// # Errors
 /// [`GeometryError::NonFinite`], [`GeometryError::InvalidSurface`].
-pub fn project_on_rounded_box<S: Scalar>(
+pub(crate) fn project_on_rounded_box<S: Scalar>(
     x: &Vector3<S>,
     center: &Vector3<S>,
     half_extents: &Vector3<S>,
@@ -1013,7 +1014,7 @@ impl RigidSurface {
     ///
     /// # Errors
     /// See [`project_on_plane`], [`project_on_cylinder`], [`project_on_rounded_box`].
-    pub fn project<S: Scalar>(
+    pub(crate) fn project<S: Scalar>(
         &self,
         x: &Vector3<S>,
         d: &Vector3<S>,

@@ -44,7 +44,7 @@
 //! node's local unknowns its exact, unsymmetric consistent tangent (forward AD; eq. 43).
 //! Which face is closest is a branch decision taken on real parts, like stick/slip.
 
-pub mod assembly;
+pub(crate) mod assembly;
 pub mod eval;
 pub mod friction;
 pub mod geometry;
@@ -54,6 +54,7 @@ use crate::element::FaceFamily;
 use crate::load::Amplitude;
 use crate::mesh::FaceSet;
 use crate::scalar::Scalar;
+pub use assembly::ContactError;
 pub use friction::Friction;
 use friction::{FrictionBranch, FrictionLaw};
 use geometry::{project_on_quad, Projection, RigidSurface};
@@ -191,7 +192,7 @@ pub struct ContactPair {
 
 impl ContactPair {
     /// History scalars of the stick anchor per hitting node (zero when frictionless).
-    pub fn anchor_len(&self) -> usize {
+    pub(crate) fn anchor_len(&self) -> usize {
         if self.friction.is_some() {
             3
         } else {
@@ -223,7 +224,7 @@ impl ContactPair {
     }
 
     /// Store a stick anchor in a hitting node's history `h` (a pair with friction).
-    pub fn set_anchor<S: Scalar>(&self, h: &mut [S], anchor: StoredAnchor<S>) {
+    pub(crate) fn set_anchor<S: Scalar>(&self, h: &mut [S], anchor: StoredAnchor<S>) {
         debug_assert!(
             self.anchor_len() == 3,
             "a frictionless pair stores no anchor"
@@ -236,20 +237,20 @@ impl ContactPair {
 
     /// Keep a hitting node's stick anchor: copy its scalars from the committed history `from`
     /// to the new one `to` unchanged (with their derivative parts).
-    pub fn keep_anchor<S: Scalar>(&self, from: &[S], to: &mut [S]) {
+    pub(crate) fn keep_anchor<S: Scalar>(&self, from: &[S], to: &mut [S]) {
         let n = self.anchor_len();
         to[..n].copy_from_slice(&from[..n]);
     }
 
     /// The augmented Lagrangian's multiplier estimate `lambda_bar` in a hitting node's history
     /// `h`, `None` for other normal laws.
-    pub fn lambda_bar<S: Scalar>(&self, h: &[S]) -> Option<S> {
+    pub(crate) fn lambda_bar<S: Scalar>(&self, h: &[S]) -> Option<S> {
         self.augmented().then(|| h[self.anchor_len()])
     }
 
     /// Store the multiplier estimate `lambda_bar` in a hitting node's history `h` (an augmented
     /// pair).
-    pub fn set_lambda_bar<S: Scalar>(&self, h: &mut [S], lambda_bar: S) {
+    pub(crate) fn set_lambda_bar<S: Scalar>(&self, h: &mut [S], lambda_bar: S) {
         debug_assert!(
             self.augmented(),
             "only the augmented Lagrangian has an estimate"
@@ -409,7 +410,7 @@ impl<S: Scalar> AnchorGeom<S> {
 }
 
 /// Bilinear shape functions of a quad at `xi`.
-pub fn bilinear<S: Scalar>(xi: &[S; 2]) -> [S; 4] {
+pub(crate) fn bilinear<S: Scalar>(xi: &[S; 2]) -> [S; 4] {
     let q = 0.25;
     let (a, b) = (xi[0], xi[1]);
     let one = S::one();

@@ -102,7 +102,7 @@ pub fn layer_stiffness(
 }
 
 /// The largest face size of a face set (quad4: its longer diagonal).
-pub fn largest_face_diameter(x: &[Vector3<f64>], faces: &FaceSet) -> f64 {
+pub(crate) fn largest_face_diameter(x: &[Vector3<f64>], faces: &FaceSet) -> f64 {
     (0..faces.len())
         .map(|k| faces.face(k).family.diameter(&faces.coordinates(k, x)))
         .fold(0.0f64, f64::max)
@@ -131,7 +131,7 @@ pub fn candidates(
 
 /// The solid element group of each node (the first solid group with an element on it; `None`
 /// for a node on no solid element, such as a node held by springs alone).
-pub fn node_groups(mesh: &Mesh) -> Vec<Option<usize>> {
+pub(crate) fn node_groups(mesh: &Mesh) -> Vec<Option<usize>> {
     let mut g = vec![None; mesh.n_nodes()];
     for (k, group) in mesh.groups.iter().enumerate() {
         if !group.shape.is_solid() {
@@ -149,7 +149,7 @@ pub fn node_groups(mesh: &Mesh) -> Vec<Option<usize>> {
 /// How far the prescribed displacements can move nodes of `groups` (`None`: nodes on no
 /// element): per component the sum of `|value| max |amplitude|` over the prescribed entries
 /// acting on them, as a vector norm.
-pub fn prescribed_travel(
+pub(crate) fn prescribed_travel(
     node_group: &[Option<usize>],
     prescribed: &[Prescribed],
     groups: &[Option<usize>],
@@ -171,7 +171,7 @@ pub fn prescribed_travel(
 
 /// Plane-strain modulus `E / (1 - nu^2)` of the body owning node `n` (0 for a node no body
 /// owns).
-pub fn plane_modulus(node_group: &[Option<usize>], bodies: &[Body], n: usize) -> f64 {
+pub(crate) fn plane_modulus(node_group: &[Option<usize>], bodies: &[Body], n: usize) -> f64 {
     match node_group[n] {
         Some(group) => bodies
             .iter()

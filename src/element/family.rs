@@ -30,13 +30,13 @@ use crate::scalar::Scalar;
 use nalgebra::{Matrix3, Vector3};
 
 /// Most nodes of any registered family.
-pub const MAX_NODES: usize = 8;
+pub(crate) const MAX_NODES: usize = 8;
 /// Most Gauss points of any registered family.
-pub const MAX_GAUSS: usize = 8;
+pub(crate) const MAX_GAUSS: usize = 8;
 /// Most generalised nodes (nodes plus groups of three internal unknowns) of any family.
-pub const MAX_GEN: usize = hex8::MAX_GEN;
+pub(crate) const MAX_GEN: usize = hex8::MAX_GEN;
 /// Most element unknowns of any registered family.
-pub const MAX_DOFS: usize = 3 * MAX_GEN;
+pub(crate) const MAX_DOFS: usize = 3 * MAX_GEN;
 
 /// An element family: a shape and how it is integrated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -123,7 +123,7 @@ pub const NODE_XI: [[f64; 3]; 8] = [
 
 /// Local node numbers of the six faces, ordered counter-clockwise seen from outside
 /// (so the face normal `t1 x t2` points out of the element). Order: -x, +x, -y, +y, -z, +z.
-pub const FACE_NODES: [[usize; 4]; 6] = [
+pub(crate) const FACE_NODES: [[usize; 4]; 6] = [
     [0, 4, 7, 3],
     [1, 2, 6, 5],
     [0, 1, 5, 4],
@@ -132,14 +132,14 @@ pub const FACE_NODES: [[usize; 4]; 6] = [
     [4, 5, 6, 7],
 ];
 
-/// The six faces as quad4 faces (outward, see [`FACE_NODES`]).
-pub const FACES: [super::FaceTopology; 6] = [
-    quad(&[0, 4, 7, 3]),
-    quad(&[1, 2, 6, 5]),
-    quad(&[0, 1, 5, 4]),
-    quad(&[3, 7, 6, 2]),
-    quad(&[0, 3, 2, 1]),
-    quad(&[4, 5, 6, 7]),
+/// The six faces as quad4 faces (outward, [`FACE_NODES`]).
+pub(crate) const FACES: [super::FaceTopology; 6] = [
+    quad(&FACE_NODES[0]),
+    quad(&FACE_NODES[1]),
+    quad(&FACE_NODES[2]),
+    quad(&FACE_NODES[3]),
+    quad(&FACE_NODES[4]),
+    quad(&FACE_NODES[5]),
 ];
 
 const fn quad(nodes: &'static [usize]) -> super::FaceTopology {
@@ -150,7 +150,7 @@ const fn quad(nodes: &'static [usize]) -> super::FaceTopology {
 }
 
 /// The twelve edges (local node numbers).
-pub const EDGES: [[usize; 2]; 12] = [
+pub(crate) const EDGES: [[usize; 2]; 12] = [
     [0, 1],
     [1, 2],
     [2, 3],
@@ -178,7 +178,7 @@ pub fn gauss_points() -> [[f64; 3]; 8] {
 
 /// Derivatives of the shape functions with respect to the natural coordinates at `xi`.
 #[inline]
-pub fn shape_derivatives(xi: [f64; 3]) -> [[f64; 3]; 8] {
+pub(crate) fn shape_derivatives(xi: [f64; 3]) -> [[f64; 3]; 8] {
     let mut d = [[0.0; 3]; 8];
     for (a, n) in NODE_XI.iter().enumerate() {
         let f0 = 1.0 + n[0] * xi[0];
@@ -193,20 +193,8 @@ pub fn shape_derivatives(xi: [f64; 3]) -> [[f64; 3]; 8] {
     d
 }
 
-/// Shape functions at `xi`.
-#[inline]
-pub fn shape_functions(xi: [f64; 3]) -> [f64; 8] {
-    let mut n = [0.0; 8];
-    for (a, x) in NODE_XI.iter().enumerate() {
-        n[a] = 0.125 * (1.0 + x[0] * xi[0]) * (1.0 + x[1] * xi[1]) * (1.0 + x[2] * xi[2]);
-    }
-    n
-}
-
 /// Maximum number of generalised nodes (8 nodes + 3 incompatible modes).
-pub const MAX_GEN: usize = 11;
-/// Maximum number of element unknowns.
-pub const MAX_DOF: usize = 3 * MAX_GEN;
+pub(crate) const MAX_GEN: usize = 11;
 
 /// Why an element evaluation failed. The solver recovers from an inverted element or a
 /// non-finite stress by cutting the increment back; a bad reference geometry is fatal.
@@ -331,7 +319,7 @@ fn strain_measure<S: Scalar>(h: &Matrix3<S>, large: bool) -> Matrix3<S> {
 /// The strain each Gauss point's material sees for the generalised displacements `dofs`
 /// (the evaluation's strain, without its stress update). `None` for F-bar, whose points see
 /// a strain modified by the element's centre.
-pub fn gauss_strains<S: Scalar>(
+pub(crate) fn gauss_strains<S: Scalar>(
     x_ref: &[Vector3<S>; 8],
     dofs: &[Vector3<S>],
     kinematics: Kinematics,
@@ -758,7 +746,7 @@ fn evaluate_fbar<S: Scalar, M: MaterialLaw>(
 }
 
 /// Element volume in the reference configuration (for tributary areas, mass checks).
-pub fn reference_volume<S: Scalar>(x_ref: &[Vector3<S>; 8]) -> Result<S, ElementFailure> {
+pub(crate) fn reference_volume<S: Scalar>(x_ref: &[Vector3<S>; 8]) -> Result<S, ElementFailure> {
     let mut v = S::zero();
     for (gp, xi) in gauss_points().iter().enumerate() {
         let g = reference_geometry(x_ref, *xi, gp, Hex8Formulation::Full, &None)?;

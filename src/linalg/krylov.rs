@@ -24,7 +24,7 @@ impl LinearSolver {
     /// at most [`BACKWARD_STABLE_ULPS`] eps: where `|a||x|` is far above `|b|`, a relative
     /// residual of `tol` is out of reach of any solve, a factorization's included (and
     /// finite).
-    pub fn gmres_multi(
+    pub(crate) fn gmres_multi(
         &self,
         a: &SparseMatrix,
         rhs: &mut [f64],
@@ -132,18 +132,18 @@ pub(super) const ESTIMATE_MARGIN: f64 = 0.1;
 /// tolerance asked. Products are left out only when exactly in the span: with a penalty of
 /// 1e9 in a Poisson matrix, leaving out a product's part of 1e-14 of its norm doubled the
 /// residual GMRES reached (9.7e-8 against the factorization's 4.5e-8).
-pub const DEFLATION: f64 = 1e-14;
+pub(crate) const DEFLATION: f64 = 1e-14;
 
 /// Normwise backward error `|b - a x| / | |a||x| + |b| |`, in ulps, that
 /// [`LinearSolver::gmres_multi`] accepts in place of its relative-residual tolerance: that of
 /// a backward-stable direct solve. faer's LU measured 0.39 to 0.46 eps on the stacked leaves'
 /// and the cantilever's converged tangents with the pseudo-load in `E` (relative residuals
 /// 5e-10 and 2.5e-9, where GMRES preconditioned with Newton's factor reached 0.27 to 0.32 eps).
-pub const BACKWARD_STABLE_ULPS: f64 = 1.0;
+pub(crate) const BACKWARD_STABLE_ULPS: f64 = 1.0;
 
 /// Outcome of [`LinearSolver::gmres_multi`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct KrylovReport {
+pub(crate) struct KrylovReport {
     /// Iterations (each one multi-column solve with the factor and a product per column).
     pub iterations: usize,
     /// Columns solved with the factor: the start of every column, the basis vectors of every

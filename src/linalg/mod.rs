@@ -50,7 +50,7 @@ mod pattern;
 pub mod symlu;
 
 pub use direct::*;
-pub use krylov::*;
+pub(crate) use krylov::*;
 pub use matrix::*;
 pub use pattern::*;
 

@@ -74,7 +74,7 @@ pub struct Declined {
 /// Symbolic analysis: ordering, supernodes, panel layout and where each stored entry of
 /// the matrix goes. Computed once per pattern.
 #[derive(Debug, Clone)]
-pub struct SymbolicSymLu {
+pub(crate) struct SymbolicSymLu {
     n: usize,
     /// `perm[new] = old`.
     perm: Vec<usize>,
@@ -100,7 +100,7 @@ pub struct SymbolicSymLu {
 
 /// Numeric factors and the scratch reused between factorizations.
 #[derive(Debug, Default)]
-pub struct NumericSymLu {
+pub(crate) struct NumericSymLu {
     values: Vec<f64>,
     /// Row exchanges within each diagonal block: for the columns `begin[s]..begin[s + 1]`,
     /// `piv[begin[s] + i]` is the local row moved to position `i` (`(Π y)[i] = y[piv[i]]`).
@@ -129,7 +129,7 @@ fn mat_mut(values: &mut [f64], nrows: usize, ncols: usize, stride: usize) -> Mat
 /// neighbours, its pivot is the Schur complement `-b^T K_E^-1 b` of the unknowns `E`
 /// eliminated before it, nonzero when `K_E` is definite. The multipliers stay local, so the
 /// fill stays close to the fill-reducing order's.
-pub fn multiplier_order(
+pub(crate) fn multiplier_order(
     a: SymbolicSparseColMatRef<'_, usize>,
     order: &[usize],
     first: usize,
@@ -270,17 +270,6 @@ impl SymbolicSymLu {
         }
         sym.dest = dest;
         Ok(sym)
-    }
-
-    /// Dimension.
-    pub fn n(&self) -> usize {
-        self.n
-    }
-
-    /// Number of stored factor values (`L` and `U` panels, including the explicit zeros of
-    /// relaxed supernodes).
-    pub fn len_values(&self) -> usize {
-        self.len
     }
 
     fn pattern(&self, s: usize) -> &[usize] {

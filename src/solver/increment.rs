@@ -144,7 +144,7 @@ impl<'m> Solver<'m> {
         })
     }
 
-    /// What the pre-checks found that does not stop the run ([`crate::precheck`]).
+    /// What the pre-checks found that does not stop the run ([`super::PrecheckWarning`]).
     pub fn warnings(&self) -> &[crate::precheck::PrecheckWarning] {
         &self.warnings
     }

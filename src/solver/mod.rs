@@ -33,6 +33,7 @@ mod increment;
 mod limits;
 mod newton;
 
+pub use crate::precheck::{PrecheckError, PrecheckWarning};
 use active_set::*;
 pub use increment::Solver;
 use limits::*;
@@ -242,7 +243,7 @@ pub enum AnalysisError {
     /// recovers it).
     #[error("sensitivity: {0}")]
     Sensitivity(Box<dyn std::error::Error + Send + Sync>),
-    /// A pre-check refused the model before the first increment ([`crate::precheck`]).
+    /// A pre-check refused the model before the first increment ([`PrecheckError`]).
     #[error("{0}")]
     Precheck(#[from] crate::precheck::PrecheckError),
     /// The run took longer than [`RunOptions::time_limit`].

@@ -704,7 +704,7 @@ pub fn find_ccx() -> Option<PathBuf> {
 
 /// One CalculiX run: wall time and the force on the rigid target of a pair per increment.
 #[derive(Clone, Debug)]
-pub struct CcxRun {
+pub(crate) struct CcxRun {
     /// Wall-clock seconds of the `ccx` process (start to exit).
     pub seconds: f64,
     /// `(time, force on the target)`: minus the reaction at the rigid body's reference node.
@@ -719,7 +719,7 @@ pub struct CcxRun {
 /// # Errors
 /// [`CcxError::Io`] for files, [`CcxError::Run`] if ccx cannot start, fails, or stops before
 /// the last increment, [`CcxError::Parse`] for its output.
-pub fn run_ccx(
+pub(crate) fn run_ccx(
     ccx: &Path,
     deck: &Deck,
     dir: &Path,
@@ -1361,7 +1361,7 @@ impl Comparison {
 }
 
 /// The version line of `ccx -v`, e.g. "2.20".
-pub fn ccx_version(ccx: &Path) -> Option<String> {
+pub(crate) fn ccx_version(ccx: &Path) -> Option<String> {
     let out = std::process::Command::new(ccx).arg("-v").output().ok()?;
     let text = String::from_utf8_lossy(&out.stdout).to_string();
     text.lines().find_map(|l| {

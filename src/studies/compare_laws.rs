@@ -206,7 +206,7 @@ fn at(history: &[(f64, f64)], t: f64) -> f64 {
 
 impl LawComparison {
     /// Write the two figures (`laws-u0.svg`, `laws-du0dmu.svg`) into `figures`.
-    pub fn write_figures(&self, figures: &Path) -> Result<(), PlotError> {
+    pub(crate) fn write_figures(&self, figures: &Path) -> Result<(), PlotError> {
         let mut u = Figure::new(
             "Strip pull-out: pulled end's displacement, per friction law",
             "t (load to 1, release to 2)",

@@ -46,7 +46,7 @@ use std::time::Instant;
 /// A small, fast, deterministic generator (SplitMix64): the same seed gives the same scene on
 /// every machine.
 #[derive(Clone, Debug)]
-pub struct Rng(u64);
+pub(crate) struct Rng(u64);
 
 impl Rng {
     /// A generator started from `seed`.
@@ -55,7 +55,7 @@ impl Rng {
     }
 
     /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
+    pub(crate) fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
@@ -74,7 +74,7 @@ impl Rng {
     }
 
     /// Log-uniform in `[a, b)` (`0 < a < b`).
-    pub fn log_uniform(&mut self, a: f64, b: f64) -> f64 {
+    pub(crate) fn log_uniform(&mut self, a: f64, b: f64) -> f64 {
         (a.ln() + (b.ln() - a.ln()) * self.unit()).exp()
     }
 
@@ -84,7 +84,7 @@ impl Rng {
     }
 
     /// True with probability `p`.
-    pub fn chance(&mut self, p: f64) -> bool {
+    pub(crate) fn chance(&mut self, p: f64) -> bool {
         self.unit() < p
     }
 
@@ -682,7 +682,11 @@ impl IncrementCheck {
 /// imbalance and the tensile forces are measured against it and it is raised to this
 /// increment's largest, so that an unloaded state's round-off is not measured against its own
 /// vanishing forces.
-pub fn check_increment(c: &Converged<'_>, element_size: f64, scale: &mut f64) -> IncrementCheck {
+pub(crate) fn check_increment(
+    c: &Converged<'_>,
+    element_size: f64,
+    scale: &mut f64,
+) -> IncrementCheck {
     let model = c.model;
     let r = &c.eval.residual;
     let n_nodal = c.assembler.dofs.n_nodal;
@@ -1042,12 +1046,12 @@ pub struct SizeClass {
 
 impl SizeClass {
     /// The largest wall time over the median.
-    pub fn time_ratio(&self) -> f64 {
+    pub(crate) fn time_ratio(&self) -> f64 {
         self.max_seconds / self.median_seconds.max(1e-9)
     }
 
     /// The largest wall time per increment asked for over the median.
-    pub fn time_ratio_per_increment(&self) -> f64 {
+    pub(crate) fn time_ratio_per_increment(&self) -> f64 {
         self.max_per_increment.0 / self.median_per_increment.max(1e-12)
     }
 }
@@ -1092,7 +1096,7 @@ fn percentile(v: &mut [f64], q: f64) -> f64 {
 }
 
 /// Upper bounds (unknowns) of the size classes.
-pub const SIZE_CLASSES: [usize; 5] = [500, 1_000, 2_000, 5_000, usize::MAX];
+pub(crate) const SIZE_CLASSES: [usize; 5] = [500, 1_000, 2_000, 5_000, usize::MAX];
 
 impl Summary {
     /// The figures of `outcomes`.

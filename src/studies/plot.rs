@@ -345,7 +345,7 @@ pub fn write_svg(fig: &Figure, path: &Path) -> Result<(), PlotError> {
 /// Write several figures into one SVG file, stacked top to bottom (one panel of the
 /// usual size each), with the rules of [`write_svg`] applied to every panel. Returns
 /// [`PlotError::NoData`] for the first panel without a plottable point.
-pub fn write_svg_stack(figs: &[Figure], path: &Path) -> Result<(), PlotError> {
+pub(crate) fn write_svg_stack(figs: &[Figure], path: &Path) -> Result<(), PlotError> {
     let draw_err = |message: String| PlotError::Drawing {
         path: path.to_path_buf(),
         message,

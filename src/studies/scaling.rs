@@ -20,9 +20,7 @@
 //!   the sizes ([`fit_power_law`]); `n` is the number of free unknowns (nodal unknowns not
 //!   prescribed, incompatible-mode unknowns, contact multipliers).
 //!
-//! The LU factor's size is not recorded (the symmetric-pattern LU knows it,
-//! [`crate::linalg::symlu::SymbolicSymLu::len_values`], but the study predates it); the peak memory
-//! stands in for it.
+//! The LU factor's size is not recorded; the peak memory stands in for it.
 
 use crate::scene::{indentation_refined, leaf_spring, LeafSpringSpec, Scene, SceneError, StepSpec};
 use crate::sensitivity::{run_inline_sweep, Method, Parameter, Settings};
@@ -100,7 +98,7 @@ pub enum ScalingScene {
 }
 
 /// Largest leaf-spring refinement factor accepted (about 3 x 10^7 unknowns).
-pub const MAX_LEAF_REFINEMENT: f64 = 16.0;
+pub(crate) const MAX_LEAF_REFINEMENT: f64 = 16.0;
 
 impl ScalingScene {
     /// Every scene.
@@ -143,7 +141,7 @@ impl ScalingScene {
     /// The cause is not found (at 3.5 and 2.5 each linear solve is accurate to 1e-12). It is
     /// not the two-cycle of the refined leaf spring, whose plastic points crossed their
     /// elastic domain (`MaterialLaw::elastic_crossing`): the slab is elastic.
-    pub fn refinements(self, quick: bool) -> &'static [f64] {
+    pub(crate) fn refinements(self, quick: bool) -> &'static [f64] {
         match (self, quick) {
             (ScalingScene::Indentation, false) => &[0.25, 0.4, 0.63, 1.0, 1.6, 2.5, 3.5],
             (ScalingScene::LeafSpring, false) => {
@@ -173,7 +171,7 @@ impl ScalingScene {
     }
 
     /// How the mesh is refined by the factor `r`, in words.
-    pub fn refinement_rule(self) -> &'static str {
+    pub(crate) fn refinement_rule(self) -> &'static str {
         match self {
             ScalingScene::Indentation => "every zone of the slab's plane gets r times the paper mesh's elements, the slab stays one element thick (plane strain): a 2D graph",
             ScalingScene::LeafSpring => "40 r elements along the upper leaf, 2 r through each leaf, one across as in the paper's model: a 2D graph of two strips",
@@ -254,7 +252,7 @@ impl ScalingScene {
 
 /// Sizes of a built model: elements, unknowns of the linear system, free unknowns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ModelSize {
+pub(crate) struct ModelSize {
     /// Hexahedra.
     pub elements: usize,
     /// Unknowns of the linear system (prescribed ones included: identity rows).
@@ -264,7 +262,7 @@ pub struct ModelSize {
 }
 
 /// Count the elements and unknowns of a model.
-pub fn model_size(model: &crate::model::Model) -> ModelSize {
+pub(crate) fn model_size(model: &crate::model::Model) -> ModelSize {
     let map = model.dof_map();
     let mut fixed = vec![false; map.n_nodal];
     for p in &model.prescribed {
@@ -342,62 +340,62 @@ impl Measurement {
     }
 
     /// Primal seconds per increment.
-    pub fn seconds_per_increment(&self) -> f64 {
+    pub(crate) fn seconds_per_increment(&self) -> f64 {
         self.primal_seconds / self.increments.max(1) as f64
     }
 
     /// Newton iterations the primal time is divided by: every one, failed attempts included
     /// (the factorizations), or those of the converged attempts where that was not recorded.
-    pub fn all_iterations(&self) -> usize {
+    pub(crate) fn all_iterations(&self) -> usize {
         self.factorizations.unwrap_or(self.newton_iterations).max(1)
     }
 
     /// Primal seconds per Newton iteration (failed attempts included where recorded).
-    pub fn seconds_per_iteration(&self) -> f64 {
+    pub(crate) fn seconds_per_iteration(&self) -> f64 {
         self.primal_seconds / self.all_iterations() as f64
     }
 
     /// Numeric factorization seconds per factorization (per converged Newton iteration where
     /// the factorizations were not recorded: too high by the failed attempts' share).
-    pub fn factor_seconds_per_iteration(&self) -> f64 {
+    pub(crate) fn factor_seconds_per_iteration(&self) -> f64 {
         self.factor_seconds / self.all_iterations() as f64
     }
 
     /// Share of the primal run spent in numeric factorization.
-    pub fn factor_share(&self) -> f64 {
+    pub(crate) fn factor_share(&self) -> f64 {
         self.factor_seconds / self.primal_seconds
     }
 
     /// DDM seconds per parameter per increment.
-    pub fn ddm_per_parameter_increment(&self) -> f64 {
+    pub(crate) fn ddm_per_parameter_increment(&self) -> f64 {
         self.ddm_seconds / (self.parameters.max(1) * self.increments.max(1)) as f64
     }
 
     /// SDM seconds per parameter per increment.
-    pub fn sdm_per_parameter_increment(&self) -> f64 {
+    pub(crate) fn sdm_per_parameter_increment(&self) -> f64 {
         self.sdm_seconds / (self.parameters.max(1) * self.increments.max(1)) as f64
     }
 
     /// DDM cost per parameter relative to the primal run.
-    pub fn ddm_ratio(&self) -> f64 {
+    pub(crate) fn ddm_ratio(&self) -> f64 {
         self.ddm_seconds / self.parameters.max(1) as f64 / self.primal_seconds
     }
 
     /// SDM cost per parameter relative to the primal run.
-    pub fn sdm_ratio(&self) -> f64 {
+    pub(crate) fn sdm_ratio(&self) -> f64 {
         self.sdm_seconds / self.parameters.max(1) as f64 / self.primal_seconds
     }
 }
 
 /// Peak resident memory of this process (`VmHWM` of `/proc/self/status`) in MiB, where the
 /// system has it.
-pub fn peak_resident_mib() -> Option<f64> {
+pub(crate) fn peak_resident_mib() -> Option<f64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     kib_field(&status, "VmHWM:").map(|k| k / 1024.0)
 }
 
 /// Total memory of the machine (`MemTotal` of `/proc/meminfo`) in MiB, where the system has it.
-pub fn machine_memory_mib() -> Option<f64> {
+pub(crate) fn machine_memory_mib() -> Option<f64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     kib_field(&info, "MemTotal:").map(|k| k / 1024.0)
 }
@@ -500,7 +498,7 @@ pub const CHILD_TIMEOUT_FACTOR: f64 = 3.0;
 
 /// Run `exe scaling-one --scene NAME --refinement R` and read its measurement; the child is
 /// killed after `timeout`, if given.
-pub fn measure_in_child(
+pub(crate) fn measure_in_child(
     exe: &Path,
     scene: ScalingScene,
     refinement: f64,
@@ -786,7 +784,7 @@ impl Study {
 }
 
 /// Machine memory assumed where `/proc/meminfo` is not available (MiB): 24 GiB.
-pub const DEFAULT_MACHINE_MIB: f64 = 24.0 * 1024.0;
+pub(crate) const DEFAULT_MACHINE_MIB: f64 = 24.0 * 1024.0;
 
 /// Run the study and write `scaling.csv`, `scaling.svg` and `scaling.md` into `opts.out`.
 pub fn run_study(opts: &StudyOptions) -> Result<Study, ScalingError> {
@@ -1309,10 +1307,10 @@ pub fn markdown(study: &Study) -> String {
 
 /// One factorization taking longer than this (seconds) is taken as the time wall: an
 /// incremental contact analysis needs tens of Newton iterations per increment.
-pub const TIME_WALL_SECONDS: f64 = 600.0;
+pub(crate) const TIME_WALL_SECONDS: f64 = 600.0;
 
 /// The study's target size (free unknowns).
-pub const TARGET_DOFS: f64 = 2e5;
+pub(crate) const TARGET_DOFS: f64 = 2e5;
 
 /// A skip reason without the residual history a Newton failure carries.
 fn short_reason(reason: &str) -> String {

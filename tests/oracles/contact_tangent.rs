@@ -92,7 +92,7 @@ fn contact_tangent_with_the_anchor_on_another_face() {
         panic!("the patch's target is deformable")
     };
     let asm = Assembler::new(&model, &[]).unwrap();
-    let h0 = asm.contact.history[0];
+    let h0 = asm.contact_history(0);
     let nh = pair.history_len();
     let z = &res.states[1];
     let mut hist = res.histories[0].clone();
@@ -103,7 +103,7 @@ fn contact_tangent_with_the_anchor_on_another_face() {
     let mut ev = Evaluation::<f64>::new(&asm, ne);
     asm.evaluate(&model, &lifted, z, &hist, 1.0, None, None, &mut ev)
         .unwrap();
-    let flat = asm.contact.flat[0];
+    let flat = asm.contact_flat(0);
     let mut moved = 0;
     let mut outside = None;
     for (i, cands) in pair.candidates.iter().enumerate() {

@@ -82,7 +82,7 @@ impl Default for LeafSpringSpec {
 /// Active-set gap weight of both leaf-spring pairs ([`crate::contact::ContactPair::activation`]):
 /// the leaf slides under the curved block nose, and with the default weight every slide of a
 /// few hundredths of a millimetre releases the loaded node under it.
-pub const LEAF_ACTIVATION: f64 = 1e-3;
+pub(crate) const LEAF_ACTIVATION: f64 = 1e-3;
 
 impl LeafSpringSpec {
     /// The paper-resolution mesh and load path (`validate --full`).
@@ -327,7 +327,7 @@ impl Default for StackedLeavesSpec {
 
 impl StackedLeavesSpec {
     /// Bending stiffness of one leaf.
-    pub fn bending_stiffness(&self) -> f64 {
+    pub(crate) fn bending_stiffness(&self) -> f64 {
         self.young * self.width * self.thickness.powi(3) / 12.0
     }
 
@@ -338,7 +338,7 @@ impl StackedLeavesSpec {
     }
 
     /// `|d delta / d mu| = P d L^2 / (8 E I)` on the slipping branches (d = h).
-    pub fn deflection_mu_slope(&self) -> f64 {
+    pub(crate) fn deflection_mu_slope(&self) -> f64 {
         self.load * self.thickness * self.length.powi(2) / (8.0 * self.bending_stiffness())
     }
 }
@@ -420,7 +420,7 @@ pub fn stacked_leaves(s: &StackedLeavesSpec) -> Scene {
 }
 
 /// The closed-form checks of the `stacked-leaves` scene on its DDM run.
-pub(crate) fn stacked_leaves_oracles(ddm: &SensitivityResults, out: &mut Vec<OracleCheck>) {
+pub fn stacked_leaves_oracles(ddm: &SensitivityResults, out: &mut Vec<OracleCheck>) {
     let (r_of, p_of, at) = lookups(ddm);
     let s = StackedLeavesSpec::default();
     if let (Some(r), Some(p), Some(end)) = (r_of("delta"), p_of("mu"), at(1.0)) {

@@ -250,7 +250,7 @@ pub struct Validation {
 
 /// The leaf spring's ten design parameters of the batched cost measurement: friction,
 /// material, shape (both leaves' length and thickness) and the tangential penalty.
-pub const LEAF_BATCH: [&str; 10] = [
+pub(crate) const LEAF_BATCH: [&str; 10] = [
     "mu",
     "E",
     "nu",
@@ -306,7 +306,7 @@ pub fn refined_leaf_spring() -> Scene {
 
 /// [`BatchedCost`] of [`LEAF_BATCH`] on `scene`, SDM (at `beta`) and DDM, both with Newton's
 /// last factorization.
-pub fn batched_cost(scene: &Scene, beta: f64) -> Result<BatchedCost, ValidateError> {
+pub(crate) fn batched_cost(scene: &Scene, beta: f64) -> Result<BatchedCost, ValidateError> {
     let wrap = |source| ValidateError::Analysis {
         scene: scene.name.clone(),
         source,
@@ -359,7 +359,7 @@ pub fn batched_cost(scene: &Scene, beta: f64) -> Result<BatchedCost, ValidateErr
 /// Responses insensitive to the parameter — `|b| max|dR/db| < 1e-9 max|R|` over the history,
 /// e.g. a reaction fixed by equilibrium — are left out: their reference derivative is
 /// round-off.
-pub fn relative_error(
+pub(crate) fn relative_error(
     reference: &SensitivityResults,
     other: &SensitivityResults,
     p: usize,
@@ -424,7 +424,7 @@ pub(super) fn parameters<N: AsRef<str>>(
 }
 
 /// Run every method on one scene.
-pub fn validate_scene(
+pub(crate) fn validate_scene(
     scene: &Scene,
     opts: &ValidateOptions,
 ) -> Result<SceneValidation, ValidateError> {
