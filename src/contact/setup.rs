@@ -290,6 +290,71 @@ pub enum SetupError {
     NoTangentialDefault,
 }
 
+/// The default search radius of a pair whose first hitting node is `hitting` against
+/// `target`: three of the target's largest face diameters, plus how far the prescribed
+/// displacements can move the two bodies against each other. Returns the radius, the face
+/// diameter and the travel.
+pub(crate) fn default_search_radius(
+    x: &[Vector3<f64>],
+    node_group: &[Option<usize>],
+    prescribed: &[Prescribed],
+    hitting: usize,
+    target: &FaceSet,
+) -> (f64, f64, f64) {
+    let diameter = largest_face_diameter(x, target);
+    let groups = [node_group[hitting], node_group[target.nodes(0)[0]]];
+    let travel = prescribed_travel(node_group, prescribed, &groups);
+    (3.0 * diameter + travel, diameter, travel)
+}
+
+/// The hitting nodes of a pair that can touch its target, with their data: those with a
+/// candidate face within the search radius (`candidates[i]` not empty).
+pub(crate) struct Reachable {
+    /// Kept hitting nodes.
+    pub hitting: Vec<usize>,
+    /// Their tributary areas.
+    pub area: Vec<f64>,
+    /// Their element layers' stiffness `A_i / h_i`, if known.
+    pub layer: Option<Vec<f64>>,
+    /// Their candidate faces.
+    pub candidates: Vec<Vec<usize>>,
+    /// The hitting nodes left out: no target face within the radius.
+    pub dropped: Vec<usize>,
+}
+
+/// Keep the hitting nodes with candidate faces (and their areas, layers and candidates);
+/// the others are `dropped`.
+pub(crate) fn keep_reachable(
+    hitting: &[usize],
+    area: &[f64],
+    layer: Option<&[f64]>,
+    candidates: Vec<Vec<usize>>,
+) -> Reachable {
+    let keep: Vec<bool> = candidates.iter().map(|c| !c.is_empty()).collect();
+    let pick = |v: &[f64]| -> Vec<f64> {
+        v.iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(x, _)| *x)
+            .collect()
+    };
+    let nodes = |kept: bool| -> Vec<usize> {
+        hitting
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k == kept)
+            .map(|(n, _)| *n)
+            .collect()
+    };
+    Reachable {
+        hitting: nodes(true),
+        area: pick(area),
+        layer: layer.map(pick),
+        candidates: candidates.into_iter().filter(|c| !c.is_empty()).collect(),
+        dropped: nodes(false),
+    }
+}
+
 /// What [`pair_between_faces`] chose besides the pair.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PairDerivation {
@@ -332,40 +397,19 @@ pub fn pair_between_faces(
     let layer = layer_stiffness(mesh, &x, hitting, &nodes, &area);
     let radius = match search_radius {
         Some(r) => r,
-        None => {
-            let groups = [node_group[nodes[0]], node_group[target.nodes(0)[0]]];
-            3.0 * largest_face_diameter(&x, target)
-                + prescribed_travel(&node_group, prescribed, &groups)
-        }
+        None => default_search_radius(&x, &node_group, prescribed, nodes[0], target).0,
     };
-    let cands = candidates(&x, target, &nodes, radius);
-    let keep: Vec<bool> = cands.iter().map(|c| !c.is_empty()).collect();
-    if !keep.contains(&true) {
+    let r = keep_reachable(
+        &nodes,
+        &area,
+        layer.as_deref(),
+        candidates(&x, target, &nodes, radius),
+    );
+    if r.hitting.is_empty() {
         return Err(SetupError::NeverTouching { radius });
     }
-    let pick = |v: &[f64]| -> Vec<f64> {
-        v.iter()
-            .zip(&keep)
-            .filter(|(_, k)| **k)
-            .map(|(x, _)| *x)
-            .collect()
-    };
-    let dropped: Vec<usize> = nodes
-        .iter()
-        .zip(&keep)
-        .filter(|(_, k)| !**k)
-        .map(|(n, _)| *n)
-        .collect();
-    let kept: Vec<usize> = nodes
-        .iter()
-        .zip(&keep)
-        .filter(|(_, k)| **k)
-        .map(|(n, _)| *n)
-        .collect();
-    let area = pick(&area);
-    let layer = layer
-        .map(|l| pick(&l))
-        .ok_or(SetupError::NoTangentialDefault)?;
+    let (kept, area, dropped) = (r.hitting, r.area, r.dropped);
+    let layer = r.layer.ok_or(SetupError::NoTangentialDefault)?;
     let (scale, source) = default_constraint_scale(bodies, springs, &area);
     let e_star = contact_modulus(&node_group, bodies, kept[0], Some(target.nodes(0)[0]));
     let t = default_tangential(e_star, &layer);
@@ -385,7 +429,7 @@ pub fn pair_between_faces(
         tangential_weight: t.weight,
         constraint_scale: scale,
         activation: 1.0,
-        candidates: cands.into_iter().filter(|c| !c.is_empty()).collect(),
+        candidates: r.candidates,
     };
     Ok((
         pair,

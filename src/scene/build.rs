@@ -593,15 +593,19 @@ impl Scene {
                             format!("face set '{name}' is empty"),
                         ));
                     }
-                    let diag = setup::largest_face_diameter(&x, faces);
                     // default: three face diagonals, plus how far the prescribed
                     // displacements can move the two bodies against each other
+                    let (default, diag, travel) = setup::default_search_radius(
+                        &x,
+                        &node_group,
+                        prescribed,
+                        hitting[0],
+                        faces,
+                    );
                     let radius = match c.search_radius {
                         Some(r) => r,
                         None => {
-                            let groups = [node_group[hitting[0]], node_group[faces.nodes(0)[0]]];
-                            let travel = setup::prescribed_travel(&node_group, prescribed, &groups);
-                            let r = 3.0 * diag + travel;
+                            let r = default;
                             notes.push(format!(
                                 "{at} '{}': search radius {r:.4e} (3 face diagonals {:.4e} + the bodies' largest prescribed travel {travel:.4e})",
                                 c.name,
@@ -681,14 +685,9 @@ impl Scene {
             // hitting nodes with no target face within the search radius can never touch it:
             // left out of the pair (all of them: an error)
             let (hitting, area, layer, candidates) = if let Target::Faces { .. } = target {
-                let keep: Vec<bool> = candidates.iter().map(|c| !c.is_empty()).collect();
-                let dropped: Vec<usize> = hitting
-                    .iter()
-                    .zip(&keep)
-                    .filter(|(_, k)| !**k)
-                    .map(|(n, _)| *n)
-                    .collect();
-                if dropped.len() == hitting.len() {
+                let r = setup::keep_reachable(&hitting, &area, layer.as_deref(), candidates);
+                let dropped = r.dropped;
+                if r.hitting.is_empty() {
                     return Err(invalid(
                         &format!("{at}.search_radius"),
                         format!(
@@ -708,24 +707,7 @@ impl Scene {
                         if dropped.len() > 8 { ", ..." } else { "" }
                     ));
                 }
-                let pick = |v: Vec<f64>| -> Vec<f64> {
-                    v.into_iter()
-                        .zip(&keep)
-                        .filter(|(_, k)| **k)
-                        .map(|(x, _)| x)
-                        .collect()
-                };
-                (
-                    hitting
-                        .iter()
-                        .zip(&keep)
-                        .filter(|(_, k)| **k)
-                        .map(|(n, _)| *n)
-                        .collect::<Vec<usize>>(),
-                    pick(area),
-                    layer.map(pick),
-                    candidates.into_iter().filter(|c| !c.is_empty()).collect(),
-                )
+                (r.hitting, r.area, r.layer, r.candidates)
             } else {
                 (hitting, area, layer, candidates)
             };
