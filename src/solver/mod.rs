@@ -29,6 +29,7 @@ use crate::material::Branch;
 use crate::model::{Lifted, Model};
 
 mod active_set;
+mod attempt;
 mod increment;
 mod limits;
 mod newton;
