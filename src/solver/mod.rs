@@ -33,11 +33,12 @@ mod attempt;
 mod increment;
 mod limits;
 mod newton;
+mod setup;
 
 use active_set::*;
-pub use increment::Solver;
 use limits::*;
 use newton::*;
+pub use setup::Solver;
 
 /// Newton record of one converged increment.
 #[derive(Clone, Debug, serde::Serialize)]
