@@ -181,13 +181,10 @@ impl Solver<'_> {
     /// normal and tangential directions, the linearised problem's states cycle (multipliers
     /// going negative where released nodes then penetrate) and settling every step multiplied
     /// the factorizations by 4.6; its first steps settle at once.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn settle_active_set(
         &mut self,
-        z: &[f64],
+        (z, hist, t): At<'_>,
         dz: &mut [f64],
-        hist: &[f64],
-        t: f64,
         eval: &mut Evaluation<f64>,
         predictor: &mut ActiveSetPredictor,
         cost: &mut PrimalCost,
@@ -266,17 +263,8 @@ impl Solver<'_> {
                 skip: None,
                 ..Frozen::default()
             };
-            assemble(
-                &self.assembler,
-                model,
-                &self.lifted,
-                &mut self.matrix,
-                (z, hist, t),
-                Some(&frozen),
-                eval,
-                cost,
-            )
-            .map_err(AttemptFailure::Element)?;
+            self.assemble((z, hist, t), Some(&frozen), eval, cost)
+                .map_err(AttemptFailure::Element)?;
             self.newton_step(eval, dz, cost)?;
             solves += 1;
         }

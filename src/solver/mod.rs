@@ -29,15 +29,17 @@ use crate::material::Branch;
 use crate::model::{Lifted, Model};
 
 mod active_set;
+mod attempt;
 mod increment;
 mod limits;
 mod newton;
+mod setup;
 
 pub use crate::precheck::{PrecheckError, PrecheckWarning};
 use active_set::*;
-pub use increment::Solver;
 use limits::*;
 use newton::*;
+pub use setup::Solver;
 
 /// Newton record of one converged increment.
 #[derive(Clone, Debug, serde::Serialize)]
