@@ -353,10 +353,9 @@ impl Assembler {
         out.min_det_f = f64::INFINITY;
         let want_k = tangent.is_some();
         // elements left out of this evaluation. The masks are drawn from Gauss points and
-        // histories: a spring, which has neither, is always evaluated (it costs nothing).
+        // histories: an element without Gauss points (a spring) is always evaluated.
         let skip = frozen.and_then(|f| f.skip);
-        let skipped =
-            |e: usize| skip.is_some_and(|s| s[e]) && self.dofs.element_springs[e] == usize::MAX;
+        let skipped = |e: usize| skip.is_some_and(|s| s[e]) && !self.dofs.gauss(e).is_empty();
         let ne = model.mesh.n_elements();
         let mut locals: Vec<Local<S>> = Vec::new();
         // element tangents of one chunk, allocated once per evaluation (not per element)
