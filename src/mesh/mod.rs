@@ -15,6 +15,11 @@
 //! of elements and a size ratio (last element / first element), so a fine region can sit next
 //! to a coarse one in one conforming block.
 
+pub mod abaqus;
+pub mod gmsh;
+pub mod import;
+pub mod shape_map;
+
 use crate::element::{FaceFamily, Shape};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;

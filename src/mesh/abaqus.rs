@@ -1,0 +1,1 @@
+//! Abaqus/CalculiX `.inp` meshes: reader and writer (see [`super::import`]).

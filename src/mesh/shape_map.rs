@@ -1,0 +1,1 @@
+//! Shape maps: design-dependent reference coordinates of imported (or any) nodes.
