@@ -477,6 +477,10 @@ impl Assembler {
                 out.residual[self.dofs.node_dof(n, load.component)] -= f * *w;
             }
         }
+        for (l, load) in model.pressures.iter().enumerate() {
+            let p = lifted.pressures[l] * load.amplitude.at(time);
+            load.add_to_residual(&lifted.coords, p, &mut out.residual);
+        }
         Ok(())
     }
 

@@ -127,7 +127,10 @@ impl Parameter {
     /// * `PAIR.mu` (any friction-law parameter), `PAIR.eps_t`, `PAIR.motion[K]`: a contact
     ///   pair's friction parameter, tangential penalty, or rigid-target motion magnitude; a bare
     ///   friction parameter name (`mu`) is shared by every pair that has it;
-    /// * `load.NAME`, `prescribed.NAME`: the magnitude of a nodal load or prescribed displacement.
+    /// * `load.NAME`, `prescribed.NAME`, `pressure.NAME`: the magnitude of a nodal load, a
+    ///   prescribed displacement or a pressure;
+    /// * the name of a shape map (matched first, dots and all): its value
+    ///   ([`crate::mesh::shape_map`]).
     pub fn by_name(model: &Model, name: &str) -> Result<Self, ParameterError> {
         let named = || name.to_string();
         let no_body = |body: &str| ParameterError::NoBody {
@@ -145,7 +148,18 @@ impl Parameter {
         };
         let parts: Vec<&str> = name.split('.').collect();
         let mut targets = Vec::new();
+        if let Some(map) = model.mesh.shape_maps.iter().position(|m| m.name == name) {
+            targets.push(DesignParam::Shape { map });
+        }
         match parts.as_slice() {
+            _ if !targets.is_empty() => {}
+            ["pressure", l] => {
+                for (i, x) in model.pressures.iter().enumerate() {
+                    if x.name == *l {
+                        targets.push(DesignParam::Pressure { index: i });
+                    }
+                }
+            }
             ["load", l] => {
                 for (i, x) in model.loads.iter().enumerate() {
                     if x.name == *l {

@@ -228,6 +228,8 @@ pub struct Model {
     pub prescribed: Vec<Prescribed>,
     /// Nodal loads.
     pub loads: Vec<NodalLoad>,
+    /// Pressure loads on face sets.
+    pub pressures: Vec<crate::load::PressureLoad>,
     /// End times of the load increments, increasing.
     pub times: Vec<f64>,
     /// Contact pairs.
@@ -295,6 +297,16 @@ pub enum DesignParam {
         /// Index into [`Model::contacts`].
         pair: usize,
     },
+    /// Value of shape map `map` (a shape parameter of any mesh, [`crate::mesh::shape_map`]).
+    Shape {
+        /// Index into [`Mesh::shape_maps`].
+        map: usize,
+    },
+    /// Magnitude of pressure load number `index`.
+    Pressure {
+        /// Index into [`Model::pressures`].
+        index: usize,
+    },
 }
 
 /// Model data lifted to a scalar type, design parameters substituted.
@@ -314,6 +326,10 @@ pub struct Lifted<S: Scalar> {
     pub rigid_motion: Vec<Vec<S>>,
     /// Tangential penalty stiffness of each pair.
     pub tangential: Vec<S>,
+    /// Values of the shape maps.
+    pub shape: Vec<S>,
+    /// Magnitudes of the pressure loads.
+    pub pressures: Vec<S>,
 }
 
 impl Model {
@@ -350,6 +366,7 @@ impl Model {
             .iter()
             .map(|p| &p.amplitude)
             .chain(self.loads.iter().map(|l| &l.amplitude))
+            .chain(self.pressures.iter().map(|p| &p.amplitude))
             .chain(rigid.map(|m| &m.amplitude))
     }
 
@@ -465,6 +482,8 @@ impl Model {
             }
             DesignParam::Prescribed { index } => self.prescribed.get(index).map(|p| p.value),
             DesignParam::Load { index } => self.loads.get(index).map(|l| l.value),
+            DesignParam::Shape { map } => self.mesh.shape_maps.get(map).map(|m| m.value),
+            DesignParam::Pressure { index } => self.pressures.get(index).map(|p| p.value),
             DesignParam::Friction { pair, index } => self
                 .contacts
                 .get(pair)?
@@ -511,6 +530,8 @@ impl Model {
             DesignParam::BlockOrigin { block, axis } => self.mesh.blocks[block].origin[axis] = v,
             DesignParam::Prescribed { index } => self.prescribed[index].value = v,
             DesignParam::Load { index } => self.loads[index].value = v,
+            DesignParam::Shape { map } => self.mesh.shape_maps[map].value = v,
+            DesignParam::Pressure { index } => self.pressures[index].value = v,
             DesignParam::Friction { pair, index } => {
                 if let Some(f) = self.contacts[pair].friction.as_mut() {
                     f.set_param(index, v)
@@ -539,6 +560,10 @@ impl Model {
             .collect();
         let mut prescribed: Vec<S> = self.prescribed.iter().map(|p| S::lift(p.value)).collect();
         let mut loads: Vec<S> = self.loads.iter().map(|l| S::lift(l.value)).collect();
+        let mut shape: Vec<S> = (self.mesh.shape_maps.iter())
+            .map(|m| S::lift(m.value))
+            .collect();
+        let mut pressures: Vec<S> = self.pressures.iter().map(|p| S::lift(p.value)).collect();
         let mut friction: Vec<Vec<S>> = self
             .contacts
             .iter()
@@ -572,10 +597,14 @@ impl Model {
                 DesignParam::Friction { pair, index } => friction[pair][index] = *v,
                 DesignParam::RigidMotion { pair, index } => rigid_motion[pair][index] = *v,
                 DesignParam::TangentialStiffness { pair } => tangential[pair] = *v,
+                DesignParam::Shape { map } => shape[map] = *v,
+                DesignParam::Pressure { index } => pressures[index] = *v,
             }
         }
         Lifted {
-            coords: self.mesh.coordinates(&geometry),
+            coords: self.mesh.coordinates_at(&geometry, &shape),
+            shape,
+            pressures,
             material,
             prescribed,
             loads,

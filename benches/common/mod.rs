@@ -222,7 +222,7 @@ pub fn cantilever_model(nx: usize, alpha: f64, increments: usize) -> Model {
         ..CantileverSpec::large_deflection()
     };
     let mut scene = cantilever(&spec);
-    scene.bodies[0].block.z = Axis::uniform(spec.width, 2);
+    scene.bodies[0].block_mut().unwrap().z = Axis::uniform(spec.width, 2);
     scene.build().expect("cantilever scene builds")
 }
 

@@ -20,6 +20,8 @@ pub mod gmsh;
 pub mod import;
 pub mod shape_map;
 
+pub use shape_map::{MapKind, ShapeMap, ShapeMapError, Smoothing};
+
 use crate::element::{FaceFamily, Shape};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
@@ -321,6 +323,9 @@ pub struct Mesh {
     pub node_sets: BTreeMap<String, Vec<usize>>,
     /// Named face sets, faces outward oriented.
     pub face_sets: BTreeMap<String, FaceSet>,
+    /// Design-dependent maps of the reference coordinates, applied in order after the blocks'
+    /// placement ([`shape_map`]).
+    pub shape_maps: Vec<ShapeMap>,
 }
 
 /// Mesh construction errors.
@@ -694,8 +699,26 @@ impl Mesh {
     }
 
     /// Reference coordinates of every node for the given (possibly design-dependent) block
-    /// geometry: `X = origin + L o t`.
+    /// geometry: `X = origin + L o t`, then the shape maps at their current values.
     pub fn coordinates<S: Scalar>(&self, geometry: &[BlockGeometry<S>]) -> Vec<Vector3<S>> {
+        let values: Vec<S> = self.shape_maps.iter().map(|m| S::lift(m.value)).collect();
+        self.coordinates_at(geometry, &values)
+    }
+
+    /// [`Mesh::coordinates`] with the shape maps at the values `shape` (one per map).
+    pub fn coordinates_at<S: Scalar>(
+        &self,
+        geometry: &[BlockGeometry<S>],
+        shape: &[S],
+    ) -> Vec<Vector3<S>> {
+        let mut x = self.placed(geometry);
+        for (m, b) in self.shape_maps.iter().zip(shape) {
+            m.apply(*b, &mut x);
+        }
+        x
+    }
+
+    fn placed<S: Scalar>(&self, geometry: &[BlockGeometry<S>]) -> Vec<Vector3<S>> {
         self.places
             .iter()
             .map(|p| match p {

@@ -55,16 +55,215 @@ impl Scene {
         Ok(())
     }
 
+    /// Read a body's mesh file and add its elements (one group) and sets (`NAME.SET`) to
+    /// `mesh`, coordinates times the source's scale; returns the group.
+    fn add_mesh_body(
+        &self,
+        mesh: &mut Mesh,
+        source: &MeshSource,
+        at: &str,
+    ) -> Result<usize, SceneError> {
+        if !(source.scale.is_finite() && source.scale > 0.0) {
+            return Err(invalid(
+                &format!("{at}.scale"),
+                format!("must be positive and finite, got {}", source.scale),
+            ));
+        }
+        let path = resolve(source.folder.as_deref(), &source.file);
+        let file = crate::mesh::import::read(&path).map_err(|e| invalid(&format!("{at}.mesh"), e.to_string()))?;
+        let body = file
+            .add_to(mesh, &source.name, source.set.as_deref())
+            .map_err(|e| invalid(&format!("{at}.mesh"), e.to_string()))?;
+        if source.scale != 1.0 {
+            for &n in &body.nodes {
+                if let crate::mesh::NodePlace::Free(x) = &mut mesh.places[n] {
+                    for v in x.iter_mut() {
+                        *v *= source.scale;
+                    }
+                }
+            }
+        }
+        Ok(body.group)
+    }
+
+    /// A shape map of the scene on the mesh so far (module [`crate::mesh::shape_map`]).
+    fn shape_map(
+        &self,
+        mesh: &Mesh,
+        bodies: &[Body],
+        sh: &ShapeSpec,
+        at: &str,
+    ) -> Result<crate::mesh::ShapeMap, SceneError> {
+        use crate::mesh::{MapKind, ShapeMap};
+        if self.shapes.iter().filter(|o| o.name == sh.name).count() > 1 {
+            return Err(invalid(
+                &format!("{at}.name"),
+                format!("two shape maps are named '{}'", sh.name),
+            ));
+        }
+        let node_set = |name: &str, field: &str| -> Result<Vec<usize>, SceneError> {
+            match mesh.node_sets.get(name) {
+                Some(v) if !v.is_empty() => Ok(v.clone()),
+                _ => Err(invalid(field, format!("no node set named '{name}'"))),
+            }
+        };
+        let body = || -> Result<&Body, SceneError> {
+            bodies.iter().find(|b| b.name == sh.nodes).ok_or_else(|| {
+                invalid(
+                    &format!("{at}.nodes"),
+                    format!("a morph or boundary map names a body; no body '{}'", sh.nodes),
+                )
+            })
+        };
+        let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+        let bad = |e: crate::mesh::ShapeMapError| invalid(at, e.to_string());
+        let (nodes, kind, reference) = match &sh.map {
+            MapSpec::Translate { direction } => (
+                node_set(&sh.nodes, &format!("{at}.nodes"))?,
+                MapKind::Translate {
+                    direction: *direction,
+                },
+                0.0,
+            ),
+            MapSpec::Rotate { centre, axis } => (
+                node_set(&sh.nodes, &format!("{at}.nodes"))?,
+                MapKind::Rotate {
+                    centre: *centre,
+                    axis: *axis,
+                },
+                0.0,
+            ),
+            MapSpec::Scale { centre, axis } => (
+                node_set(&sh.nodes, &format!("{at}.nodes"))?,
+                MapKind::Scale {
+                    centre: *centre,
+                    axis: *axis,
+                },
+                1.0,
+            ),
+            MapSpec::Morph { mesh: file, set } => {
+                let b = body()?;
+                let source = self.bodies.iter().find_map(|s| match &s.geometry {
+                    BodyGeometry::Mesh(m) if m.name == b.name => Some(m),
+                    _ => None,
+                });
+                let Some(source) = source else {
+                    return Err(invalid(
+                        &format!("{at}.nodes"),
+                        format!("body '{}' is not read from a mesh file: a morph needs one", b.name),
+                    ));
+                };
+                let path = resolve(source.folder.as_deref(), file);
+                let other = crate::mesh::import::read(&path)
+                    .map_err(|e| invalid(&format!("{at}.map.mesh"), e.to_string()))?;
+                let mut scratch = Mesh::default();
+                let imported = other
+                    .add_to(&mut scratch, &b.name, set.as_deref().or(source.set.as_deref()))
+                    .map_err(|e| invalid(&format!("{at}.map.mesh"), e.to_string()))?;
+                let xb = scratch.coordinates::<f64>(&[]);
+                let mine = &mesh.groups[b.group];
+                let theirs = &scratch.groups[imported.group];
+                let topology = |what: String| {
+                    invalid(
+                        &format!("{at}.map.mesh"),
+                        format!("{}: {what}: a morph needs the same topology", path.display()),
+                    )
+                };
+                if mine.shape != theirs.shape || mine.nodes.len() != theirs.nodes.len() {
+                    return Err(topology(format!(
+                        "{} {} elements against the body's {} {}",
+                        theirs.len(),
+                        theirs.shape.name(),
+                        mine.len(),
+                        mine.shape.name()
+                    )));
+                }
+                let mut partner: std::collections::BTreeMap<usize, usize> = Default::default();
+                for (k, (&a, &bn)) in mine.nodes.iter().zip(&theirs.nodes).enumerate() {
+                    if *partner.entry(a).or_insert(bn) != bn {
+                        return Err(topology(format!(
+                            "element {} differs in its connectivity",
+                            k / mine.shape.n_nodes()
+                        )));
+                    }
+                }
+                let nodes: Vec<usize> = partner.keys().copied().collect();
+                let velocity = partner
+                    .iter()
+                    .map(|(&a, &bn)| {
+                        let d = xb[bn] * source.scale - x[a];
+                        [d.x, d.y, d.z]
+                    })
+                    .collect();
+                (nodes, MapKind::Velocity { velocity }, 0.0)
+            }
+            MapSpec::Boundary {
+                surface,
+                motion,
+                fixed,
+                slide,
+                smoothing,
+            } => {
+                let b = body()?;
+                let moved = node_set(surface, &format!("{at}.map.surface"))?;
+                let mut prescribed = Vec::with_capacity(moved.len());
+                for &n in &moved {
+                    let v = match motion {
+                        SurfaceMotion::Translate { direction } => *direction,
+                        SurfaceMotion::Radial { centre, axis } => {
+                            let mut r = x[n] - nalgebra::Vector3::from(*centre);
+                            if let Some(a) = axis {
+                                let a = direction(*a, &format!("{at}.map.motion.axis"))?;
+                                r -= a * a.dot(&r);
+                            }
+                            let len = r.norm();
+                            if !(len > 0.0) {
+                                return Err(invalid(
+                                    &format!("{at}.map.motion"),
+                                    format!("node {n} of '{surface}' is on the centre (or axis): no radial direction"),
+                                ));
+                            }
+                            (r / len).into()
+                        }
+                    };
+                    prescribed.push((n, v));
+                }
+                let mut held = Vec::new();
+                for (k, f) in fixed.iter().enumerate() {
+                    for n in node_set(f, &format!("{at}.map.fixed[{k}]"))? {
+                        held.extend([(n, 0), (n, 1), (n, 2)]);
+                    }
+                }
+                for (k, (set, c)) in slide.iter().enumerate() {
+                    for n in node_set(set, &format!("{at}.map.slide[{k}]"))? {
+                        held.push((n, c.index()));
+                    }
+                }
+                let (nodes, velocity) = crate::mesh::shape_map::boundary_driven(
+                    &sh.name, mesh, &x, b.group, &prescribed, &held, *smoothing,
+                )
+                .map_err(bad)?;
+                (nodes, MapKind::Velocity { velocity }, 0.0)
+            }
+        };
+        let reference = sh.value.unwrap_or(reference);
+        finite(reference, &format!("{at}.value"))?;
+        ShapeMap::new(&sh.name, nodes, kind, reference).map_err(bad)
+    }
+
     /// Validate and build the analysis model.
     pub fn build(&self) -> Result<Model, SceneError> {
         // sizes first: an absurd element count is an error, not an allocation attempt
         let mut total_elements: usize = 0;
         for (i, b) in self.bodies.iter().enumerate() {
             let at = format!("bodies[{i}]");
+            let Some(block) = b.block() else {
+                continue;
+            };
             let mut n: usize = 1;
-            let axes = [&b.block.x, &b.block.y, &b.block.z];
+            let axes = [&block.x, &block.y, &block.z];
             for (c, (label, axis)) in ["x", "y", "z"].iter().zip(axes).enumerate() {
-                let origin = b.block.origin[c];
+                let origin = block.origin[c];
                 finite(origin, &format!("{at}.origin[{c}]"))?;
                 n = n.saturating_mul(check_axis(axis, origin, &format!("{at}.{label}"))?);
             }
@@ -81,14 +280,30 @@ impl Scene {
         for (i, b) in self.bodies.iter().enumerate() {
             let at = format!("bodies[{i}]");
             check_law(&b.material, &format!("{at}.material"))?;
-            let block = mesh
-                .add_block(b.block.clone())
-                .map_err(|e| invalid(&at, e.to_string()))?;
-            let group = mesh
-                .block_group(block)
-                .ok_or_else(|| invalid(&at, "the block made no element group"))?;
+            if bodies.iter().any(|o: &Body| o.name == b.name()) {
+                return Err(invalid(
+                    &format!("{at}.name"),
+                    format!("a body named '{}' already exists", b.name()),
+                ));
+            }
+            let group = match &b.geometry {
+                BodyGeometry::Block(block) => {
+                    let index = mesh
+                        .add_block(block.clone())
+                        .map_err(|e| invalid(&at, e.to_string()))?;
+                    mesh.block_group(index)
+                        .ok_or_else(|| invalid(&at, "the block made no element group"))?
+                }
+                BodyGeometry::Mesh(source) => self.add_mesh_body(&mut mesh, source, &at)?,
+            };
+            if mesh.n_elements() > MAX_ELEMENTS {
+                return Err(invalid(
+                    &at,
+                    format!("the bodies have more than {MAX_ELEMENTS} elements in all"),
+                ));
+            }
             bodies.push(Body {
-                name: b.block.name.clone(),
+                name: b.name().to_string(),
                 group,
                 material: b.material.clone(),
                 kinematics: b.kinematics,
@@ -233,6 +448,34 @@ impl Scene {
                 value: l.value,
                 amplitude: amplitude(&l.amplitude, &format!("{at}.amplitude"))?,
             });
+        }
+        let mut pressures = Vec::new();
+        for (i, p) in self.pressures.iter().enumerate() {
+            let at = format!("pressures[{i}]");
+            finite(p.value, &format!("{at}.value"))?;
+            let faces = match mesh.face_sets.get(&p.faces) {
+                Some(f) if !f.is_empty() => f.clone(),
+                _ => {
+                    return Err(invalid(
+                        &format!("{at}.faces"),
+                        format!(
+                            "no face set named '{}' (face sets: {})",
+                            p.faces,
+                            mesh.face_sets.keys().cloned().collect::<Vec<_>>().join(", ")
+                        ),
+                    ))
+                }
+            };
+            pressures.push(crate::load::PressureLoad {
+                name: p.name.clone(),
+                faces,
+                value: p.value,
+                amplitude: amplitude(&p.amplitude, &format!("{at}.amplitude"))?,
+            });
+        }
+        for (i, sh) in self.shapes.iter().enumerate() {
+            let map = self.shape_map(&mesh, &bodies, sh, &format!("shapes[{i}]"))?;
+            mesh.shape_maps.push(map);
         }
         let mut times = Vec::new();
         let mut t0 = 0.0;
@@ -402,6 +645,7 @@ impl Scene {
             springs,
             prescribed,
             loads,
+            pressures,
             times,
             contacts,
             responses,
@@ -431,6 +675,71 @@ impl Scene {
                 .map_err(|e| invalid(&format!("study.params[{i}]"), e.to_string()))?;
         }
         Ok(model)
+    }
+}
+
+/// Hitting nodes that start inside the target body: a reference gap below minus 1 % of the
+/// target face's diameter (more than a faceted curve's chord sag at any reasonable mesh) is an
+/// error naming the nodes and the depth; a smaller negative gap is a note.
+fn check_overlap(
+    x: &[nalgebra::Vector3<f64>],
+    faces: &crate::mesh::FaceSet,
+    hitting: &[usize],
+    candidates: &[Vec<usize>],
+    pair: &str,
+    at: &str,
+    notes: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    let mut deep: Vec<(usize, f64)> = Vec::new();
+    let mut shallow = 0usize;
+    let mut quads = Vec::new();
+    for (&n, cand) in hitting.iter().zip(candidates) {
+        quads.clear();
+        for &f in cand {
+            let v = faces.nodes(f);
+            quads.push([x[v[0]], x[v[1]], x[v[2]], x[v[3]]]);
+        }
+        let Ok((k, p)) = crate::contact::geometry::closest_on_quads(&x[n], &quads, None) else {
+            continue;
+        };
+        if !p.inside || p.gap >= 0.0 {
+            continue;
+        }
+        let q = &quads[k];
+        let size = (q[2] - q[0]).norm().max((q[3] - q[1]).norm());
+        if -p.gap > 1e-2 * size {
+            deep.push((n, -p.gap));
+        } else if -p.gap > 1e-9 * size {
+            shallow += 1;
+        }
+    }
+    if !deep.is_empty() {
+        let depth = deep.iter().map(|d| d.1).fold(0.0, f64::max);
+        let shown: Vec<String> = deep.iter().take(8).map(|d| d.0.to_string()).collect();
+        return Err(invalid(
+            at,
+            format!(
+                "pair '{pair}': the bodies overlap at the start: {} hitting nodes lie inside the target, up to {depth:.4e} deep (nodes {}{})",
+                deep.len(),
+                shown.join(", "),
+                if deep.len() > 8 { ", ..." } else { "" }
+            ),
+        ));
+    }
+    if shallow > 0 {
+        notes.push(format!(
+            "{at} '{pair}': {shallow} hitting nodes start slightly inside the target (less than 1 % of a face diameter: a faceted curve's chord sag)"
+        ));
+    }
+    Ok(())
+}
+
+/// A mesh path as given in a scene: relative to the scene file's folder (or the working
+/// folder when the scene was not read from a file).
+fn resolve(folder: Option<&std::path::Path>, file: &std::path::Path) -> std::path::PathBuf {
+    match folder {
+        Some(dir) if file.is_relative() => dir.join(file),
+        _ => file.to_path_buf(),
     }
 }
 
@@ -706,6 +1015,9 @@ impl Scene {
                         shown.join(", "),
                         if dropped.len() > 8 { ", ..." } else { "" }
                     ));
+                }
+                if let Target::Faces { faces } = &target {
+                    check_overlap(&x, faces, &r.hitting, &r.candidates, &c.name, &at, notes)?;
                 }
                 (r.hitting, r.area, r.layer, r.candidates)
             } else {

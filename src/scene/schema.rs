@@ -33,12 +33,12 @@ impl Component {
     }
 }
 
-/// A deformable body: one generated block.
+/// A deformable body: a generated block, or the elements of a mesh file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(from = "BodyToml", into = "BodyToml")]
+#[serde(try_from = "BodyToml", into = "BodyToml")]
 pub struct BodySpec {
-    /// The generated block of hex8 elements (its name is the body's name).
-    pub block: BlockSpec,
+    /// Where its elements come from.
+    pub geometry: BodyGeometry,
     /// Constitutive law.
     pub material: Material,
     /// Small or large deformation (scene default: large).
@@ -47,17 +47,81 @@ pub struct BodySpec {
     pub formulation: Hex8Formulation,
 }
 
-/// The TOML table of a [`BodySpec`], with the block's fields inline. Spelled out rather than
-/// `#[serde(flatten)]`, which buffers the table: errors inside it (`bodies[0].x.length`
-/// missing) would point at `[[bodies]]` instead of the entry.
+/// Where a body's elements come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BodyGeometry {
+    /// A block of hex8 elements made by the generator (its name is the body's name).
+    Block(BlockSpec),
+    /// The solid elements of a mesh file, or of one of its element sets.
+    Mesh(MeshSource),
+}
+
+/// A body's elements read from a mesh file: Gmsh MSH 4.1 (`.msh`, ASCII or binary) or
+/// Abaqus/CalculiX input (`.inp`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshSource {
+    /// The body's name: the prefix of its node and face sets (`NAME.SET`).
+    pub name: String,
+    /// The mesh file, relative to the scene file's folder (or absolute).
+    pub file: std::path::PathBuf,
+    /// The physical group (Gmsh) or element set (Abaqus) holding the body's elements; every
+    /// solid element of the file when absent.
+    pub set: Option<String>,
+    /// Factor from the file's length unit to the scene's (default 1: the file is in the
+    /// scene's consistent units).
+    pub scale: f64,
+    /// The folder a relative `file` starts from: the scene file's (set when the scene is read
+    /// from a file), or the working folder when `None`.
+    pub folder: Option<std::path::PathBuf>,
+}
+
+impl BodySpec {
+    /// The body's name.
+    pub fn name(&self) -> &str {
+        match &self.geometry {
+            BodyGeometry::Block(b) => &b.name,
+            BodyGeometry::Mesh(m) => &m.name,
+        }
+    }
+
+    /// The generated block, if the body is one.
+    pub fn block(&self) -> Option<&BlockSpec> {
+        match &self.geometry {
+            BodyGeometry::Block(b) => Some(b),
+            BodyGeometry::Mesh(_) => None,
+        }
+    }
+
+    /// The generated block, mutably, if the body is one.
+    pub fn block_mut(&mut self) -> Option<&mut BlockSpec> {
+        match &mut self.geometry {
+            BodyGeometry::Block(b) => Some(b),
+            BodyGeometry::Mesh(_) => None,
+        }
+    }
+}
+
+/// The TOML table of a [`BodySpec`], with the block's or the mesh's fields inline. Spelled out
+/// rather than `#[serde(flatten)]`, which buffers the table: errors inside it
+/// (`bodies[0].x.length` missing) would point at `[[bodies]]` instead of the entry.
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct BodyToml {
     name: String,
-    origin: [f64; 3],
-    x: Axis,
-    y: Axis,
-    z: Axis,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    origin: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    x: Option<Axis>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    y: Option<Axis>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    z: Option<Axis>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    mesh: Option<std::path::PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    set: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    scale: Option<f64>,
     material: Material,
     #[serde(default = "large")]
     kinematics: Kinematics,
@@ -65,35 +129,83 @@ struct BodyToml {
     formulation: Hex8Formulation,
 }
 
-impl From<BodyToml> for BodySpec {
-    fn from(b: BodyToml) -> Self {
-        BodySpec {
-            block: BlockSpec {
+impl TryFrom<BodyToml> for BodySpec {
+    type Error = String;
+    fn try_from(b: BodyToml) -> Result<Self, String> {
+        let geometry = match (b.mesh, b.origin, b.x, b.y, b.z) {
+            (None, Some(origin), Some(x), Some(y), Some(z)) => {
+                if b.set.is_some() || b.scale.is_some() {
+                    return Err(format!(
+                        "body '{}': `set` and `scale` belong to a body read from a mesh file",
+                        b.name
+                    ));
+                }
+                BodyGeometry::Block(BlockSpec {
+                    name: b.name,
+                    origin,
+                    x,
+                    y,
+                    z,
+                })
+            }
+            (Some(file), None, None, None, None) => BodyGeometry::Mesh(MeshSource {
                 name: b.name,
-                origin: b.origin,
-                x: b.x,
-                y: b.y,
-                z: b.z,
-            },
+                file,
+                set: b.set,
+                scale: b.scale.unwrap_or(1.0),
+                folder: None,
+            }),
+            (Some(_), ..) => {
+                return Err(format!(
+                    "body '{}': a body read from a mesh file has no origin, x, y or z",
+                    b.name
+                ))
+            }
+            (None, ..) => {
+                return Err(format!(
+                    "body '{}': give origin, x, y and z (a generated block) or mesh (a mesh file)",
+                    b.name
+                ))
+            }
+        };
+        Ok(BodySpec {
+            geometry,
             material: b.material,
             kinematics: b.kinematics,
             formulation: b.formulation,
-        }
+        })
     }
 }
 
 impl From<BodySpec> for BodyToml {
     fn from(b: BodySpec) -> Self {
-        BodyToml {
-            name: b.block.name,
-            origin: b.block.origin,
-            x: b.block.x,
-            y: b.block.y,
-            z: b.block.z,
+        let mut t = BodyToml {
+            name: b.name().to_string(),
+            origin: None,
+            x: None,
+            y: None,
+            z: None,
+            mesh: None,
+            set: None,
+            scale: None,
             material: b.material,
             kinematics: b.kinematics,
             formulation: b.formulation,
+        };
+        match b.geometry {
+            BodyGeometry::Block(block) => {
+                t.origin = Some(block.origin);
+                t.x = Some(block.x);
+                t.y = Some(block.y);
+                t.z = Some(block.z);
+            }
+            BodyGeometry::Mesh(m) => {
+                t.mesh = Some(m.file);
+                t.set = m.set;
+                t.scale = (m.scale != 1.0).then_some(m.scale);
+            }
         }
+        t
     }
 }
 
@@ -160,6 +272,114 @@ pub struct LoadSpec {
     /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
     #[serde(default = "ramp")]
     pub amplitude: Vec<(f64, f64)>,
+}
+
+/// A pressure `value * amplitude(t)` on a face set: the traction `-p N` on the reference faces
+/// (outward normal `N`; a positive pressure pushes into the body), by consistent nodal forces
+/// ([`crate::load::PressureLoad`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PressureSpec {
+    /// Name (design parameter `pressure.NAME`).
+    pub name: String,
+    /// Face set.
+    pub faces: String,
+    /// Pressure (force per reference area).
+    pub value: f64,
+    /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
+    #[serde(default = "ramp")]
+    pub amplitude: Vec<(f64, f64)>,
+}
+
+/// A shape map: the nodes of a set moved with a design value `b` (its name is the design
+/// parameter's name; [`crate::mesh::shape_map`]). `value` is the reference value at which the
+/// mesh holds (default: 0 for a translation, rotation, morph or boundary field; 1 for a scale
+/// — give the size itself, e.g. a radius, to differentiate per unit of it).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeSpec {
+    /// Name: the design parameter.
+    pub name: String,
+    /// Node set moved (for `boundary`, the body whose nodes follow).
+    pub nodes: String,
+    /// Reference value `b_ref`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value: Option<f64>,
+    /// What the map does.
+    pub map: MapSpec,
+}
+
+/// The kinds of shape map.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub enum MapSpec {
+    /// `X = X0 + (b - b_ref) d`.
+    Translate {
+        /// `d`.
+        direction: [f64; 3],
+    },
+    /// Rotation by `b - b_ref` radians about the axis through `centre`.
+    Rotate {
+        /// A point of the axis.
+        centre: [f64; 3],
+        /// Axis direction.
+        axis: [f64; 3],
+    },
+    /// Scale by `b / b_ref` about `centre`, or about the axis through it.
+    Scale {
+        /// Centre (a point of the axis).
+        centre: [f64; 3],
+        /// Axis direction (a scale about the point without it).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+    },
+    /// A morph to a second mesh of the same topology: `X = X_A + b (X_B - X_A)`, node `k` of
+    /// the set moving towards node `k` of the same body in `mesh`.
+    Morph {
+        /// The second mesh file (relative to the scene file's folder).
+        mesh: std::path::PathBuf,
+        /// Its element set or physical group (the body's own when absent).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        set: Option<String>,
+    },
+    /// A boundary-driven field: the nodes of `surface` move with `motion` per unit of `b`,
+    /// those of `fixed` stay, the components of `slide` stay zero on their sets, and the body's
+    /// other nodes follow by a `smoothing` solve on the reference mesh.
+    Boundary {
+        /// Node or face set moved.
+        surface: String,
+        /// How it moves.
+        motion: SurfaceMotion,
+        /// Node sets held fixed.
+        #[serde(default)]
+        fixed: Vec<String>,
+        /// `(set, component)` pairs held zero (a symmetry plane keeps its normal component).
+        #[serde(default)]
+        slide: Vec<(String, Component)>,
+        /// Laplace (default) or linear elastic smoothing.
+        #[serde(default)]
+        smoothing: crate::mesh::Smoothing,
+    },
+}
+
+/// How a boundary-driven shape map moves its surface, per unit of the design value.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub enum SurfaceMotion {
+    /// Along the unit direction away from `centre` (from the axis through it along `axis`
+    /// when given): a sphere's or a cylinder's radius grows by `b`.
+    Radial {
+        /// Centre (a point of the axis).
+        centre: [f64; 3],
+        /// Axis direction.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+    },
+    /// By a constant vector.
+    Translate {
+        /// The vector.
+        direction: [f64; 3],
+    },
 }
 
 pub(crate) fn ramp() -> Vec<(f64, f64)> {
@@ -386,6 +606,12 @@ pub struct Scene {
     /// Loads.
     #[serde(default)]
     pub loads: Vec<LoadSpec>,
+    /// Pressures on face sets.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pressures: Vec<PressureSpec>,
+    /// Shape maps: design-dependent reference coordinates (shape parameters of any mesh).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub shapes: Vec<ShapeSpec>,
     /// Contact pairs.
     #[serde(default)]
     pub contacts: Vec<ContactSpec>,
@@ -615,7 +841,14 @@ impl Scene {
             file: file.clone(),
             source,
         })?;
-        Self::from_toml(&text, &file)
+        let mut scene = Self::from_toml(&text, &file)?;
+        let folder = path.parent().map(|p| p.to_path_buf());
+        for b in &mut scene.bodies {
+            if let BodyGeometry::Mesh(m) = &mut b.geometry {
+                m.folder = folder.clone();
+            }
+        }
+        Ok(scene)
     }
 
     /// A built-in scene by name, or a scene file by path.

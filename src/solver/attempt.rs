@@ -428,6 +428,14 @@ impl Solver<'_> {
             let f = self.lifted.loads[l] * load.amplitude.at(t);
             f_ext += load.weights.iter().map(|w| (f * w).powi(2)).sum::<f64>();
         }
+        for (l, load) in self.model.pressures.iter().enumerate() {
+            let p = self.lifted.pressures[l] * load.amplitude.at(t);
+            if p != 0.0 {
+                f_ext += load
+                    .force_norm(&self.lifted.coords, p, residual.len())
+                    .powi(2);
+            }
+        }
         let f_ref = r_fixed.sqrt().max(f_ext.sqrt());
         (r_free, f_ref)
     }

@@ -196,7 +196,7 @@ fn material(r: &mut Rng, e: f64) -> Material {
 fn body(r: &mut Rng, block: BlockSpec, e: f64) -> BodySpec {
     use crate::element::{Hex8Formulation, Kinematics};
     BodySpec {
-        block,
+        geometry: crate::scene::BodyGeometry::Block(block),
         material: material(r, e),
         kinematics: if r.chance(0.3) {
             Kinematics::Small
@@ -625,6 +625,8 @@ fn finish(
         springs: Vec::new(),
         prescribed,
         loads: Vec::new(),
+        pressures: vec![],
+        shapes: vec![],
         contacts,
         steps,
         responses,

@@ -15,7 +15,7 @@ use fricsens::material::{Material, StVenantKirchhoff};
 use fricsens::mesh::{Axis, BlockSpec, NodePlace};
 use fricsens::model::{Amplitude, DesignParam, Model, NodalLoad, SolverSettings};
 use fricsens::response::{Response, ResponseKind};
-use fricsens::scene::{
+use fricsens::scene::{BodyGeometry, 
     cantilever, jenkins, klarbring_2dof, sliding_block, uniaxial_j2, uniaxial_svk, BodySpec,
     CantileverSpec, Component, ContactSpec, FreeNodeSpec, LoadSpec, PrescribedSpec, ResponseSpec,
     RigidSpec, Scene, SpringSpec, StepSpec, StudySpec, TargetSpec,
@@ -275,13 +275,13 @@ fn ring_model(formulation: Hex8Formulation, young: f64, nu: f64, nr: usize, nt: 
         name: "lame".into(),
         description: String::new(),
         bodies: vec![BodySpec {
-            block: BlockSpec {
+            geometry: BodyGeometry::Block(BlockSpec {
                 name: "ring".into(),
                 origin: [a, 0.0, 0.0],
                 x: Axis::uniform(b - a, nr),
                 y: Axis::uniform(1.0, nt),
                 z: Axis::uniform(th, 1),
-            },
+            }),
             material: Material::Svk(StVenantKirchhoff::new(young, nu)),
             kinematics: Kinematics::Small,
             formulation,
@@ -294,6 +294,8 @@ fn ring_model(formulation: Hex8Formulation, young: f64, nu: f64, nr: usize, nt: 
             fixed("plane", "ring.all", Component::Z),
         ],
         loads: vec![],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![],
         steps: vec![StepSpec {
             end: 1.0,
@@ -970,6 +972,8 @@ fn closing_node() -> Scene {
             value: -1.0,
             amplitude: vec![(0.0, 0.0), (1.0, 1.0)],
         }],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![ContactSpec {
             name: "plane".into(),
             hitting: "node".into(),

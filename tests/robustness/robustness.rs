@@ -416,7 +416,7 @@ fn nan_and_infinite_numbers_are_rejected_where_they_stand() {
         &["field `prescribed[0].amplitude`:", "not a finite number"],
     );
     // origins
-    let text = edited("contact-patch", |s| s.bodies[1].block.origin[1] = f64::NAN);
+    let text = edited("contact-patch", |s| s.bodies[1].block_mut().unwrap().origin[1] = f64::NAN);
     rejects(
         &text,
         &["field `bodies[1].origin[1]`:", "not a finite number"],
@@ -687,15 +687,15 @@ fn element_counts_must_be_at_least_one_and_bounded() {
     );
     // a zone without elements beside one with
     let text = edited("contact-patch", |s| {
-        let mut z = s.bodies[1].block.y.zones[0].clone();
+        let mut z = s.bodies[1].block_mut().unwrap().y.zones[0].clone();
         z.elements = 0;
-        s.bodies[1].block.y.zones.push(z);
+        s.bodies[1].block_mut().unwrap().y.zones.push(z);
     });
     rejects(
         &text,
         &["field `bodies[1].y.zones[1].elements`:", "at least 1"],
     );
-    let text = edited("contact-patch", |s| s.bodies[0].block.z.zones.clear());
+    let text = edited("contact-patch", |s| s.bodies[0].block_mut().unwrap().z.zones.clear());
     rejects(&text, &["field `bodies[0].z.zones`:", "at least one zone"]);
     let text = replaced("contact-patch", "elements = 4", "elements = -4");
     rejects(&text, &["field `bodies[0].x.zones[0].elements`:", "usize"]);
@@ -717,7 +717,7 @@ fn element_counts_must_be_at_least_one_and_bounded() {
     rejects(&text, &["field `bodies[0].x.zones[0].elements`:"]);
     // 10^5 along each axis: 10^15 elements
     let text = edited("contact-patch", |s| {
-        let block = &mut s.bodies[0].block;
+        let block = s.bodies[0].block_mut().unwrap();
         for a in [&mut block.x, &mut block.y, &mut block.z] {
             a.zones[0].elements = 100_000;
         }
@@ -731,13 +731,13 @@ fn element_counts_must_be_at_least_one_and_bounded() {
     // several bodies that pass one by one but not together: 4 x 3.2e6 elements
     let text = edited("contact-patch", |s| {
         let mut b = s.bodies[0].clone();
-        b.block.x.zones[0].elements = 200;
-        b.block.y.zones[0].elements = 200;
-        b.block.z.zones[0].elements = 80;
+        b.block_mut().unwrap().x.zones[0].elements = 200;
+        b.block_mut().unwrap().y.zones[0].elements = 200;
+        b.block_mut().unwrap().z.zones[0].elements = 80;
         s.bodies.clear();
         for k in 0..4 {
             let mut c = b.clone();
-            c.block.name = format!("b{k}");
+            c.block_mut().unwrap().name = format!("b{k}");
             s.bodies.push(c);
         }
     });
@@ -769,14 +769,14 @@ fn lengths_fractions_and_ratios_must_be_positive() {
     }
     // a block beyond the f64 range
     let text = edited("contact-patch", |s| {
-        s.bodies[0].block.origin[0] = 1e308;
-        s.bodies[0].block.x.length = 1e308;
+        s.bodies[0].block_mut().unwrap().origin[0] = 1e308;
+        s.bodies[0].block_mut().unwrap().x.length = 1e308;
     });
     rejects(&text, &["field `bodies[0].x.length`:", "f64 range"]);
     // a grading whose smallest element vanishes in f64: 50 elements shrinking by 10^-300
     let text = edited("contact-patch", |s| {
-        s.bodies[0].block.x.zones[0].elements = 50;
-        s.bodies[0].block.x.zones[0].ratio = 1e-300;
+        s.bodies[0].block_mut().unwrap().x.zones[0].elements = 50;
+        s.bodies[0].block_mut().unwrap().x.zones[0].ratio = 1e-300;
     });
     rejects(
         &text,
@@ -784,8 +784,8 @@ fn lengths_fractions_and_ratios_must_be_positive() {
     );
     // faces of zero area in f64 (10^-200 x 10^-200) cannot share a load by area
     let text = edited("contact-patch", |s| {
-        s.bodies[1].block.x.length = 1e-200;
-        s.bodies[1].block.z.length = 1e-200;
+        s.bodies[1].block_mut().unwrap().x.length = 1e-200;
+        s.bodies[1].block_mut().unwrap().z.length = 1e-200;
     });
     rejects(&text, &["field `loads[0].set`:", "have area 0"]);
     // rigid surfaces
@@ -1053,7 +1053,7 @@ fn element_count(scene: &Scene) -> usize {
         .bodies
         .iter()
         .map(|b| {
-            [&b.block.x, &b.block.y, &b.block.z]
+            { let k = b.block().expect("a generated block"); [&k.x, &k.y, &k.z] }
                 .iter()
                 .map(|a| {
                     a.zones

@@ -49,6 +49,8 @@ pub fn contact_patch(friction: Option<f64>) -> Scene {
             value: -4.0 * 10.0,
             amplitude: ramp(),
         }],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![ContactSpec {
             name: "interface".into(),
             hitting: "upper.ymin".into(),
@@ -127,6 +129,8 @@ pub fn sliding_block(friction: Option<f64>) -> Scene {
             value: -1.0,
             amplitude: vec![(0.0, 0.0), (1.0, 1.0), (2.0, 1.0)],
         }],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![ContactSpec {
             name: "interface".into(),
             hitting: "slider.ymin".into(),

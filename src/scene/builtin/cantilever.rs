@@ -84,7 +84,7 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
             c.length, c.height, c.width, c.young, c.nu, c.alpha
         ),
         bodies: vec![BodySpec {
-            block: BlockSpec {
+            geometry: BodyGeometry::Block(BlockSpec {
                 name: "beam".into(),
                 origin: [0.0, 0.0, 0.0],
                 x: Axis::uniform(c.length, c.nx),
@@ -97,7 +97,7 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
                         ratio: 1.0,
                     }],
                 },
-            },
+            }),
             material: Material::Svk(StVenantKirchhoff::new(c.young, c.nu)),
             kinematics: c.kinematics,
             formulation: c.formulation,
@@ -111,6 +111,8 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
             value: 0.0,
             amplitude: ramp(),
         }],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![],
         loads: vec![LoadSpec {
             name: "tip".into(),

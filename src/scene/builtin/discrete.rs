@@ -38,6 +38,8 @@ pub fn klarbring_2dof(increments_per_unit: usize) -> Scene {
                 amplitude: vec![(0.0, 0.0), (1.0, 1.0), (3.0, -1.0), (5.0, 1.0)],
             },
         ],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![ContactSpec {
             name: "plane".into(),
             hitting: "node".into(),
@@ -139,6 +141,8 @@ pub fn jenkins(increments_per_unit: usize) -> Scene {
             value: -1.0,
             amplitude: vec![(0.0, 1.0), (5.0, 1.0)],
         }],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![ContactSpec {
             name: "plane".into(),
             hitting: "slider".into(),

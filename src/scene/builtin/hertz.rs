@@ -92,6 +92,8 @@ pub fn hertz(h: &HertzSpec) -> Scene {
             value: 0.5 * h.load() * thickness,
             amplitude: ramp(),
         }],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![ContactSpec {
             name: "cylinder".into(),
             hitting: "block.ymax".into(),

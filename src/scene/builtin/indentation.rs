@@ -91,13 +91,13 @@ pub(crate) fn indentation_mesh(
         name: "indentation".into(),
         description: "Rigid block indenting and sliding on an elastic half-space (Chen, Hisada et al. section 3.1): plane strain, E = 200 GPa, nu = 0.3, block 20 mm wide with 1 mm corner radii, pressed 0.01 mm then slid 3.33 mm, mu = 0.5.".into(),
         bodies: vec![BodySpec {
-            block: BlockSpec {
+            geometry: BodyGeometry::Block(BlockSpec {
                 name: "slab".into(),
                 origin: [-250.0, -250.0, 0.0],
                 x,
                 y,
                 z: Axis::uniform(h, 1),
-            },
+            }),
             material: Material::Svk(StVenantKirchhoff::new(200e3, 0.3)),
             kinematics: Kinematics::Small,
             formulation: Hex8Formulation::IncompatibleModes,
@@ -109,6 +109,8 @@ pub(crate) fn indentation_mesh(
             fixed_set("plane-strain", "slab.all", &[Component::Z]),
         ],
         loads: vec![],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![ContactSpec {
             name: "block".into(),
             hitting: "slab.ymax".into(),

@@ -191,6 +191,8 @@ pub fn leaf_spring(s: &LeafSpringSpec) -> Scene {
             fixed_set("clamp-lower", "lower.xmin", &[Component::X, Component::Y, Component::Z]),
         ],
         loads: vec![],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![
             ContactSpec {
                 name: "leaves".into(),
@@ -379,6 +381,8 @@ pub fn stacked_leaves(s: &StackedLeavesSpec) -> Scene {
             value: -s.load,
             amplitude: vec![(0.0, 0.0), (1.0, 1.0), (2.0, 0.0)],
         }],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![ContactSpec {
             name: "leaves".into(),
             // The oracle's friction acts at the tip: the upper leaf's bottom tip edge against

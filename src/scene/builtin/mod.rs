@@ -243,13 +243,13 @@ pub(crate) fn block_body(
 ) -> BodySpec {
     let [x, y, z] = axes;
     BodySpec {
-        block: BlockSpec {
+        geometry: BodyGeometry::Block(BlockSpec {
             name: name.into(),
             origin,
             x,
             y,
             z,
-        },
+        }),
         material,
         kinematics,
         formulation: Hex8Formulation::IncompatibleModes,

@@ -81,6 +81,8 @@ pub fn strip_pullout(s: &StripSpec) -> Scene {
                 amplitude: vec![(0.0, 0.0), (1.0, 1.0), (2.0, 0.0)],
             },
         ],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![ContactSpec {
             name: "ground".into(),
             hitting: "strip.ymin".into(),

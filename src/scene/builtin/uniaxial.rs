@@ -79,13 +79,13 @@ pub(crate) fn uniaxial_cube(
         name: "uniaxial".into(),
         description: String::new(),
         bodies: vec![BodySpec {
-            block: BlockSpec {
+            geometry: BodyGeometry::Block(BlockSpec {
                 name: "cube".into(),
                 origin: [0.0; 3],
                 x: Axis::uniform(1.0, 1),
                 y: Axis::uniform(1.0, 1),
                 z: Axis::uniform(1.0, 1),
-            },
+            }),
             material,
             kinematics,
             formulation: Hex8Formulation::Full,
@@ -105,6 +105,8 @@ pub(crate) fn uniaxial_cube(
             },
         ],
         loads: vec![],
+        pressures: vec![],
+        shapes: vec![],
         contacts: vec![],
         steps,
         responses: vec![
