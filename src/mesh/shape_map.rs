@@ -335,7 +335,8 @@ pub fn boundary_driven(
                 }
             }
         }
-        k.add_block(b, &ke).map_err(|e| fail(format!("assembly: {e}")))?;
+        k.add_block(b, &ke)
+            .map_err(|e| fail(format!("assembly: {e}")))?;
     }
     // Dirichlet values: prescribed velocities and held components
     let mut known: Vec<Option<f64>> = vec![None; n];

@@ -70,7 +70,8 @@ impl Scene {
             ));
         }
         let path = resolve(source.folder.as_deref(), &source.file);
-        let file = crate::mesh::import::read(&path).map_err(|e| invalid(&format!("{at}.mesh"), e.to_string()))?;
+        let file = crate::mesh::import::read(&path)
+            .map_err(|e| invalid(&format!("{at}.mesh"), e.to_string()))?;
         let body = file
             .add_to(mesh, &source.name, source.set.as_deref())
             .map_err(|e| invalid(&format!("{at}.mesh"), e.to_string()))?;
@@ -111,7 +112,10 @@ impl Scene {
             bodies.iter().find(|b| b.name == sh.nodes).ok_or_else(|| {
                 invalid(
                     &format!("{at}.nodes"),
-                    format!("a morph or boundary map names a body; no body '{}'", sh.nodes),
+                    format!(
+                        "a morph or boundary map names a body; no body '{}'",
+                        sh.nodes
+                    ),
                 )
             })
         };
@@ -150,7 +154,10 @@ impl Scene {
                 let Some(source) = source else {
                     return Err(invalid(
                         &format!("{at}.nodes"),
-                        format!("body '{}' is not read from a mesh file: a morph needs one", b.name),
+                        format!(
+                            "body '{}' is not read from a mesh file: a morph needs one",
+                            b.name
+                        ),
                     ));
                 };
                 let path = resolve(source.folder.as_deref(), file);
@@ -158,7 +165,11 @@ impl Scene {
                     .map_err(|e| invalid(&format!("{at}.map.mesh"), e.to_string()))?;
                 let mut scratch = Mesh::default();
                 let imported = other
-                    .add_to(&mut scratch, &b.name, set.as_deref().or(source.set.as_deref()))
+                    .add_to(
+                        &mut scratch,
+                        &b.name,
+                        set.as_deref().or(source.set.as_deref()),
+                    )
                     .map_err(|e| invalid(&format!("{at}.map.mesh"), e.to_string()))?;
                 let xb = scratch.coordinates::<f64>(&[]);
                 let mine = &mesh.groups[b.group];
@@ -166,7 +177,10 @@ impl Scene {
                 let topology = |what: String| {
                     invalid(
                         &format!("{at}.map.mesh"),
-                        format!("{}: {what}: a morph needs the same topology", path.display()),
+                        format!(
+                            "{}: {what}: a morph needs the same topology",
+                            path.display()
+                        ),
                     )
                 };
                 if mine.shape != theirs.shape || mine.nodes.len() != theirs.nodes.len() {
@@ -240,7 +254,13 @@ impl Scene {
                     }
                 }
                 let (nodes, velocity) = crate::mesh::shape_map::boundary_driven(
-                    &sh.name, mesh, &x, b.group, &prescribed, &held, *smoothing,
+                    &sh.name,
+                    mesh,
+                    &x,
+                    b.group,
+                    &prescribed,
+                    &held,
+                    *smoothing,
                 )
                 .map_err(bad)?;
                 (nodes, MapKind::Velocity { velocity }, 0.0)
@@ -461,7 +481,11 @@ impl Scene {
                         format!(
                             "no face set named '{}' (face sets: {})",
                             p.faces,
-                            mesh.face_sets.keys().cloned().collect::<Vec<_>>().join(", ")
+                            mesh.face_sets
+                                .keys()
+                                .cloned()
+                                .collect::<Vec<_>>()
+                                .join(", ")
                         ),
                     ))
                 }
@@ -676,62 +700,6 @@ impl Scene {
         }
         Ok(model)
     }
-}
-
-/// Hitting nodes that start inside the target body: a reference gap below minus 1 % of the
-/// target face's diameter (more than a faceted curve's chord sag at any reasonable mesh) is an
-/// error naming the nodes and the depth; a smaller negative gap is a note.
-fn check_overlap(
-    x: &[nalgebra::Vector3<f64>],
-    faces: &crate::mesh::FaceSet,
-    hitting: &[usize],
-    candidates: &[Vec<usize>],
-    pair: &str,
-    at: &str,
-    notes: &mut Vec<String>,
-) -> Result<(), SceneError> {
-    let mut deep: Vec<(usize, f64)> = Vec::new();
-    let mut shallow = 0usize;
-    let mut quads = Vec::new();
-    for (&n, cand) in hitting.iter().zip(candidates) {
-        quads.clear();
-        for &f in cand {
-            let v = faces.nodes(f);
-            quads.push([x[v[0]], x[v[1]], x[v[2]], x[v[3]]]);
-        }
-        let Ok((k, p)) = crate::contact::geometry::closest_on_quads(&x[n], &quads, None) else {
-            continue;
-        };
-        if !p.inside || p.gap >= 0.0 {
-            continue;
-        }
-        let q = &quads[k];
-        let size = (q[2] - q[0]).norm().max((q[3] - q[1]).norm());
-        if -p.gap > 1e-2 * size {
-            deep.push((n, -p.gap));
-        } else if -p.gap > 1e-9 * size {
-            shallow += 1;
-        }
-    }
-    if !deep.is_empty() {
-        let depth = deep.iter().map(|d| d.1).fold(0.0, f64::max);
-        let shown: Vec<String> = deep.iter().take(8).map(|d| d.0.to_string()).collect();
-        return Err(invalid(
-            at,
-            format!(
-                "pair '{pair}': the bodies overlap at the start: {} hitting nodes lie inside the target, up to {depth:.4e} deep (nodes {}{})",
-                deep.len(),
-                shown.join(", "),
-                if deep.len() > 8 { ", ..." } else { "" }
-            ),
-        ));
-    }
-    if shallow > 0 {
-        notes.push(format!(
-            "{at} '{pair}': {shallow} hitting nodes start slightly inside the target (less than 1 % of a face diameter: a faceted curve's chord sag)"
-        ));
-    }
-    Ok(())
 }
 
 /// A mesh path as given in a scene: relative to the scene file's folder (or the working
@@ -1015,9 +983,6 @@ impl Scene {
                         shown.join(", "),
                         if dropped.len() > 8 { ", ..." } else { "" }
                     ));
-                }
-                if let Target::Faces { faces } = &target {
-                    check_overlap(&x, faces, &r.hitting, &r.candidates, &c.name, &at, notes)?;
                 }
                 (r.hitting, r.area, r.layer, r.candidates)
             } else {

@@ -19,4 +19,5 @@ mod locking;
 mod materials;
 mod mesh_in_code;
 mod plasticity;
+mod shape_maps;
 mod springs;

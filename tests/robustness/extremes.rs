@@ -15,10 +15,10 @@ use fricsens::material::{Material, StVenantKirchhoff};
 use fricsens::mesh::{Axis, BlockSpec, NodePlace};
 use fricsens::model::{Amplitude, DesignParam, Model, NodalLoad, SolverSettings};
 use fricsens::response::{Response, ResponseKind};
-use fricsens::scene::{BodyGeometry, 
-    cantilever, jenkins, klarbring_2dof, sliding_block, uniaxial_j2, uniaxial_svk, BodySpec,
-    CantileverSpec, Component, ContactSpec, FreeNodeSpec, LoadSpec, PrescribedSpec, ResponseSpec,
-    RigidSpec, Scene, SpringSpec, StepSpec, StudySpec, TargetSpec,
+use fricsens::scene::{
+    cantilever, jenkins, klarbring_2dof, sliding_block, uniaxial_j2, uniaxial_svk, BodyGeometry,
+    BodySpec, CantileverSpec, Component, ContactSpec, FreeNodeSpec, LoadSpec, PrescribedSpec,
+    ResponseSpec, RigidSpec, Scene, SpringSpec, StepSpec, StudySpec, TargetSpec,
 };
 use fricsens::sensitivity::{
     run_sensitivity, IncrementSensitivity, Method, Parameter, SensitivityResults, Settings,

@@ -416,7 +416,9 @@ fn nan_and_infinite_numbers_are_rejected_where_they_stand() {
         &["field `prescribed[0].amplitude`:", "not a finite number"],
     );
     // origins
-    let text = edited("contact-patch", |s| s.bodies[1].block_mut().unwrap().origin[1] = f64::NAN);
+    let text = edited("contact-patch", |s| {
+        s.bodies[1].block_mut().unwrap().origin[1] = f64::NAN
+    });
     rejects(
         &text,
         &["field `bodies[1].origin[1]`:", "not a finite number"],
@@ -695,7 +697,9 @@ fn element_counts_must_be_at_least_one_and_bounded() {
         &text,
         &["field `bodies[1].y.zones[1].elements`:", "at least 1"],
     );
-    let text = edited("contact-patch", |s| s.bodies[0].block_mut().unwrap().z.zones.clear());
+    let text = edited("contact-patch", |s| {
+        s.bodies[0].block_mut().unwrap().z.zones.clear()
+    });
     rejects(&text, &["field `bodies[0].z.zones`:", "at least one zone"]);
     let text = replaced("contact-patch", "elements = 4", "elements = -4");
     rejects(&text, &["field `bodies[0].x.zones[0].elements`:", "usize"]);
@@ -1053,14 +1057,17 @@ fn element_count(scene: &Scene) -> usize {
         .bodies
         .iter()
         .map(|b| {
-            { let k = b.block().expect("a generated block"); [&k.x, &k.y, &k.z] }
-                .iter()
-                .map(|a| {
-                    a.zones
-                        .iter()
-                        .fold(0usize, |n, z| n.saturating_add(z.elements))
-                })
-                .fold(1usize, |n, m| n.saturating_mul(m))
+            {
+                let k = b.block().expect("a generated block");
+                [&k.x, &k.y, &k.z]
+            }
+            .iter()
+            .map(|a| {
+                a.zones
+                    .iter()
+                    .fold(0usize, |n, z| n.saturating_add(z.elements))
+            })
+            .fold(1usize, |n, m| n.saturating_mul(m))
         })
         .fold(0usize, |n, m| n.saturating_add(m))
 }

@@ -1,0 +1,166 @@
+//! Shape maps (translate, rotate, scale about a point and an axis, a boundary-driven field by
+//! Laplace and elastic smoothing) and a pressure load, differentiated along a frictional load
+//! path: DDM equals central FDM of reruns (an independent method: reruns of the primal at
+//! perturbed designs, no derivative code involved).
+
+use crate::common;
+use fricsens::prelude::*;
+use fricsens::scene::{Component, MapSpec, PressureSpec, ShapeSpec, SurfaceMotion};
+
+/// The built-in sliding block (mu = 0.3, face-to-face, frictional slide across target faces),
+/// its slider moved a quarter face off the base's face edges, shortened to a press and a slide of 0.6 in 6 increments, its normal load given as a
+/// pressure on the slider's top, and one shape map.
+fn scene(map: ShapeSpec) -> Scene {
+    let mut s = builtin::sliding_block(Some(0.3));
+    // the slider's nodes off the base's face edges (at x = 1, 2, ...): a node exactly on an
+    // edge makes the response kink in a shape parameter that moves it across
+    s.bodies[1].block_mut().unwrap().origin[0] = 1.25;
+    s.steps[1].end = 1.2;
+    s.steps[1].increments = 6;
+    s.prescribed[3].value = 3.0;
+    s.loads.clear();
+    s.pressures.push(PressureSpec {
+        name: "N".into(),
+        faces: "slider.ymax".into(),
+        // the built-in's total -1 over the top face (1.5 x 0.5), pushing down
+        value: 1.0 / 0.75,
+        amplitude: vec![(0.0, 0.0), (1.0, 1.0), (2.0, 1.0)],
+    });
+    s.shapes.push(map);
+    s
+}
+
+fn shape(name: &str, nodes: &str, value: Option<f64>, map: MapSpec) -> ShapeSpec {
+    ShapeSpec {
+        name: name.into(),
+        nodes: nodes.into(),
+        value,
+        map,
+    }
+}
+
+fn maps() -> Vec<ShapeSpec> {
+    // centres on the contact face (y = 0): a scale with a centre above it would push the
+    // slider's bottom into the base at one of the FDM reruns' designs
+    let centre = [2.0, 0.0, 0.25];
+    vec![
+        shape(
+            "shift",
+            "slider.all",
+            None,
+            MapSpec::Translate {
+                direction: [1.0, 0.0, 0.0],
+            },
+        ),
+        shape(
+            "tilt",
+            "slider.all",
+            None,
+            // about the vertical axis through the front face (a tilt about z would push a
+            // corner into the base; an axis through the middle gives zero by symmetry)
+            MapSpec::Rotate {
+                centre: [2.0, 0.0, 0.0],
+                axis: [0.0, 1.0, 0.0],
+            },
+        ),
+        shape(
+            "size",
+            "slider.all",
+            Some(1.5),
+            MapSpec::Scale { centre, axis: None },
+        ),
+        shape(
+            "girth",
+            "slider.all",
+            None,
+            MapSpec::Scale {
+                centre,
+                axis: Some([0.0, 0.0, 1.0]),
+            },
+        ),
+        shape(
+            "height",
+            "slider",
+            None,
+            MapSpec::Boundary {
+                surface: "slider.ymax".into(),
+                motion: SurfaceMotion::Translate {
+                    direction: [0.0, 1.0, 0.0],
+                },
+                fixed: vec!["slider.ymin".into()],
+                slide: vec![],
+                smoothing: fricsens::mesh::Smoothing::Laplace,
+            },
+        ),
+        shape(
+            "bulge",
+            "slider",
+            None,
+            MapSpec::Boundary {
+                surface: "slider.xmax".into(),
+                motion: SurfaceMotion::Radial {
+                    centre: [2.0, 0.0, 0.0],
+                    axis: Some([0.0, 0.0, 1.0]),
+                },
+                fixed: vec!["slider.xmin".into()],
+                slide: vec![("slider.ymin".into(), Component::Y)],
+                smoothing: fricsens::mesh::Smoothing::Elastic,
+            },
+        ),
+    ]
+}
+
+#[test]
+fn every_shape_map_and_the_pressure_ddm_equals_central_fdm_along_a_frictional_slide() {
+    for map in maps() {
+        let name = map.name.clone();
+        let model = scene(map).build().unwrap();
+        let names = [name.as_str(), "pressure.N"];
+        let (ps, ddm, fdm) = common::ddm_and_central_fdm(&model, &names);
+        assert_eq!(ddm.increments.len(), fdm.increments.len());
+        for p in 0..ps.len() {
+            // the scale of the comparison: the largest sensitivity over the path, or the
+            // largest response per unit of the parameter when that is larger (central FDM's
+            // round-off, about 1e-13 of the response over the step, is then what is left)
+            let largest = |f: &dyn Fn(&fricsens::sensitivity::IncrementSensitivity) -> f64| {
+                ddm.increments.iter().fold(0.0f64, |m, i| m.max(f(i).abs()))
+            };
+            let sensitivity = largest(&|i| i.derivatives[0][p]);
+            let per_unit = largest(&|i| i.values[0]) / ps[p].value.abs().max(1.0);
+            assert!(
+                sensitivity > 1e-6 * per_unit,
+                "{name}: {} has no effect",
+                ps[p].name
+            );
+            let scale = sensitivity.max(per_unit);
+            let mut worst: f64 = 0.0;
+            for (a, b) in ddm.increments.iter().zip(&fdm.increments) {
+                worst = worst.max((a.derivatives[0][p] - b.derivatives[0][p]).abs() / scale);
+            }
+            println!(
+                "{name}: d(pull)/d({}) DDM vs central FDM: {worst:.2e} of {scale:.4e} (largest sensitivity {sensitivity:.4e})",
+                ps[p].name
+            );
+            // central FDM's truncation (beta^2) and round-off are below 1e-6 on this path
+            assert!(worst < 1e-6, "{name} / {}: {worst:.2e}", ps[p].name);
+        }
+    }
+}
+
+#[test]
+fn a_shape_map_at_its_reference_value_leaves_the_analysis_bit_for_bit() {
+    // the identity at b_ref: the same primal path with or without a map
+    let plain = {
+        let mut s = scene(maps().remove(0));
+        s.shapes.clear();
+        s.build().unwrap()
+    };
+    let x0 = plain.mesh.coordinates::<f64>(&plain.mesh.block_geometry());
+    for map in maps() {
+        let m = scene(map).build().unwrap();
+        let x = m.mesh.coordinates::<f64>(&m.mesh.block_geometry());
+        assert_eq!(x, x0);
+        let l = m.lifted::<f64>(&[]);
+        assert_eq!(l.coords, x0);
+    }
+}
