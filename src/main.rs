@@ -2,7 +2,7 @@
 
 use clap::{Parser, Subcommand};
 use fricsens::output;
-use fricsens::scene::{builtin, builtin_list, Scene};
+use fricsens::scene::{builtin_list, Scene};
 use fricsens::solver::{AnalysisError, Converged, Observer, RunOptions, Solver};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
@@ -42,9 +42,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// List the built-in scenes, or print one as TOML.
+    /// List the built-in scenes, or print one (or a scene file, every default filled in) as
+    /// TOML.
     Scenes {
-        /// Print the TOML of this built-in scene.
+        /// Print the TOML of this built-in scene or scene file.
         #[arg(long)]
         show: Option<String>,
     },
@@ -776,13 +777,11 @@ fn main() -> ExitCode {
             }
             Ok(())
         }
-        Command::Scenes { show: Some(name) } => match builtin(&name) {
-            Some(s) => s.to_toml().map_err(|e| e.to_string()).map(|text| {
+        Command::Scenes { show: Some(name) } => match Scene::load(&name) {
+            Ok(s) => s.to_toml().map_err(|e| e.to_string()).map(|text| {
                 outp!("{}", text);
             }),
-            None => Err(format!(
-                "unknown built-in scene '{name}' (see `fricsens scenes`)"
-            )),
+            Err(e) => Err(e.to_string()),
         },
         Command::Fuzz {
             show: Some(seed), ..

@@ -15,6 +15,7 @@ mod contact_oracles;
 mod contact_tangent;
 mod element;
 mod friction_laws;
+mod imported;
 mod locking;
 mod materials;
 mod mesh_in_code;
