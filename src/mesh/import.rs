@@ -1,115 +1,1164 @@
-//! Imported meshes: a mesh file as it states itself, and how its bodies and sets enter a [`super::Mesh`].
-//! (Stub with the agreed interface; the readers land from the `import` branch.)
+//! Imported meshes: a mesh file as it states itself ([`MeshFile`], read by [`super::gmsh`]
+//! and [`super::abaqus`]), and how one of its bodies and its sets enter a [`super::Mesh`]
+//! ([`MeshFile::add_to`]).
+//!
+//! # Rules
+//!
+//! * **Which elements.** `add_to(mesh, prefix, Some(set))` takes the solid elements of element
+//!   set `set`; with `None`, every solid element of the file. A Gmsh file without physical
+//!   groups has no sets at all (none is invented): import it with `None`.
+//! * **Nodes.** The body's nodes enter the mesh in the order they first appear in the body's
+//!   elements (element after element, each in its node order), so the numbering is
+//!   deterministic and independent of the file's node order.
+//! * **Set names.** Every set of the file with at least one node (face) on the body becomes
+//!   `"{prefix}.{name}"`, restricted to the body. `{prefix}.all` holds the body's nodes and
+//!   `{prefix}.boundary` its boundary faces (and their nodes). A face set yields a node set of
+//!   the same name (its nodes) when the file has no node set of that name; so does an element
+//!   set (its elements' nodes). A file set called `all` or `boundary` is accepted only when it
+//!   equals the generated one on the body (Abaqus files often carry `NSET=ALL`).
+//!   Abaqus names are case-insensitive: the reader keeps the file's first spelling, and
+//!   `add_to` matches the element set name case-insensitively for Abaqus files (exactly for
+//!   Gmsh files, whose names are case-sensitive).
+//! * **Faces.** A file face (given by its nodes, or as side `Sn` of an element) is matched to
+//!   an element face by its sorted node ids, never by the file's node order, and enters the
+//!   mesh oriented outward as [`Shape::faces`] orders it. A face of no element of the file is
+//!   an error; a face two body elements share (interior) is an error; a face of another body's
+//!   elements is skipped. A face listed twice in one set enters once.
+//! * **Unused nodes.** Gmsh never writes a node that no saved element uses (checked with Gmsh
+//!   4.15: with physical groups on one surface only, only that surface's nodes are written), so
+//!   in a Gmsh file an unused node is an error. Abaqus files legitimately hold nodes no element
+//!   uses (reference points of rigid bodies and couplings): there an unused node is an error
+//!   only when it belongs to a node set that also holds nodes of the imported body (the body's
+//!   copy of the set would lose it silently).
+//! * **Checks.** Node coordinates finite; node and element ids unique; every element's nodes
+//!   exist; no two nodes of the body closer than `1e-9` times the body's bounding-box diagonal
+//!   (an unmerged mesh; found with a spatial hash); a positive Jacobian determinant at each of
+//!   the eight Gauss points of every hex8; every face of a face set oriented out of its element.
+//!
+//! Every error names the file and, where it applies, the line (the byte offset in a binary MSH
+//! file) and the entity: node id, element id, set name, Gauss point.
 
-use super::Mesh;
-use crate::element::Shape;
-use std::collections::BTreeMap;
+use super::{FaceSet, Mesh, MeshError};
+use crate::element::{hex8, Shape};
+use nalgebra::{Matrix3, Vector3};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::fmt;
 use std::path::{Path, PathBuf};
 
-/// A node of a mesh file.
+/// A node as the file states it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FileNode {
-    /// Id in the file.
+    /// The file's node id.
     pub id: u64,
     /// Coordinates.
     pub x: [f64; 3],
-    /// Line in the file.
+    /// Where it is stated: a global line number (a byte offset in a binary MSH file); see
+    /// [`MeshFile::place`].
     pub line: usize,
 }
 
-/// A solid element of a mesh file.
+/// A solid element as the file states it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FileElement {
-    /// Id in the file.
+    /// The file's element id.
     pub id: u64,
-    /// Shape.
+    /// Its shape.
     pub shape: Shape,
-    /// Node ids.
+    /// File node ids, in fricsens node order.
     pub nodes: Vec<u64>,
-    /// Line.
+    /// Where it is stated (see [`FileNode::line`]).
     pub line: usize,
 }
 
-/// A face of a face set.
+/// A lower-dimensional element (point, line, triangle, quadrilateral, shell): it only defines
+/// sets, and the nodes it references count as used.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OtherElement {
+    /// The file's element id.
+    pub id: u64,
+    /// Its kind as the file names it (`quad4`, `CPS4`, ...).
+    pub kind: String,
+    /// File node ids.
+    pub nodes: Vec<u64>,
+    /// Where it is stated (see [`FileNode::line`]).
+    pub line: usize,
+}
+
+/// One face of a file's face set.
 #[derive(Clone, Debug, PartialEq)]
 pub enum FileFace {
-    /// By nodes.
+    /// A face given by its nodes (a Gmsh surface element, an Abaqus shell element).
     Nodes {
-        /// Node ids.
+        /// File node ids, in the file's order.
         nodes: Vec<u64>,
-        /// Line.
+        /// Where it is stated (see [`FileNode::line`]).
         line: usize,
     },
-    /// By element side.
+    /// Side `side` of an element (Abaqus `S1`..`S6` -> 1..6).
     Side {
-        /// Element id.
+        /// The file's element id.
         element: u64,
-        /// Side 1..6.
+        /// The side, 1-based.
         side: usize,
-        /// Line.
+        /// Where it is stated (see [`FileNode::line`]).
         line: usize,
     },
 }
 
-/// A mesh as its file states it.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct MeshFile {
-    /// Path.
-    pub path: PathBuf,
-    /// Nodes.
-    pub nodes: Vec<FileNode>,
-    /// Solid elements.
-    pub elements: Vec<FileElement>,
-    /// Element sets.
-    pub element_sets: BTreeMap<String, Vec<usize>>,
-    /// Node sets.
-    pub node_sets: BTreeMap<String, Vec<u64>>,
-    /// Face sets.
-    pub face_sets: BTreeMap<String, Vec<FileFace>>,
+impl FileFace {
+    fn line(&self) -> usize {
+        match self {
+            FileFace::Nodes { line, .. } | FileFace::Side { line, .. } => *line,
+        }
+    }
 }
 
-/// A body added to a mesh.
+/// Which mesh format a [`MeshFile`] was read from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// Gmsh MSH 4.1 (ASCII or binary).
+    Gmsh,
+    /// Abaqus/CalculiX input file.
+    Abaqus,
+}
+
+/// A position in a file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Loc {
+    /// No particular position.
+    None,
+    /// A 1-based line.
+    Line(usize),
+    /// A byte offset (binary files).
+    Byte(usize),
+}
+
+/// A file and a position in it, for messages (`mesh.msh, line 12`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Place {
+    /// The file.
+    pub file: PathBuf,
+    /// The position.
+    pub loc: Loc,
+}
+
+impl Place {
+    /// A place with a line.
+    pub fn line(file: &Path, line: usize) -> Self {
+        Place {
+            file: file.to_path_buf(),
+            loc: Loc::Line(line),
+        }
+    }
+}
+
+impl fmt::Display for Place {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.loc {
+            Loc::None => write!(f, "{}", self.file.display()),
+            Loc::Line(l) => write!(f, "{}, line {l}", self.file.display()),
+            Loc::Byte(b) => write!(f, "{}, byte {b}", self.file.display()),
+        }
+    }
+}
+
+/// Maps the global line numbers of a [`MeshFile`] (its included files read in place) back to
+/// files and their lines.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LineMap {
+    /// The files, the main one first.
+    pub files: Vec<PathBuf>,
+    /// `(first global line, file index, its line there)`, in increasing global line.
+    pub segments: Vec<(usize, usize, usize)>,
+    /// Whether positions are byte offsets (binary MSH) rather than lines.
+    pub bytes: bool,
+}
+
+/// Why a mesh file could not be read, imported or written.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ImportError {
+    /// The file could not be opened or read.
+    #[error("{file}: cannot read: {message}")]
+    Io {
+        /// The file.
+        file: PathBuf,
+        /// The system's message.
+        message: String,
+    },
+    /// The file is not of a known mesh format (by extension).
+    #[error(
+        "{file}: unknown mesh format (by extension: .msh is Gmsh MSH 4.1, .inp is Abaqus/CalculiX)"
+    )]
+    UnknownFormat {
+        /// The file.
+        file: PathBuf,
+    },
+    /// The text (or binary data) does not follow the format.
+    #[error("{at}: {message}")]
+    Syntax {
+        /// Where.
+        at: Place,
+        /// What is wrong.
+        message: String,
+    },
+    /// The file ends inside a section.
+    #[error("{at}: unexpected end of file ({context})")]
+    Truncated {
+        /// Where the file ends.
+        at: Place,
+        /// What was being read.
+        context: String,
+    },
+    /// A Gmsh file of another MSH version than 4.1.
+    #[error("{at}: MSH version {version}: only MSH 4.1 is read (write it with `gmsh -3 -format msh41 model.geo`, or `Mesh.MshFileVersion = 4.1;` in the script, `gmsh.option.setNumber(\"Mesh.MshFileVersion\", 4.1)` in the API)")]
+    MshVersion {
+        /// Where the version stands.
+        at: Place,
+        /// The version the file states.
+        version: String,
+    },
+    /// An element type the reader does not take.
+    #[error("{at}: unsupported element {kind} (supported: {supported})")]
+    UnsupportedElement {
+        /// Where.
+        at: Place,
+        /// The type as the file states it (`type 4, 4-node tetrahedron`; `C3D10`).
+        kind: String,
+        /// What the reader takes.
+        supported: &'static str,
+    },
+    /// A keyword or construct the reader does not take.
+    #[error("{at}: {what}")]
+    Unsupported {
+        /// Where.
+        at: Place,
+        /// What and what to do instead.
+        what: String,
+    },
+    /// Two nodes with one id.
+    #[error("{second}: node {node} is defined twice (first at {first})")]
+    DuplicateNode {
+        /// The id.
+        node: u64,
+        /// First definition.
+        first: Place,
+        /// Second definition.
+        second: Place,
+    },
+    /// Two elements with one id.
+    #[error("{second}: element {element} is defined twice (first at {first})")]
+    DuplicateElement {
+        /// The id.
+        element: u64,
+        /// First definition.
+        first: Place,
+        /// Second definition.
+        second: Place,
+    },
+    /// An element names a node the file does not define.
+    #[error("{at}: element {element} names node {node}, which the file does not define")]
+    MissingNode {
+        /// The element's definition.
+        at: Place,
+        /// The element id.
+        element: u64,
+        /// The missing node id.
+        node: u64,
+    },
+    /// A set names a node or element the file does not define.
+    #[error("{at}: set '{set}' names {what} {id}, which the file does not define")]
+    MissingMember {
+        /// Where.
+        at: Place,
+        /// The set.
+        set: String,
+        /// `node` or `element`.
+        what: &'static str,
+        /// The id.
+        id: u64,
+    },
+    /// A node coordinate is NaN or infinite.
+    #[error("{at}: node {node}: coordinates {x:?} are not finite")]
+    NonFiniteNode {
+        /// The node's definition.
+        at: Place,
+        /// The node id.
+        node: u64,
+        /// Its coordinates.
+        x: [f64; 3],
+    },
+    /// A set name the file does not have.
+    #[error("{file}: no element set '{set}' (the file has: {known})")]
+    UnknownSet {
+        /// The file.
+        file: PathBuf,
+        /// The name asked for.
+        set: String,
+        /// The element set names the file has (comma separated; `none` if none).
+        known: String,
+    },
+    /// The body has no solid element.
+    #[error("{file}: {what} has no solid element")]
+    EmptyBody {
+        /// The file.
+        file: PathBuf,
+        /// `element set 'X'` or `the file`.
+        what: String,
+    },
+    /// A body mixes element shapes.
+    #[error("{at}: element {element} is a {other}, but the body's first element is a {first} (a body has one shape: split it into element sets)")]
+    MixedShapes {
+        /// The first element of another shape.
+        at: Place,
+        /// Its id.
+        element: u64,
+        /// The body's first shape.
+        first: &'static str,
+        /// The other shape.
+        other: &'static str,
+    },
+    /// Two body nodes at one place: the mesh is not merged.
+    #[error("{second}: duplicate nodes: the mesh is not merged: nodes {a} ({first}) and {b} are {distance:e} apart (tolerance {tolerance:e}, 1e-9 of the body's bounding-box diagonal)")]
+    CoincidentNodes {
+        /// The first node id.
+        a: u64,
+        /// Its definition.
+        first: Place,
+        /// The second node id.
+        b: u64,
+        /// Its definition.
+        second: Place,
+        /// Their distance.
+        distance: f64,
+        /// The tolerance.
+        tolerance: f64,
+    },
+    /// A node no element uses.
+    #[error("{at}: node {node} is used by no element{why}")]
+    UnusedNode {
+        /// The node's definition.
+        at: Place,
+        /// The node id.
+        node: u64,
+        /// Why it matters (the node set holding it, or that Gmsh never writes one).
+        why: String,
+    },
+    /// A hex8 with a non-positive Jacobian determinant (inverted or degenerate).
+    #[error("{at}: element {element}: Jacobian determinant {det:e} <= 0 at Gauss point {gauss_point} (xi = {xi:?}): the element is inverted or degenerate")]
+    InvertedElement {
+        /// The element's definition.
+        at: Place,
+        /// The element id.
+        element: u64,
+        /// The Gauss point (0..8, in [`hex8::gauss_points`] order).
+        gauss_point: usize,
+        /// Its natural coordinates.
+        xi: [f64; 3],
+        /// The determinant.
+        det: f64,
+    },
+    /// A face of a face set is inside the body.
+    #[error("{at}: face set '{set}': face {face} is not on the boundary (elements {a} and {b} share it)")]
+    FaceNotOnBoundary {
+        /// The face's definition.
+        at: Place,
+        /// The set.
+        set: String,
+        /// The face (`nodes [..]` or `side Sn of element e`).
+        face: String,
+        /// One element.
+        a: u64,
+        /// The other.
+        b: u64,
+    },
+    /// A face of a face set is a face of no element of the file.
+    #[error("{at}: face set '{set}': face {face} is a face of no element of the file")]
+    FaceNotFound {
+        /// The face's definition.
+        at: Place,
+        /// The set.
+        set: String,
+        /// The face (`nodes [..]` or `side Sn of element e`).
+        face: String,
+    },
+    /// A face whose normal does not point out of its element.
+    #[error("{at}: face set '{set}': face {face} of element {element} does not point out of the element")]
+    FaceOrientation {
+        /// The face's definition.
+        at: Place,
+        /// The set.
+        set: String,
+        /// The face's nodes (file ids).
+        face: String,
+        /// The element id.
+        element: u64,
+    },
+    /// A file set named like a generated one (`all`, `boundary`) that differs from it.
+    #[error("{file}: the file's set '{set}' differs from the generated '{prefix}.{set}' (fricsens makes `.all` and `.boundary` itself: rename the file's set)")]
+    ReservedSet {
+        /// The file.
+        file: PathBuf,
+        /// The set name.
+        set: String,
+        /// The import prefix.
+        prefix: String,
+    },
+    /// An `*INCLUDE` cycle.
+    #[error("{at}: *INCLUDE of {target} makes a cycle (it includes itself)")]
+    IncludeCycle {
+        /// The include line.
+        at: Place,
+        /// The included file.
+        target: PathBuf,
+    },
+    /// The mesh refused the body.
+    #[error("{file}: {source}")]
+    Mesh {
+        /// The file.
+        file: PathBuf,
+        /// The mesh's error.
+        source: MeshError,
+    },
+    /// A mesh could not be written.
+    #[error("{file}: cannot write: {message}")]
+    Write {
+        /// The file.
+        file: PathBuf,
+        /// Why.
+        message: String,
+    },
+}
+
+/// A mesh as its file states it: nodes, solid elements and named sets by file ids.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshFile {
+    /// The file (for messages).
+    pub path: PathBuf,
+    /// The format it was read from.
+    pub format: Format,
+    /// Nodes, in file order.
+    pub nodes: Vec<FileNode>,
+    /// Solid elements, in file order.
+    pub elements: Vec<FileElement>,
+    /// Lower-dimensional elements (they define sets; their nodes count as used).
+    pub other_elements: Vec<OtherElement>,
+    /// Element sets: name -> indices into `elements` (Gmsh volume physical groups; Abaqus
+    /// `ELSET`s, including `ELSET=` of `*ELEMENT`).
+    pub element_sets: BTreeMap<String, Vec<usize>>,
+    /// Node sets: name -> file node ids (Gmsh physical groups of any dimension: their
+    /// elements' nodes; Abaqus `NSET`s and node-based surfaces).
+    pub node_sets: BTreeMap<String, Vec<u64>>,
+    /// Face sets (Gmsh physical surfaces: their quad/triangle elements; Abaqus element-based
+    /// surfaces and `ELSET`s of shell/plane elements).
+    pub face_sets: BTreeMap<String, Vec<FileFace>>,
+    /// Global line numbers back to files and lines.
+    pub lines: LineMap,
+}
+
+/// What `add_to` made of a body.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ImportedBody {
-    /// Group.
+    /// The mesh group holding the body's elements.
     pub group: usize,
-    /// Mesh nodes.
+    /// Mesh node numbers of the body (in order of first appearance in its elements).
     pub nodes: Vec<usize>,
-    /// File id to mesh node.
+    /// File node id -> mesh node number.
     pub node_ids: BTreeMap<u64, usize>,
-    /// File ids of the elements.
+    /// File element id of each element of the group, in group order.
     pub element_ids: Vec<u64>,
 }
 
-/// Import errors.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ImportError {
-    /// Not yet.
-    #[error("{file}: mesh import is not built yet")]
-    NotYet {
-        /// File.
-        file: PathBuf,
-    },
+/// Read a mesh file by its extension: `.msh` (Gmsh MSH 4.1), `.inp` (Abaqus/CalculiX).
+pub fn read(path: &Path) -> Result<MeshFile, ImportError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("msh") => super::gmsh::read(path),
+        Some("inp") => super::abaqus::read(path),
+        _ => Err(ImportError::UnknownFormat {
+            file: path.to_path_buf(),
+        }),
+    }
 }
 
-/// Read a mesh file.
-pub fn read(path: &Path) -> Result<MeshFile, ImportError> {
-    Err(ImportError::NotYet {
-        file: path.to_path_buf(),
+/// Abaqus C3D8 sides S1..S6 as 0-based local nodes.
+pub(crate) const ABAQUS_HEX8_SIDES: [[usize; 4]; 6] = [
+    [0, 1, 2, 3],
+    [4, 7, 6, 5],
+    [0, 4, 5, 1],
+    [1, 5, 6, 2],
+    [2, 6, 7, 3],
+    [3, 7, 4, 0],
+];
+
+/// The face of [`Shape::faces`] (its index) with the nodes of Abaqus side `side` (1-based).
+pub(crate) fn hex8_face_of_side(side: usize) -> Option<usize> {
+    let s = ABAQUS_HEX8_SIDES.get(side.checked_sub(1)?)?;
+    let mut s = *s;
+    s.sort_unstable();
+    Shape::Hex8.faces().iter().position(|f| {
+        let mut n = f.nodes.to_vec();
+        n.sort_unstable();
+        n == s
     })
 }
 
+/// The Abaqus side (1-based) of face `f` of [`Shape::faces`] of a hex8.
+pub(crate) fn hex8_side_of_face(f: usize) -> Option<usize> {
+    (1..=6).find(|&s| hex8_face_of_side(s) == Some(f))
+}
+
+fn sorted<T: Ord + Copy>(v: &[T]) -> Vec<T> {
+    let mut k = v.to_vec();
+    k.sort_unstable();
+    k
+}
+
+/// Jacobian determinant of the hex8 reference map at `xi`.
+pub(crate) fn hex8_det(x: &[[f64; 3]; 8], xi: [f64; 3]) -> f64 {
+    let d = hex8::shape_derivatives(xi);
+    let mut j = Matrix3::zeros();
+    for a in 0..8 {
+        for r in 0..3 {
+            for c in 0..3 {
+                j[(r, c)] += x[a][r] * d[a][c];
+            }
+        }
+    }
+    j.determinant()
+}
+
+/// Where a face of the file's solid elements is: up to two `(element index, face index)`.
+type FaceOwners = HashMap<Vec<u64>, Vec<(usize, usize)>>;
+
 impl MeshFile {
-    /// Add a body.
+    /// An empty file of `format` at `path`.
+    pub(crate) fn empty(path: &Path, format: Format, bytes: bool) -> Self {
+        MeshFile {
+            path: path.to_path_buf(),
+            format,
+            nodes: Vec::new(),
+            elements: Vec::new(),
+            other_elements: Vec::new(),
+            element_sets: BTreeMap::new(),
+            node_sets: BTreeMap::new(),
+            face_sets: BTreeMap::new(),
+            lines: LineMap {
+                files: vec![path.to_path_buf()],
+                segments: vec![(0, 0, 0)],
+                bytes,
+            },
+        }
+    }
+
+    /// The file and position of global line `line` (a byte offset in a binary MSH file).
+    pub fn place(&self, line: usize) -> Place {
+        if self.lines.bytes {
+            return Place {
+                file: self.path.clone(),
+                loc: Loc::Byte(line),
+            };
+        }
+        let k = self
+            .lines
+            .segments
+            .partition_point(|s| s.0 <= line)
+            .saturating_sub(1);
+        match self.lines.segments.get(k) {
+            Some(&(start, f, local)) => Place {
+                file: self.lines.files.get(f).unwrap_or(&self.path).clone(),
+                loc: Loc::Line(local + line.saturating_sub(start)),
+            },
+            None => Place::line(&self.path, line),
+        }
+    }
+
+    /// Every element, node and face set name, sorted and without repetition (for messages).
+    pub fn set_names(&self) -> Vec<String> {
+        let mut s: BTreeSet<String> = BTreeSet::new();
+        s.extend(self.element_sets.keys().cloned());
+        s.extend(self.node_sets.keys().cloned());
+        s.extend(self.face_sets.keys().cloned());
+        s.into_iter().collect()
+    }
+
+    /// The element set called `name` (case-insensitively for Abaqus files).
+    fn element_set(&self, name: &str) -> Result<&Vec<usize>, ImportError> {
+        if let Some(s) = self.element_sets.get(name) {
+            return Ok(s);
+        }
+        if self.format == Format::Abaqus {
+            if let Some((_, s)) = self
+                .element_sets
+                .iter()
+                .find(|(k, _)| k.eq_ignore_ascii_case(name))
+            {
+                return Ok(s);
+            }
+        }
+        let known: Vec<&str> = self.element_sets.keys().map(String::as_str).collect();
+        Err(ImportError::UnknownSet {
+            file: self.path.clone(),
+            set: name.to_string(),
+            known: if known.is_empty() {
+                "none".into()
+            } else {
+                known.join(", ")
+            },
+        })
+    }
+
+    /// Node id -> index into `nodes`; typed errors for a repeated id or a non-finite node.
+    fn node_index(&self) -> Result<HashMap<u64, usize>, ImportError> {
+        let mut index: HashMap<u64, usize> = HashMap::with_capacity(self.nodes.len());
+        for (k, n) in self.nodes.iter().enumerate() {
+            if let Some(&first) = index.get(&n.id) {
+                return Err(ImportError::DuplicateNode {
+                    node: n.id,
+                    first: self.place(self.nodes[first].line),
+                    second: self.place(n.line),
+                });
+            }
+            if !n.x.iter().all(|c| c.is_finite()) {
+                return Err(ImportError::NonFiniteNode {
+                    at: self.place(n.line),
+                    node: n.id,
+                    x: n.x,
+                });
+            }
+            index.insert(n.id, k);
+        }
+        Ok(index)
+    }
+
+    /// Element id -> index into `elements`; checks ids unique (solid and other elements)
+    /// and that every element's nodes exist.
+    fn element_index(
+        &self,
+        nodes: &HashMap<u64, usize>,
+    ) -> Result<HashMap<u64, usize>, ImportError> {
+        let mut index: HashMap<u64, usize> = HashMap::with_capacity(self.elements.len());
+        let mut lines: HashMap<u64, usize> = HashMap::new();
+        let all = self
+            .elements
+            .iter()
+            .map(|e| (e.id, &e.nodes, e.line))
+            .chain(self.other_elements.iter().map(|e| (e.id, &e.nodes, e.line)));
+        let sizes = self
+            .elements
+            .iter()
+            .map(|e| Some(e.shape.n_nodes()))
+            .chain(self.other_elements.iter().map(|_| None));
+        for (k, ((id, enodes, line), size)) in all.zip(sizes).enumerate() {
+            if size.is_some_and(|n| n != enodes.len()) {
+                return Err(ImportError::Syntax {
+                    at: self.place(line),
+                    message: format!(
+                        "element {id}: {} nodes for a {}",
+                        enodes.len(),
+                        self.elements[k].shape.name()
+                    ),
+                });
+            }
+            if let Some(&first) = lines.get(&id) {
+                return Err(ImportError::DuplicateElement {
+                    element: id,
+                    first: self.place(first),
+                    second: self.place(line),
+                });
+            }
+            lines.insert(id, line);
+            if k < self.elements.len() {
+                index.insert(id, k);
+            }
+            if let Some(&n) = enodes.iter().find(|n| !nodes.contains_key(n)) {
+                return Err(ImportError::MissingNode {
+                    at: self.place(line),
+                    element: id,
+                    node: n,
+                });
+            }
+        }
+        Ok(index)
+    }
+
+    /// Sorted face node ids -> the solid elements (index, face) that have the face.
+    fn face_owners(&self) -> FaceOwners {
+        let mut owners: FaceOwners = HashMap::new();
+        for (k, e) in self.elements.iter().enumerate() {
+            for (f, face) in e.shape.faces().iter().enumerate() {
+                let key: Vec<u64> = sorted(
+                    &face
+                        .nodes
+                        .iter()
+                        .filter_map(|&l| e.nodes.get(l).copied())
+                        .collect::<Vec<_>>(),
+                );
+                let v = owners.entry(key).or_default();
+                if v.len() < 3 {
+                    v.push((k, f));
+                }
+            }
+        }
+        owners
+    }
+
+    /// Add the solid elements of element set `set` (every solid element when `None`) to
+    /// `mesh` as one new group, with new nodes, and the file's sets restricted to the body as
+    /// `"{prefix}.{name}"` (see the module documentation for the rules and checks).
     pub fn add_to(
         &self,
-        _mesh: &mut Mesh,
-        _prefix: &str,
-        _set: Option<&str>,
+        mesh: &mut Mesh,
+        prefix: &str,
+        set: Option<&str>,
     ) -> Result<ImportedBody, ImportError> {
-        Err(ImportError::NotYet {
-            file: self.path.clone(),
+        let node_index = self.node_index()?;
+        let element_index = self.element_index(&node_index)?;
+        // the body's elements
+        let body: Vec<usize> = match set {
+            None => (0..self.elements.len()).collect(),
+            Some(name) => {
+                let mut v = self.element_set(name)?.clone();
+                v.sort_unstable();
+                v.dedup();
+                v
+            }
+        };
+        let body: Vec<usize> = body
+            .into_iter()
+            .filter(|&k| k < self.elements.len())
+            .collect();
+        let Some(&first) = body.first() else {
+            return Err(ImportError::EmptyBody {
+                file: self.path.clone(),
+                what: match set {
+                    Some(s) => format!("element set '{s}'"),
+                    None => "the file".into(),
+                },
+            });
+        };
+        let shape = self.elements[first].shape;
+        if let Some(&k) = body.iter().find(|&&k| self.elements[k].shape != shape) {
+            let e = &self.elements[k];
+            return Err(ImportError::MixedShapes {
+                at: self.place(e.line),
+                element: e.id,
+                first: shape.name(),
+                other: e.shape.name(),
+            });
+        }
+        // body nodes, in order of first appearance
+        let mut node_ids: BTreeMap<u64, usize> = BTreeMap::new();
+        let mut body_nodes: Vec<usize> = Vec::new(); // indices into self.nodes
+        let mut local: HashMap<u64, usize> = HashMap::new(); // id -> index into body_nodes
+        for &k in &body {
+            for id in &self.elements[k].nodes {
+                if !local.contains_key(id) {
+                    local.insert(*id, body_nodes.len());
+                    body_nodes.push(node_index[id]);
+                }
+            }
+        }
+        self.check_unused(&node_index, &local)?;
+        self.check_coincident(&body_nodes)?;
+        for &k in &body {
+            self.check_jacobian(&self.elements[k], &node_index)?;
+        }
+        // into the mesh
+        let mut mesh_nodes = Vec::with_capacity(body_nodes.len());
+        for &n in &body_nodes {
+            let m = mesh.add_node(self.nodes[n].x);
+            mesh_nodes.push(m);
+            node_ids.insert(self.nodes[n].id, m);
+        }
+        let mut connectivity = Vec::with_capacity(body.len() * shape.n_nodes());
+        for &k in &body {
+            connectivity.extend(self.elements[k].nodes.iter().map(|id| node_ids[id]));
+        }
+        let group = mesh
+            .add_group(shape, connectivity)
+            .map_err(|source| ImportError::Mesh {
+                file: self.path.clone(),
+                source,
+            })?;
+        let in_body: Vec<bool> = {
+            let mut v = vec![false; self.elements.len()];
+            for &k in &body {
+                v[k] = true;
+            }
+            v
+        };
+        let sets = self.body_sets(&node_ids, &node_index, &element_index, &in_body)?;
+        // the generated sets
+        let mut all = mesh_nodes.clone();
+        all.sort_unstable();
+        let boundary = mesh.boundary_faces(group);
+        let mut boundary_nodes = boundary.all_nodes().to_vec();
+        boundary_nodes.sort_unstable();
+        boundary_nodes.dedup();
+        let (mut node_sets, mut face_sets) = sets;
+        for (name, generated) in [("all", &all), ("boundary", &boundary_nodes)] {
+            if let Some(mine) = node_sets.remove(name) {
+                if &mine != generated {
+                    return Err(ImportError::ReservedSet {
+                        file: self.path.clone(),
+                        set: name.into(),
+                        prefix: prefix.into(),
+                    });
+                }
+            }
+        }
+        if face_sets.contains_key("all") {
+            return Err(ImportError::ReservedSet {
+                file: self.path.clone(),
+                set: "all".into(),
+                prefix: prefix.into(),
+            });
+        }
+        if let Some(mine) = face_sets.remove("boundary") {
+            let keys = |s: &FaceSet| {
+                let mut v: Vec<Vec<usize>> = s.iter().map(|f| sorted(f.nodes)).collect();
+                v.sort();
+                v
+            };
+            if keys(&mine) != keys(&boundary) {
+                return Err(ImportError::ReservedSet {
+                    file: self.path.clone(),
+                    set: "boundary".into(),
+                    prefix: prefix.into(),
+                });
+            }
+        }
+        mesh.node_sets.insert(format!("{prefix}.all"), all);
+        mesh.node_sets
+            .insert(format!("{prefix}.boundary"), boundary_nodes);
+        mesh.face_sets
+            .insert(format!("{prefix}.boundary"), boundary);
+        for (name, nodes) in node_sets {
+            mesh.node_sets.insert(format!("{prefix}.{name}"), nodes);
+        }
+        for (name, faces) in face_sets {
+            mesh.face_sets.insert(format!("{prefix}.{name}"), faces);
+        }
+        Ok(ImportedBody {
+            group,
+            nodes: mesh_nodes,
+            node_ids,
+            element_ids: body.iter().map(|&k| self.elements[k].id).collect(),
         })
+    }
+
+    /// The unused-node rule (module documentation).
+    fn check_unused(
+        &self,
+        node_index: &HashMap<u64, usize>,
+        body: &HashMap<u64, usize>,
+    ) -> Result<(), ImportError> {
+        let mut used = vec![false; self.nodes.len()];
+        let all = self
+            .elements
+            .iter()
+            .map(|e| &e.nodes)
+            .chain(self.other_elements.iter().map(|e| &e.nodes));
+        for nodes in all {
+            for id in nodes {
+                if let Some(&k) = node_index.get(id) {
+                    used[k] = true;
+                }
+            }
+        }
+        match self.format {
+            Format::Gmsh => {
+                if let Some(k) = used.iter().position(|u| !u) {
+                    let n = &self.nodes[k];
+                    return Err(ImportError::UnusedNode {
+                        at: self.place(n.line),
+                        node: n.id,
+                        why: " (Gmsh writes no such node: the file is damaged)".into(),
+                    });
+                }
+            }
+            Format::Abaqus => {
+                for (name, ids) in &self.node_sets {
+                    if !ids.iter().any(|id| body.contains_key(id)) {
+                        continue;
+                    }
+                    for id in ids {
+                        if let Some(&k) = node_index.get(id) {
+                            if !used[k] {
+                                return Err(ImportError::UnusedNode {
+                                    at: self.place(self.nodes[k].line),
+                                    node: *id,
+                                    why: format!(
+                                        ", yet node set '{name}' holds it with nodes of the body"
+                                    ),
+                                });
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// No two body nodes closer than 1e-9 of the body's bounding-box diagonal.
+    fn check_coincident(&self, body_nodes: &[usize]) -> Result<(), ImportError> {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for &n in body_nodes {
+            for c in 0..3 {
+                lo[c] = lo[c].min(self.nodes[n].x[c]);
+                hi[c] = hi[c].max(self.nodes[n].x[c]);
+            }
+        }
+        let diag = (0..3).map(|c| (hi[c] - lo[c]).powi(2)).sum::<f64>().sqrt();
+        let tol = 1e-9 * diag;
+        if !tol.is_finite() {
+            return Ok(());
+        }
+        let h = if tol > 0.0 { tol } else { 1.0 };
+        let cell =
+            |x: &[f64; 3]| -> [i64; 3] { [0, 1, 2].map(|c| ((x[c] - lo[c]) / h).floor() as i64) };
+        let mut grid: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+        for &n in body_nodes {
+            let x = &self.nodes[n].x;
+            let c = cell(x);
+            for dx in -1..=1i64 {
+                for dy in -1..=1i64 {
+                    for dz in -1..=1i64 {
+                        let key = [
+                            c[0].saturating_add(dx),
+                            c[1].saturating_add(dy),
+                            c[2].saturating_add(dz),
+                        ];
+                        for &m in grid.get(&key).map(Vec::as_slice).unwrap_or(&[]) {
+                            let y = &self.nodes[m].x;
+                            let d = (0..3).map(|k| (x[k] - y[k]).powi(2)).sum::<f64>().sqrt();
+                            if d <= tol {
+                                let (a, b) = (&self.nodes[m], &self.nodes[n]);
+                                return Err(ImportError::CoincidentNodes {
+                                    a: a.id,
+                                    first: self.place(a.line),
+                                    b: b.id,
+                                    second: self.place(b.line),
+                                    distance: d,
+                                    tolerance: tol,
+                                });
+                            }
+                        }
+                    }
+                }
+            }
+            grid.entry(c).or_default().push(n);
+        }
+        Ok(())
+    }
+
+    /// Positive Jacobian determinant at every Gauss point.
+    fn check_jacobian(
+        &self,
+        e: &FileElement,
+        node_index: &HashMap<u64, usize>,
+    ) -> Result<(), ImportError> {
+        if e.shape != Shape::Hex8 {
+            return Ok(());
+        }
+        let mut x = [[0.0; 3]; 8];
+        for (a, id) in e.nodes.iter().take(8).enumerate() {
+            x[a] = self.nodes[node_index[id]].x;
+        }
+        for (g, xi) in hex8::gauss_points().into_iter().enumerate() {
+            let det = hex8_det(&x, xi);
+            if det.is_nan() || det <= 0.0 {
+                return Err(ImportError::InvertedElement {
+                    at: self.place(e.line),
+                    element: e.id,
+                    gauss_point: g,
+                    xi,
+                    det,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The file's node and face sets restricted to the body (names without the prefix).
+    #[allow(clippy::type_complexity)]
+    fn body_sets(
+        &self,
+        node_ids: &BTreeMap<u64, usize>,
+        node_index: &HashMap<u64, usize>,
+        element_index: &HashMap<u64, usize>,
+        in_body: &[bool],
+    ) -> Result<(BTreeMap<String, Vec<usize>>, BTreeMap<String, FaceSet>), ImportError> {
+        let mut node_sets: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+        let restrict = |ids: &mut dyn Iterator<Item = u64>| -> Vec<usize> {
+            let mut v: Vec<usize> = ids.filter_map(|id| node_ids.get(&id).copied()).collect();
+            v.sort_unstable();
+            v.dedup();
+            v
+        };
+        for (name, ids) in &self.node_sets {
+            let v = restrict(&mut ids.iter().copied());
+            if !v.is_empty() {
+                node_sets.insert(name.clone(), v);
+            }
+        }
+        let has_node_set = |name: &str| {
+            self.node_sets.contains_key(name)
+                || (self.format == Format::Abaqus
+                    && self.node_sets.keys().any(|k| k.eq_ignore_ascii_case(name)))
+        };
+        // element sets also give node sets (of their body elements) unless one exists
+        for (name, elements) in &self.element_sets {
+            if has_node_set(name) {
+                continue;
+            }
+            let v = restrict(
+                &mut elements
+                    .iter()
+                    .filter(|&&k| in_body.get(k) == Some(&true))
+                    .flat_map(|&k| self.elements[k].nodes.iter().copied()),
+            );
+            if !v.is_empty() {
+                node_sets.insert(name.clone(), v);
+            }
+        }
+        let owners = self.face_owners();
+        let mut face_sets: BTreeMap<String, FaceSet> = BTreeMap::new();
+        for (name, faces) in &self.face_sets {
+            let mut set = FaceSet::new();
+            let mut seen: BTreeSet<(usize, usize)> = BTreeSet::new();
+            for face in faces {
+                let Some((k, f)) =
+                    self.resolve_face(name, face, &owners, element_index, in_body)?
+                else {
+                    continue;
+                };
+                if !seen.insert((k, f)) {
+                    continue;
+                }
+                let e = &self.elements[k];
+                let topo = &e.shape.faces()[f];
+                let ids: Vec<u64> = topo.nodes.iter().map(|&l| e.nodes[l]).collect();
+                self.check_outward(name, face, e, &ids, node_index)?;
+                let nodes: Vec<usize> = ids.iter().map(|id| node_ids[id]).collect();
+                set.push(topo.family, &nodes)
+                    .map_err(|source| ImportError::Mesh {
+                        file: self.path.clone(),
+                        source,
+                    })?;
+            }
+            if set.is_empty() {
+                continue;
+            }
+            if !has_node_set(name) {
+                let mut nodes = set.all_nodes().to_vec();
+                nodes.sort_unstable();
+                nodes.dedup();
+                node_sets.insert(name.clone(), nodes);
+            }
+            face_sets.insert(name.clone(), set);
+        }
+        Ok((node_sets, face_sets))
+    }
+
+    /// The body element and face a file face names; `None` when it is another body's.
+    fn resolve_face(
+        &self,
+        set: &str,
+        face: &FileFace,
+        owners: &FaceOwners,
+        element_index: &HashMap<u64, usize>,
+        in_body: &[bool],
+    ) -> Result<Option<(usize, usize)>, ImportError> {
+        let at = self.place(face.line());
+        let (key, label) = match face {
+            FileFace::Nodes { nodes, .. } => (sorted(nodes), format!("nodes {nodes:?}")),
+            FileFace::Side { element, side, .. } => {
+                let label = format!("side S{side} of element {element}");
+                let not_found = || ImportError::FaceNotFound {
+                    at: at.clone(),
+                    set: set.to_string(),
+                    face: label.clone(),
+                };
+                let Some(&k) = element_index.get(element) else {
+                    return Err(not_found());
+                };
+                let e = &self.elements[k];
+                let f = match e.shape {
+                    Shape::Hex8 => hex8_face_of_side(*side),
+                    _ => None,
+                };
+                let Some(f) = f else {
+                    return Err(not_found());
+                };
+                let ids: Vec<u64> = e.shape.faces()[f]
+                    .nodes
+                    .iter()
+                    .map(|&l| e.nodes[l])
+                    .collect();
+                (sorted(&ids), label)
+            }
+        };
+        let Some(list) = owners.get(&key) else {
+            return Err(ImportError::FaceNotFound {
+                at,
+                set: set.to_string(),
+                face: label,
+            });
+        };
+        let mine: Vec<(usize, usize)> = list
+            .iter()
+            .copied()
+            .filter(|&(k, _)| in_body.get(k) == Some(&true))
+            .collect();
+        match mine.as_slice() {
+            [] => Ok(None),
+            [one] => Ok(Some(*one)),
+            [a, b, ..] => Err(ImportError::FaceNotOnBoundary {
+                at,
+                set: set.to_string(),
+                face: label,
+                a: self.elements[a.0].id,
+                b: self.elements[b.0].id,
+            }),
+        }
+    }
+
+    /// The face `ids` of element `e` points out of it: (face centre - element centre) . n > 0.
+    fn check_outward(
+        &self,
+        set: &str,
+        face: &FileFace,
+        e: &FileElement,
+        ids: &[u64],
+        node_index: &HashMap<u64, usize>,
+    ) -> Result<(), ImportError> {
+        let pos = |id: &u64| Vector3::from(self.nodes[node_index[id]].x);
+        let xe: Vector3<f64> =
+            e.nodes.iter().map(pos).sum::<Vector3<f64>>() / e.nodes.len().max(1) as f64;
+        let xf: Vec<Vector3<f64>> = ids.iter().map(pos).collect();
+        let centre = xf.iter().sum::<Vector3<f64>>() / xf.len().max(1) as f64;
+        // the face normal: sum of the corner cross products (Newell), any polygon
+        let mut normal = Vector3::zeros();
+        for a in 0..xf.len() {
+            let b = (a + 1) % xf.len();
+            normal += (xf[a] - centre).cross(&(xf[b] - centre));
+        }
+        let out = (centre - xe).dot(&normal);
+        if out.is_nan() || out <= 0.0 {
+            return Err(ImportError::FaceOrientation {
+                at: self.place(face.line()),
+                set: set.to_string(),
+                face: format!("{ids:?}"),
+                element: e.id,
+            });
+        }
+        Ok(())
     }
 }

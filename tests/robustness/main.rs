@@ -10,6 +10,7 @@
 mod common;
 
 mod extremes;
+mod mesh_readers;
 mod robustness;
 mod robustness_corpus;
 mod scenes;
