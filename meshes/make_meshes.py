@@ -38,8 +38,8 @@ Files
     (each body is a quarter disc on x >= 0, thickness t = 0.025 along z).
     "upper": radius R1 = 8, centre (0, 8, 0); "lower": radius R2 = 12, centre
     (0, -12, 0). They touch at the origin, where EACH body has its own node (two
-    coincident nodes, not merged; likewise at (0, 0, t)). Mesh size 0.025 within 0.6
-    of the origin (the contact half-width is about a = 0.3), growing linearly to 1.2
+    coincident nodes, not merged; likewise at (0, 0, t)). Mesh size 0.0167 within 0.6
+    of the origin (the contact half-width is about a = 0.3: 18 elements across it), growing linearly to 1.2
     at distance 6. Groups: volumes "upper", "lower"; surfaces "upper-contact" (arc),
     "upper-top" (y = 8), "upper-sym" (x = 0), "lower-contact" (arc), "lower-bottom"
     (y = -12), "lower-sym" (x = 0).
@@ -57,9 +57,9 @@ Files
 ``lame-octant.msh``
     Lamé's thick-walled sphere under pressure: the octant x, y, z >= 0 of a spherical
     shell, inner radius a = 1, outer radius b = 2. Structured (transfinite) hex mesh
-    from the cube-sphere split of the octant into three blocks (6 x 6 elements on each
-    block's spherical faces, i.e. 12 along each quarter great circle, 8 radial layers
-    graded finer towards the inner surface, progression 1.15). The surfaces on the
+    from the cube-sphere split of the octant into three blocks (12 x 12 elements on each
+    block's spherical faces, i.e. 24 along each quarter great circle, 16 radial layers
+    graded finer towards the inner surface, progression 1.07). The surfaces on the
     spheres are sphere patches; after the 1-D mesh the script puts every curve node at
     its exact parameter (equal angles on the arcs, the exact progression on the radial
     lines; Gmsh's own placement is a few 1e-9 off and not scale-invariant), so the
@@ -381,7 +381,7 @@ def make_hertz():
     origin = [tag for _, tag in gmsh.model.getEntitiesInBoundingBox(
         -eps, -eps, -eps, eps, eps, eps, dim=0)]
     assert sorted(origin) == sorted([u0, l0]), origin
-    size_field(origin, 0.025, 1.2, 0.6, 6.0)
+    size_field(origin, 0.0167, 1.2, 0.6, 6.0)
     groups([(3, [u_vol], "upper"), (3, [l_vol], "lower")]
            + [(2, u[n], n) for n in ("upper-contact", "upper-top", "upper-sym")]
            + [(2, lo[n], n) for n in ("lower-contact", "lower-bottom", "lower-sym")])
@@ -512,7 +512,7 @@ def check_inp(filename, mesh):
 
 # --------------------------------------------------------------------------- Lamé
 
-LAME_N_ARC, LAME_N_RAD, LAME_PROGRESSION = 6, 8, 1.15
+LAME_N_ARC, LAME_N_RAD, LAME_PROGRESSION = 12, 16, 1.07
 
 
 def make_lame(filename, a, b):
