@@ -529,7 +529,7 @@ impl<'f> Reader<'f> {
                 }
             }
         }
-        self.nsets.entry(name).or_default().extend(members);
+        add_members(self.nsets.entry(name).or_default(), members);
         Ok(())
     }
 
@@ -545,7 +545,7 @@ impl<'f> Reader<'f> {
             "element set",
             self.element_nodes.len(),
         )?;
-        self.elsets.entry(name).or_default().extend(members);
+        add_members(self.elsets.entry(name).or_default(), members);
         Ok(())
     }
 
@@ -566,7 +566,7 @@ impl<'f> Reader<'f> {
                     let one = vec![(first.to_string(), *line)];
                     members.extend(self.members(false, &one, &self.nsets, "node set", 0)?);
                 }
-                self.nsets.entry(name).or_default().extend(members);
+                add_members(self.nsets.entry(name).or_default(), members);
             }
             "ELEMENT" => {
                 let mut faces = Vec::new();
@@ -681,6 +681,14 @@ impl<'f> Reader<'f> {
         }
         Ok(())
     }
+}
+
+/// Add `members` to a set, each id once (its first line kept): a set naming itself over and
+/// over cannot grow beyond the ids the file defines.
+fn add_members(set: &mut Vec<(u64, usize)>, members: Vec<(u64, usize)>) {
+    set.extend(members);
+    set.sort_by_key(|&(id, line)| (id, line));
+    set.dedup_by_key(|m| m.0);
 }
 
 fn clip(t: &str) -> String {

@@ -404,6 +404,14 @@ pub enum ImportError {
         /// The import prefix.
         prefix: String,
     },
+    /// The mesh already has sets of the import's prefix.
+    #[error("{file}: the mesh already has sets named '{prefix}.*': import with another prefix")]
+    PrefixTaken {
+        /// The file.
+        file: PathBuf,
+        /// The prefix.
+        prefix: String,
+    },
     /// An `*INCLUDE` cycle.
     #[error("{at}: *INCLUDE of {target} makes a cycle (it includes itself)")]
     IncludeCycle {
@@ -767,23 +775,25 @@ impl MeshFile {
         for &k in &body {
             self.check_jacobian(&self.elements[k], &node_index)?;
         }
-        // into the mesh
-        let mut mesh_nodes = Vec::with_capacity(body_nodes.len());
-        for &n in &body_nodes {
-            let m = mesh.add_node(self.nodes[n].x);
-            mesh_nodes.push(m);
-            node_ids.insert(self.nodes[n].id, m);
-        }
-        let mut connectivity = Vec::with_capacity(body.len() * shape.n_nodes());
-        for &k in &body {
-            connectivity.extend(self.elements[k].nodes.iter().map(|id| node_ids[id]));
-        }
-        let group = mesh
-            .add_group(shape, connectivity)
-            .map_err(|source| ImportError::Mesh {
+        let taken = format!("{prefix}.");
+        if mesh
+            .node_sets
+            .keys()
+            .chain(mesh.face_sets.keys())
+            .any(|k| k.starts_with(&taken))
+        {
+            return Err(ImportError::PrefixTaken {
                 file: self.path.clone(),
-                source,
-            })?;
+                prefix: prefix.to_string(),
+            });
+        }
+        // the body's mesh numbers and sets, before the mesh changes
+        let base = mesh.n_nodes();
+        let mut mesh_nodes = Vec::with_capacity(body_nodes.len());
+        for (i, &n) in body_nodes.iter().enumerate() {
+            mesh_nodes.push(base + i);
+            node_ids.insert(self.nodes[n].id, base + i);
+        }
         let in_body: Vec<bool> = {
             let mut v = vec![false; self.elements.len()];
             for &k in &body {
@@ -791,32 +801,51 @@ impl MeshFile {
             }
             v
         };
-        let sets = self.body_sets(&node_ids, &node_index, &element_index, &in_body)?;
-        // the generated sets
+        let (mut node_sets, mut face_sets) =
+            self.body_sets(&node_ids, &node_index, &element_index, &in_body)?;
+        let reserved = |set: &str| ImportError::ReservedSet {
+            file: self.path.clone(),
+            set: set.into(),
+            prefix: prefix.into(),
+        };
+        if face_sets.contains_key("all") {
+            return Err(reserved("all"));
+        }
         let mut all = mesh_nodes.clone();
         all.sort_unstable();
+        if node_sets.remove("all").is_some_and(|mine| mine != all) {
+            return Err(reserved("all"));
+        }
+        // into the mesh (undone on a later error)
+        let groups = mesh.groups.len();
+        for &n in &body_nodes {
+            mesh.add_node(self.nodes[n].x);
+        }
+        let mut connectivity = Vec::with_capacity(body.len() * shape.n_nodes());
+        for &k in &body {
+            connectivity.extend(self.elements[k].nodes.iter().map(|id| node_ids[id]));
+        }
+        let undo = |mesh: &mut Mesh, e: ImportError| {
+            mesh.places.truncate(base);
+            mesh.groups.truncate(groups);
+            e
+        };
+        let group = match mesh.add_group(shape, connectivity) {
+            Ok(g) => g,
+            Err(source) => {
+                let file = self.path.clone();
+                return Err(undo(mesh, ImportError::Mesh { file, source }));
+            }
+        };
         let boundary = mesh.boundary_faces(group);
         let mut boundary_nodes = boundary.all_nodes().to_vec();
         boundary_nodes.sort_unstable();
         boundary_nodes.dedup();
-        let (mut node_sets, mut face_sets) = sets;
-        for (name, generated) in [("all", &all), ("boundary", &boundary_nodes)] {
-            if let Some(mine) = node_sets.remove(name) {
-                if &mine != generated {
-                    return Err(ImportError::ReservedSet {
-                        file: self.path.clone(),
-                        set: name.into(),
-                        prefix: prefix.into(),
-                    });
-                }
-            }
-        }
-        if face_sets.contains_key("all") {
-            return Err(ImportError::ReservedSet {
-                file: self.path.clone(),
-                set: "all".into(),
-                prefix: prefix.into(),
-            });
+        if node_sets
+            .remove("boundary")
+            .is_some_and(|mine| mine != boundary_nodes)
+        {
+            return Err(undo(mesh, reserved("boundary")));
         }
         if let Some(mine) = face_sets.remove("boundary") {
             let keys = |s: &FaceSet| {
@@ -825,11 +854,7 @@ impl MeshFile {
                 v
             };
             if keys(&mine) != keys(&boundary) {
-                return Err(ImportError::ReservedSet {
-                    file: self.path.clone(),
-                    set: "boundary".into(),
-                    prefix: prefix.into(),
-                });
+                return Err(undo(mesh, reserved("boundary")));
             }
         }
         mesh.node_sets.insert(format!("{prefix}.all"), all);

@@ -568,6 +568,22 @@ fn unused_nodes_in_gmsh_and_in_abaqus_sets() {
 }
 
 #[test]
+fn a_prefix_in_use_is_refused() {
+    let f = import::read(&fixtures().join("one_hex.msh")).unwrap();
+    let mut m = Mesh::default();
+    f.add_to(&mut m, "c", None).unwrap();
+    let e = f.add_to(&mut m, "c", None).unwrap_err();
+    assert!(matches!(e, ImportError::PrefixTaken { .. }), "{e}");
+    assert!(
+        e.to_string().contains("one_hex.msh") && e.to_string().contains("'c.*'"),
+        "{e}"
+    );
+    assert_eq!(m.n_nodes(), 8);
+    f.add_to(&mut m, "d", None).unwrap();
+    assert_eq!(m.n_nodes(), 16);
+}
+
+#[test]
 fn a_missing_set_lists_the_sets_there_are() {
     let e = rejects(
         &fixtures().join("one_hex.msh"),
@@ -592,6 +608,13 @@ fn an_interior_face_in_a_face_set_is_refused() {
         ],
     );
     assert!(matches!(e, ImportError::FaceNotOnBoundary { .. }), "{e}");
+    // a refused body leaves the mesh as it was
+    let mut m = Mesh::default();
+    import::read(&p)
+        .unwrap()
+        .add_to(&mut m, "b", None)
+        .unwrap_err();
+    assert_eq!((m.n_nodes(), m.groups.len(), m.node_sets.len()), (0, 0, 0));
     // a face of no element at all
     let text = one_hex().replace("2 2 3 7 6", "2 2 3 7 5");
     let p = file_with("no-face", "noface.msh", &text);
@@ -834,6 +857,7 @@ fn fuzz(n: usize, seed: u64) {
             }
         }
     }
+    let _ = std::fs::remove_dir_all(&dir);
     // the mutator must reach both outcomes
     assert!(ok > 0 && err > n / 4, "{ok} accepted, {err} refused");
 }
