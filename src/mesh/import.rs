@@ -477,21 +477,6 @@ pub struct ImportedBody {
     pub element_ids: Vec<u64>,
 }
 
-/// Read a mesh file by its extension: `.msh` (Gmsh MSH 4.1), `.inp` (Abaqus/CalculiX).
-pub fn read(path: &Path) -> Result<MeshFile, ImportError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    match ext.as_deref() {
-        Some("msh") => super::gmsh::read(path),
-        Some("inp") => super::abaqus::read(path),
-        _ => Err(ImportError::UnknownFormat {
-            file: path.to_path_buf(),
-        }),
-    }
-}
-
 /// Abaqus C3D8 sides S1..S6 as 0-based local nodes.
 pub(crate) const ABAQUS_HEX8_SIDES: [[usize; 4]; 6] = [
     [0, 1, 2, 3],

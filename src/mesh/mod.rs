@@ -16,10 +16,12 @@
 //! to a coarse one in one conforming block.
 
 pub mod abaqus;
+mod file;
 pub mod gmsh;
 pub mod import;
 pub mod shape_map;
 
+pub use file::read;
 pub use shape_map::{MapKind, ShapeMap, ShapeMapError, Smoothing};
 
 use crate::element::{FaceFamily, Shape};

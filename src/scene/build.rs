@@ -70,8 +70,8 @@ impl Scene {
             ));
         }
         let path = resolve(source.folder.as_deref(), &source.file);
-        let file = crate::mesh::import::read(&path)
-            .map_err(|e| invalid(&format!("{at}.mesh"), e.to_string()))?;
+        let file =
+            crate::mesh::read(&path).map_err(|e| invalid(&format!("{at}.mesh"), e.to_string()))?;
         let body = file
             .add_to(mesh, &source.name, source.set.as_deref())
             .map_err(|e| invalid(&format!("{at}.mesh"), e.to_string()))?;
@@ -161,7 +161,7 @@ impl Scene {
                     ));
                 };
                 let path = resolve(source.folder.as_deref(), file);
-                let other = crate::mesh::import::read(&path)
+                let other = crate::mesh::read(&path)
                     .map_err(|e| invalid(&format!("{at}.map.mesh"), e.to_string()))?;
                 let mut scratch = Mesh::default();
                 let imported = other
@@ -231,7 +231,7 @@ impl Scene {
                                 r -= a * a.dot(&r);
                             }
                             let len = r.norm();
-                            if !(len > 0.0) {
+                            if len.is_nan() || len <= 0.0 {
                                 return Err(invalid(
                                     &format!("{at}.map.motion"),
                                     format!("node {n} of '{surface}' is on the centre (or axis): no radial direction"),

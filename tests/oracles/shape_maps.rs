@@ -118,7 +118,7 @@ fn every_shape_map_and_the_pressure_ddm_equals_central_fdm_along_a_frictional_sl
         let names = [name.as_str(), "pressure.N"];
         let (ps, ddm, fdm) = common::ddm_and_central_fdm(&model, &names);
         assert_eq!(ddm.increments.len(), fdm.increments.len());
-        for p in 0..ps.len() {
+        for (p, param) in ps.iter().enumerate() {
             // the scale of the comparison: the largest sensitivity over the path, or the
             // largest response per unit of the parameter when that is larger (central FDM's
             // round-off, about 1e-13 of the response over the step, is then what is left)
@@ -126,11 +126,11 @@ fn every_shape_map_and_the_pressure_ddm_equals_central_fdm_along_a_frictional_sl
                 ddm.increments.iter().fold(0.0f64, |m, i| m.max(f(i).abs()))
             };
             let sensitivity = largest(&|i| i.derivatives[0][p]);
-            let per_unit = largest(&|i| i.values[0]) / ps[p].value.abs().max(1.0);
+            let per_unit = largest(&|i| i.values[0]) / param.value.abs().max(1.0);
             assert!(
                 sensitivity > 1e-6 * per_unit,
                 "{name}: {} has no effect",
-                ps[p].name
+                param.name
             );
             let scale = sensitivity.max(per_unit);
             let mut worst: f64 = 0.0;
@@ -139,10 +139,10 @@ fn every_shape_map_and_the_pressure_ddm_equals_central_fdm_along_a_frictional_sl
             }
             println!(
                 "{name}: d(pull)/d({}) DDM vs central FDM: {worst:.2e} of {scale:.4e} (largest sensitivity {sensitivity:.4e})",
-                ps[p].name
+                param.name
             );
             // central FDM's truncation (beta^2) and round-off are below 1e-6 on this path
-            assert!(worst < 1e-6, "{name} / {}: {worst:.2e}", ps[p].name);
+            assert!(worst < 1e-6, "{name} / {}: {worst:.2e}", param.name);
         }
     }
 }

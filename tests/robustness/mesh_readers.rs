@@ -4,7 +4,7 @@
 //! the line or entity), and a fuzzer mutating small seed files (no input may panic; a mutant
 //! that ever does is kept under `tests/corpus/meshes/`).
 
-use fricsens::mesh::import::{self, FileFace, ImportError, ImportedBody, MeshFile};
+use fricsens::mesh::import::{FileFace, ImportError, ImportedBody, MeshFile};
 use fricsens::mesh::{abaqus, gmsh, Axis, BlockSpec, Mesh, Zone};
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, BTreeSet};
@@ -51,7 +51,7 @@ fn import(
     prefix: &str,
     set: Option<&str>,
 ) -> Result<(Mesh, ImportedBody), ImportError> {
-    let f = import::read(path)?;
+    let f = fricsens::mesh::read(path)?;
     let mut m = Mesh::default();
     let b = f.add_to(&mut m, prefix, set)?;
     Ok((m, b))
@@ -181,7 +181,7 @@ fn two_bodies_written_together_read_back_one_by_one() {
             1 => gmsh::write(&m, &x, &bodies, &p, true).unwrap(),
             _ => abaqus::write(&m, &x, &bodies, &p).unwrap(),
         }
-        let f = import::read(&p).unwrap();
+        let f = fricsens::mesh::read(&p).unwrap();
         let mut m2 = Mesh::default();
         let ba = f.add_to(&mut m2, "a", Some("a")).unwrap();
         let bc = f.add_to(&mut m2, "c", Some("c")).unwrap();
@@ -241,13 +241,13 @@ fn ascii_and_binary_msh_of_one_mesh_read_to_equal_files() {
     let bodies = vec![("b".to_string(), 0)];
     gmsh::write(&m, &x, &bodies, &dir.join("a.msh"), false).unwrap();
     gmsh::write(&m, &x, &bodies, &dir.join("b.msh"), true).unwrap();
-    let a = import::read(&dir.join("a.msh")).unwrap();
-    let b = import::read(&dir.join("b.msh")).unwrap();
+    let a = fricsens::mesh::read(&dir.join("a.msh")).unwrap();
+    let b = fricsens::mesh::read(&dir.join("b.msh")).unwrap();
     assert_eq!(contents(&a), contents(&b));
     assert_eq!(a.nodes.len(), 3 * 4 * 2);
     // and so are Gmsh's own ASCII and binary files
-    let a = import::read(&fixtures().join("gmsh_box.msh")).unwrap();
-    let b = import::read(&fixtures().join("gmsh_box_bin.msh")).unwrap();
+    let a = fricsens::mesh::read(&fixtures().join("gmsh_box.msh")).unwrap();
+    let b = fricsens::mesh::read(&fixtures().join("gmsh_box_bin.msh")).unwrap();
     assert_eq!(contents(&a), contents(&b));
 }
 
@@ -312,7 +312,7 @@ fn gmsh_ascii_binary_and_inp_exports_of_one_model_give_one_body() {
 #[test]
 fn a_hand_written_inp_with_includes_generate_continuations_and_sides() {
     let p = fixtures().join("hand.inp");
-    let f = import::read(&p).unwrap_or_else(|e| panic!("{e}"));
+    let f = fricsens::mesh::read(&p).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(f.nodes.len(), 12);
     assert_eq!(f.elements.len(), 2);
     assert_eq!(f.elements[0].nodes, [1, 2, 5, 4, 7, 8, 11, 10]);
@@ -569,7 +569,7 @@ fn unused_nodes_in_gmsh_and_in_abaqus_sets() {
 
 #[test]
 fn a_prefix_in_use_is_refused() {
-    let f = import::read(&fixtures().join("one_hex.msh")).unwrap();
+    let f = fricsens::mesh::read(&fixtures().join("one_hex.msh")).unwrap();
     let mut m = Mesh::default();
     f.add_to(&mut m, "c", None).unwrap();
     let e = f.add_to(&mut m, "c", None).unwrap_err();
@@ -610,7 +610,7 @@ fn an_interior_face_in_a_face_set_is_refused() {
     assert!(matches!(e, ImportError::FaceNotOnBoundary { .. }), "{e}");
     // a refused body leaves the mesh as it was
     let mut m = Mesh::default();
-    import::read(&p)
+    fricsens::mesh::read(&p)
         .unwrap()
         .add_to(&mut m, "b", None)
         .unwrap_err();
@@ -813,7 +813,7 @@ fn corpus() -> PathBuf {
 /// Read and import `path`; `Err(())` on a panic.
 fn survives(path: &Path) -> Result<Result<(), ImportError>, ()> {
     catch_unwind(AssertUnwindSafe(|| {
-        let f = import::read(path)?;
+        let f = fricsens::mesh::read(path)?;
         let mut m = Mesh::default();
         f.add_to(&mut m, "b", None)?;
         for name in f.set_names() {
