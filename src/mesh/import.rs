@@ -540,7 +540,22 @@ pub(crate) fn hex8_det(x: &[[f64; 3]; 8], xi: [f64; 3]) -> f64 {
 }
 
 /// Where a face of the file's solid elements is: up to two `(element index, face index)`.
-type FaceOwners = HashMap<Vec<u64>, Vec<(usize, usize)>>;
+type FaceOwners = HashMap<FaceKey, Vec<(usize, usize)>>;
+
+/// A face by its sorted node ids, padded with `u64::MAX` (no allocation per face).
+type FaceKey = [u64; super::MAX_FACE_NODES];
+
+/// The key of the face with node ids `ids` (`None` for more nodes than any face has).
+fn face_key(ids: impl Iterator<Item = u64>) -> Option<FaceKey> {
+    let mut k = [u64::MAX; super::MAX_FACE_NODES];
+    let mut n = 0;
+    for id in ids {
+        *k.get_mut(n)? = id;
+        n += 1;
+    }
+    k[..n].sort_unstable();
+    Some(k)
+}
 
 impl MeshFile {
     /// An empty file of `format` at `path`.
@@ -698,13 +713,11 @@ impl MeshFile {
         let mut owners: FaceOwners = HashMap::new();
         for (k, e) in self.elements.iter().enumerate() {
             for (f, face) in e.shape.faces().iter().enumerate() {
-                let key: Vec<u64> = sorted(
-                    &face
-                        .nodes
-                        .iter()
-                        .filter_map(|&l| e.nodes.get(l).copied())
-                        .collect::<Vec<_>>(),
-                );
+                let Some(key) =
+                    face_key(face.nodes.iter().filter_map(|&l| e.nodes.get(l).copied()))
+                else {
+                    continue;
+                };
                 let v = owners.entry(key).or_default();
                 if v.len() < 3 {
                     v.push((k, f));
@@ -801,8 +814,22 @@ impl MeshFile {
             }
             v
         };
+        let owners = self.face_owners();
         let (mut node_sets, mut face_sets) =
-            self.body_sets(&node_ids, &node_index, &element_index, &in_body)?;
+            self.body_sets(&node_ids, &node_index, &element_index, &in_body, &owners)?;
+        // the boundary faces point out of their elements too
+        for &k in &body {
+            let e = &self.elements[k];
+            for face in e.shape.faces() {
+                let ids: Vec<u64> = face.nodes.iter().map(|&l| e.nodes[l]).collect();
+                let on_body = owners
+                    .get(&face_key(ids.iter().copied()).unwrap_or_default())
+                    .map_or(0, |v| v.iter().filter(|&&(j, _)| in_body[j]).count());
+                if on_body == 1 {
+                    self.check_outward("boundary", e.line, e, &ids, &node_index)?;
+                }
+            }
+        }
         let reserved = |set: &str| ImportError::ReservedSet {
             file: self.path.clone(),
             set: set.into(),
@@ -1019,6 +1046,7 @@ impl MeshFile {
         node_index: &HashMap<u64, usize>,
         element_index: &HashMap<u64, usize>,
         in_body: &[bool],
+        owners: &FaceOwners,
     ) -> Result<(BTreeMap<String, Vec<usize>>, BTreeMap<String, FaceSet>), ImportError> {
         let mut node_sets: BTreeMap<String, Vec<usize>> = BTreeMap::new();
         let restrict = |ids: &mut dyn Iterator<Item = u64>| -> Vec<usize> {
@@ -1053,14 +1081,12 @@ impl MeshFile {
                 node_sets.insert(name.clone(), v);
             }
         }
-        let owners = self.face_owners();
         let mut face_sets: BTreeMap<String, FaceSet> = BTreeMap::new();
         for (name, faces) in &self.face_sets {
             let mut set = FaceSet::new();
             let mut seen: BTreeSet<(usize, usize)> = BTreeSet::new();
             for face in faces {
-                let Some((k, f)) =
-                    self.resolve_face(name, face, &owners, element_index, in_body)?
+                let Some((k, f)) = self.resolve_face(name, face, owners, element_index, in_body)?
                 else {
                     continue;
                 };
@@ -1070,7 +1096,7 @@ impl MeshFile {
                 let e = &self.elements[k];
                 let topo = &e.shape.faces()[f];
                 let ids: Vec<u64> = topo.nodes.iter().map(|&l| e.nodes[l]).collect();
-                self.check_outward(name, face, e, &ids, node_index)?;
+                self.check_outward(name, face.line(), e, &ids, node_index)?;
                 let nodes: Vec<usize> = ids.iter().map(|id| node_ids[id]).collect();
                 set.push(topo.family, &nodes)
                     .map_err(|source| ImportError::Mesh {
@@ -1103,7 +1129,10 @@ impl MeshFile {
     ) -> Result<Option<(usize, usize)>, ImportError> {
         let at = self.place(face.line());
         let (key, label) = match face {
-            FileFace::Nodes { nodes, .. } => (sorted(nodes), format!("nodes {nodes:?}")),
+            FileFace::Nodes { nodes, .. } => (
+                face_key(nodes.iter().copied()).unwrap_or_default(),
+                format!("nodes {nodes:?}"),
+            ),
             FileFace::Side { element, side, .. } => {
                 let label = format!("side S{side} of element {element}");
                 let not_found = || ImportError::FaceNotFound {
@@ -1127,7 +1156,7 @@ impl MeshFile {
                     .iter()
                     .map(|&l| e.nodes[l])
                     .collect();
-                (sorted(&ids), label)
+                (face_key(ids.iter().copied()).unwrap_or_default(), label)
             }
         };
         let Some(list) = owners.get(&key) else {
@@ -1159,7 +1188,7 @@ impl MeshFile {
     fn check_outward(
         &self,
         set: &str,
-        face: &FileFace,
+        line: usize,
         e: &FileElement,
         ids: &[u64],
         node_index: &HashMap<u64, usize>,
@@ -1178,7 +1207,7 @@ impl MeshFile {
         let out = (centre - xe).dot(&normal);
         if out.is_nan() || out <= 0.0 {
             return Err(ImportError::FaceOrientation {
-                at: self.place(face.line()),
+                at: self.place(line),
                 set: set.to_string(),
                 face: format!("{ids:?}"),
                 element: e.id,

@@ -887,3 +887,35 @@ fn the_corpus_of_once_panicking_meshes_passes() {
         }
     }
 }
+
+/// Time and memory stay linear: a 40 x 40 x 40 block (64 000 hex8) through both formats.
+#[test]
+#[ignore = "timing: cargo test --release --test robustness mesh_readers::large -- --ignored --nocapture"]
+fn large_block_through_both_formats() {
+    let dir = scratch("large");
+    let (m, x) = block("b", [40, 40, 40]);
+    let bodies = vec![("b".to_string(), 0)];
+    for (name, k) in [("l.msh", 0), ("l_bin.msh", 1), ("l.inp", 2)] {
+        let p = dir.join(name);
+        let t = std::time::Instant::now();
+        match k {
+            0 => gmsh::write(&m, &x, &bodies, &p, false).unwrap(),
+            1 => gmsh::write(&m, &x, &bodies, &p, true).unwrap(),
+            _ => abaqus::write(&m, &x, &bodies, &p).unwrap(),
+        }
+        let written = t.elapsed();
+        let t = std::time::Instant::now();
+        let f = import::read(&p).unwrap();
+        let read = t.elapsed();
+        let t = std::time::Instant::now();
+        let mut m2 = Mesh::default();
+        f.add_to(&mut m2, "b", Some("b")).unwrap();
+        println!(
+            "{name}: {} bytes, write {written:?}, read {read:?}, add_to {:?}",
+            std::fs::metadata(&p).unwrap().len(),
+            t.elapsed()
+        );
+        assert_eq!(m2.n_elements(), 64_000);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
