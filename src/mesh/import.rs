@@ -1216,3 +1216,45 @@ impl MeshFile {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_jacobian_of_a_box_is_its_volume_over_eight() {
+        // a 2 x 3 x 5 box: det = 30 / 8 everywhere; mirrored, -30 / 8
+        let x = hex8::NODE_XI.map(|p| [1.0 + p[0], 1.5 * (1.0 + p[1]), 2.5 * (1.0 + p[2])]);
+        for xi in hex8::gauss_points() {
+            assert!((hex8_det(&x, xi) - 30.0 / 8.0).abs() < 1e-14);
+        }
+        let m = x.map(|p| [-p[0], p[1], p[2]]);
+        assert!((hex8_det(&m, [0.0; 3]) + 30.0 / 8.0).abs() < 1e-14);
+    }
+
+    #[test]
+    fn face_keys_ignore_the_node_order_and_refuse_too_many_nodes() {
+        assert_eq!(
+            face_key([4, 1, 3, 2].into_iter()),
+            face_key([1, 2, 3, 4].into_iter())
+        );
+        assert_ne!(
+            face_key([1, 2, 3].into_iter()),
+            face_key([1, 2, 3, 4].into_iter())
+        );
+        assert_eq!(face_key(0..9), None);
+    }
+
+    #[test]
+    fn places_map_global_lines_back_to_included_files() {
+        let mut f = MeshFile::empty(Path::new("a.inp"), Format::Abaqus, false);
+        f.lines.files.push("b.inp".into());
+        // a.inp lines 1-3, b.inp lines 1-2 (global 4-5), a.inp from line 4 (global 6)
+        f.lines.segments = vec![(1, 0, 1), (4, 1, 1), (6, 0, 4)];
+        assert_eq!(f.place(2).to_string(), "a.inp, line 2");
+        assert_eq!(f.place(5).to_string(), "b.inp, line 2");
+        assert_eq!(f.place(7).to_string(), "a.inp, line 5");
+        f.lines.bytes = true;
+        assert_eq!(f.place(7).to_string(), "a.inp, byte 7");
+    }
+}

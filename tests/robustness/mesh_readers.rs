@@ -834,12 +834,18 @@ fn fuzz(n: usize, seed: u64) {
     let seeds = seeds(&dir);
     let mut rng = Rng(seed);
     let (mut ok, mut err) = (0, 0);
+    let mut slowest = (std::time::Duration::ZERO, 0);
     for k in 0..n {
         let (ext, s) = &seeds[k % seeds.len()];
         let bytes = mutate(s, &mut rng);
         let path = dir.join(format!("mutant.{ext}"));
         std::fs::write(&path, &bytes).unwrap();
-        match survives(&path) {
+        let t = std::time::Instant::now();
+        let outcome = survives(&path);
+        if t.elapsed() > slowest.0 {
+            slowest = (t.elapsed(), k);
+        }
+        match outcome {
             Ok(Ok(())) => ok += 1,
             Ok(Err(e)) => {
                 err += 1;
@@ -858,6 +864,10 @@ fn fuzz(n: usize, seed: u64) {
         }
     }
     let _ = std::fs::remove_dir_all(&dir);
+    println!(
+        "{ok} accepted, {err} refused; slowest: mutant {} in {:?}",
+        slowest.1, slowest.0
+    );
     // the mutator must reach both outcomes
     assert!(ok > 0 && err > n / 4, "{ok} accepted, {err} refused");
 }
@@ -870,7 +880,12 @@ fn fuzzed_mesh_files_never_panic() {
 #[test]
 #[ignore = "100 000 mutants: cargo test --release --test robustness mesh_readers::fuzz_long -- --ignored"]
 fn fuzz_long() {
-    fuzz(100_000, 0xD1B5_4A32_D192_ED03);
+    // another seed: MESH_FUZZ_SEED=12345
+    let seed = std::env::var("MESH_FUZZ_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0xD1B5_4A32_D192_ED03);
+    fuzz(100_000, seed);
 }
 
 /// Every mutant that once panicked (`tests/corpus/meshes/`) now reads to a value or a typed
