@@ -310,6 +310,33 @@ fn gmsh_ascii_binary_and_inp_exports_of_one_model_give_one_body() {
 }
 
 #[test]
+fn gmsh_parametric_nodes_are_read_past() {
+    let a = import::read(&fixtures().join("gmsh_box.msh")).unwrap();
+    let b = import::read(&fixtures().join("gmsh_box_param.msh")).unwrap();
+    assert_eq!(contents(&a), contents(&b));
+}
+
+/// The unused-node rule for Gmsh files relies on Gmsh writing no node that no saved element
+/// uses: with one physical surface, only its nodes are written.
+#[test]
+fn gmsh_writes_only_the_nodes_its_saved_elements_use() {
+    let p = fixtures().join("gmsh_surface_only.msh");
+    let f = import::read(&p).unwrap();
+    let used: BTreeSet<u64> = f
+        .other_elements
+        .iter()
+        .flat_map(|e| e.nodes.iter().copied())
+        .collect();
+    let nodes: BTreeSet<u64> = f.nodes.iter().map(|n| n.id).collect();
+    // the x = 0 face of 2 x 2 quadrangles
+    assert_eq!(nodes.len(), 9);
+    assert_eq!(used, nodes);
+    assert_eq!(f.face_sets["left"].len(), 4);
+    let e = rejects(&p, None, &["has no solid element"]);
+    assert!(matches!(e, ImportError::EmptyBody { .. }), "{e}");
+}
+
+#[test]
 fn a_hand_written_inp_with_includes_generate_continuations_and_sides() {
     let p = fixtures().join("hand.inp");
     let f = import::read(&p).unwrap_or_else(|e| panic!("{e}"));
