@@ -2,6 +2,19 @@
 //! and [`super::abaqus`]), and how one of its bodies and its sets enter a [`super::Mesh`]
 //! ([`MeshFile::add_to`]).
 //!
+//! ```no_run
+//! use fricsens::mesh::{import, Mesh};
+//! use std::path::Path;
+//!
+//! let file = import::read(Path::new("bracket.msh"))?; // or .inp
+//! let mut mesh = Mesh::default();
+//! // the hexahedra of physical volume "bracket", its sets as "bracket.NAME"
+//! let body = file.add_to(&mut mesh, "bracket", Some("bracket"))?;
+//! let contact_faces = &mesh.face_sets["bracket.bottom"];
+//! # let _ = (body, contact_faces);
+//! # Ok::<(), import::ImportError>(())
+//! ```
+//!
 //! # Rules
 //!
 //! * **Which elements.** `add_to(mesh, prefix, Some(set))` takes the solid elements of element
