@@ -53,9 +53,10 @@ enum Kind {
 fn kind(t: &str) -> Option<Kind> {
     let t = t.to_ascii_uppercase();
     if let Some(rest) = t.strip_prefix("C3D8") {
+        // C3D8, C3D8R, C3D8I, C3D8H, C3D8RH, C3D8T, C3D8P, ...: letters only after C3D8
         return rest
             .chars()
-            .all(|c| matches!(c, 'R' | 'I' | 'H' | 'T'))
+            .all(|c| c.is_ascii_alphabetic())
             .then_some(Kind::Solid);
     }
     const SURF4: [&str; 16] = [
@@ -334,7 +335,8 @@ impl<'f> Reader<'f> {
         let nset = self.set_param(p, "NSET", _at)?;
         for (text, line) in data {
             let t = Self::tokens(text);
-            if t.len() < 2 || t.len() > 4 {
+            // id, x[, y[, z]] and up to three normal components (ignored)
+            if t.len() < 2 || t.len() > 7 {
                 return Err(self.syntax(
                     *line,
                     format!("*NODE: expected 'id, x, y, z', found {} values", t.len()),
@@ -342,7 +344,7 @@ impl<'f> Reader<'f> {
             }
             let id = self.int(t[0], *line, "*NODE: node id")?;
             let mut x = [0.0; 3];
-            for (c, v) in t[1..].iter().enumerate() {
+            for (c, v) in t[1..].iter().take(3).enumerate() {
                 x[c] = if v.is_empty() {
                     0.0
                 } else {

@@ -685,6 +685,7 @@ pub(crate) fn plan<'a>(
 struct Out {
     s: Vec<u8>,
     binary: bool,
+    big_endian: bool,
 }
 
 impl Out {
@@ -694,21 +695,37 @@ impl Out {
     /// An ASCII line of values, or the values in binary.
     fn int(&mut self, v: i32) {
         if self.binary {
-            self.s.extend_from_slice(&v.to_le_bytes());
+            let b = if self.big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            };
+            self.s.extend_from_slice(&b);
         } else {
             self.text(&format!("{v} "));
         }
     }
     fn size(&mut self, v: usize) {
         if self.binary {
-            self.s.extend_from_slice(&(v as u64).to_le_bytes());
+            let v = v as u64;
+            let b = if self.big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            };
+            self.s.extend_from_slice(&b);
         } else {
             self.text(&format!("{v} "));
         }
     }
     fn f64(&mut self, v: f64) {
         if self.binary {
-            self.s.extend_from_slice(&v.to_le_bytes());
+            let b = if self.big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            };
+            self.s.extend_from_slice(&b);
         } else {
             self.text(&format!("{v:?} "));
         }
@@ -733,14 +750,27 @@ pub fn write(
     path: &Path,
     binary: bool,
 ) -> Result<(), ImportError> {
+    write_msh(mesh, x, bodies, path, binary, false)
+}
+
+/// [`write`], binary files in either byte order.
+fn write_msh(
+    mesh: &Mesh,
+    x: &[Vector3<f64>],
+    bodies: &[(String, usize)],
+    path: &Path,
+    binary: bool,
+    big_endian: bool,
+) -> Result<(), ImportError> {
     let plan = plan(mesh, x, bodies, path)?;
     let mut o = Out {
         s: Vec::new(),
         binary,
+        big_endian,
     };
     o.text(&format!("$MeshFormat\n4.1 {} 8\n", u8::from(binary)));
     if binary {
-        o.s.extend_from_slice(&1i32.to_le_bytes());
+        o.int(1);
         o.text("\n");
     }
     o.text("$EndMeshFormat\n");
@@ -930,4 +960,53 @@ pub fn write(
         file: path.to_path_buf(),
         message: e.to_string(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{Axis, BlockSpec};
+
+    /// Both byte orders of a binary file read to the same nodes, elements and sets.
+    #[test]
+    fn big_endian_binary_reads_like_little_endian() {
+        let mut m = Mesh::default();
+        m.add_block(BlockSpec {
+            name: "b".into(),
+            origin: [0.1, 0.2, 0.3],
+            x: Axis::uniform(1.3, 2),
+            y: Axis::uniform(0.7, 1),
+            z: Axis::uniform(0.9, 2),
+        })
+        .unwrap();
+        let x = m.coordinates::<f64>(&m.block_geometry());
+        let dir = std::env::temp_dir().join(format!("fricsens-gmsh-endian-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let bodies = vec![("b".to_string(), 0)];
+        let (le, be) = (dir.join("le.msh"), dir.join("be.msh"));
+        write_msh(&m, &x, &bodies, &le, true, false).unwrap();
+        write_msh(&m, &x, &bodies, &be, true, true).unwrap();
+        let (a, b) = (read(&le).unwrap(), read(&be).unwrap());
+        assert_ne!(std::fs::read(&le).unwrap(), std::fs::read(&be).unwrap());
+        let _ = std::fs::remove_dir_all(&dir);
+        assert_eq!(a.nodes.len(), 3 * 2 * 3);
+        assert_eq!(a.nodes, b.nodes);
+        assert_eq!(a.elements, b.elements);
+        assert_eq!(a.other_elements, b.other_elements);
+        assert_eq!(a.element_sets, b.element_sets);
+        assert_eq!(a.node_sets, b.node_sets);
+        assert_eq!(a.face_sets, b.face_sets);
+        // the sixth node (tag 6) is x-index 2, y-index 1, z-index 0
+        let n = a.nodes.iter().find(|n| n.id == 6).unwrap();
+        assert_eq!(n.x, [x[5][0], x[5][1], x[5][2]]);
+        assert_eq!(n.x[0], 0.1 + 1.3);
+    }
+
+    #[test]
+    fn every_supported_type_has_its_node_count() {
+        for (t, n) in [(1, 2), (2, 3), (3, 4), (5, 8), (15, 1)] {
+            assert_eq!(element_type(t).map(|e| e.1), Some(n));
+        }
+        assert!(element_type(0).is_none() && element_type(20).is_none());
+    }
 }

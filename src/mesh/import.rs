@@ -2,6 +2,19 @@
 //! and [`super::abaqus`]), and how one of its bodies and its sets enter a [`super::Mesh`]
 //! ([`MeshFile::add_to`]).
 //!
+//! ```no_run
+//! use fricsens::mesh::{import, Mesh};
+//! use std::path::Path;
+//!
+//! let file = import::read(Path::new("bracket.msh"))?; // or .inp
+//! let mut mesh = Mesh::default();
+//! // the hexahedra of physical volume "bracket", its sets as "bracket.NAME"
+//! let body = file.add_to(&mut mesh, "bracket", Some("bracket"))?;
+//! let contact_faces = &mesh.face_sets["bracket.bottom"];
+//! # let _ = (body, contact_faces);
+//! # Ok::<(), import::ImportError>(())
+//! ```
+//!
 //! # Rules
 //!
 //! * **Which elements.** `add_to(mesh, prefix, Some(set))` takes the solid elements of element
@@ -525,7 +538,22 @@ pub(crate) fn hex8_det(x: &[[f64; 3]; 8], xi: [f64; 3]) -> f64 {
 }
 
 /// Where a face of the file's solid elements is: up to two `(element index, face index)`.
-type FaceOwners = HashMap<Vec<u64>, Vec<(usize, usize)>>;
+type FaceOwners = HashMap<FaceKey, Vec<(usize, usize)>>;
+
+/// A face by its sorted node ids, padded with `u64::MAX` (no allocation per face).
+type FaceKey = [u64; super::MAX_FACE_NODES];
+
+/// The key of the face with node ids `ids` (`None` for more nodes than any face has).
+fn face_key(ids: impl Iterator<Item = u64>) -> Option<FaceKey> {
+    let mut k = [u64::MAX; super::MAX_FACE_NODES];
+    let mut n = 0;
+    for id in ids {
+        *k.get_mut(n)? = id;
+        n += 1;
+    }
+    k[..n].sort_unstable();
+    Some(k)
+}
 
 impl MeshFile {
     /// An empty file of `format` at `path`.
@@ -683,13 +711,11 @@ impl MeshFile {
         let mut owners: FaceOwners = HashMap::new();
         for (k, e) in self.elements.iter().enumerate() {
             for (f, face) in e.shape.faces().iter().enumerate() {
-                let key: Vec<u64> = sorted(
-                    &face
-                        .nodes
-                        .iter()
-                        .filter_map(|&l| e.nodes.get(l).copied())
-                        .collect::<Vec<_>>(),
-                );
+                let Some(key) =
+                    face_key(face.nodes.iter().filter_map(|&l| e.nodes.get(l).copied()))
+                else {
+                    continue;
+                };
                 let v = owners.entry(key).or_default();
                 if v.len() < 3 {
                     v.push((k, f));
@@ -786,8 +812,22 @@ impl MeshFile {
             }
             v
         };
+        let owners = self.face_owners();
         let (mut node_sets, mut face_sets) =
-            self.body_sets(&node_ids, &node_index, &element_index, &in_body)?;
+            self.body_sets(&node_ids, &node_index, &element_index, &in_body, &owners)?;
+        // the boundary faces point out of their elements too
+        for &k in &body {
+            let e = &self.elements[k];
+            for face in e.shape.faces() {
+                let ids: Vec<u64> = face.nodes.iter().map(|&l| e.nodes[l]).collect();
+                let on_body = owners
+                    .get(&face_key(ids.iter().copied()).unwrap_or_default())
+                    .map_or(0, |v| v.iter().filter(|&&(j, _)| in_body[j]).count());
+                if on_body == 1 {
+                    self.check_outward("boundary", e.line, e, &ids, &node_index)?;
+                }
+            }
+        }
         let reserved = |set: &str| ImportError::ReservedSet {
             file: self.path.clone(),
             set: set.into(),
@@ -1004,6 +1044,7 @@ impl MeshFile {
         node_index: &HashMap<u64, usize>,
         element_index: &HashMap<u64, usize>,
         in_body: &[bool],
+        owners: &FaceOwners,
     ) -> Result<(BTreeMap<String, Vec<usize>>, BTreeMap<String, FaceSet>), ImportError> {
         let mut node_sets: BTreeMap<String, Vec<usize>> = BTreeMap::new();
         let restrict = |ids: &mut dyn Iterator<Item = u64>| -> Vec<usize> {
@@ -1038,14 +1079,12 @@ impl MeshFile {
                 node_sets.insert(name.clone(), v);
             }
         }
-        let owners = self.face_owners();
         let mut face_sets: BTreeMap<String, FaceSet> = BTreeMap::new();
         for (name, faces) in &self.face_sets {
             let mut set = FaceSet::new();
             let mut seen: BTreeSet<(usize, usize)> = BTreeSet::new();
             for face in faces {
-                let Some((k, f)) =
-                    self.resolve_face(name, face, &owners, element_index, in_body)?
+                let Some((k, f)) = self.resolve_face(name, face, owners, element_index, in_body)?
                 else {
                     continue;
                 };
@@ -1055,7 +1094,7 @@ impl MeshFile {
                 let e = &self.elements[k];
                 let topo = &e.shape.faces()[f];
                 let ids: Vec<u64> = topo.nodes.iter().map(|&l| e.nodes[l]).collect();
-                self.check_outward(name, face, e, &ids, node_index)?;
+                self.check_outward(name, face.line(), e, &ids, node_index)?;
                 let nodes: Vec<usize> = ids.iter().map(|id| node_ids[id]).collect();
                 set.push(topo.family, &nodes)
                     .map_err(|source| ImportError::Mesh {
@@ -1088,7 +1127,10 @@ impl MeshFile {
     ) -> Result<Option<(usize, usize)>, ImportError> {
         let at = self.place(face.line());
         let (key, label) = match face {
-            FileFace::Nodes { nodes, .. } => (sorted(nodes), format!("nodes {nodes:?}")),
+            FileFace::Nodes { nodes, .. } => (
+                face_key(nodes.iter().copied()).unwrap_or_default(),
+                format!("nodes {nodes:?}"),
+            ),
             FileFace::Side { element, side, .. } => {
                 let label = format!("side S{side} of element {element}");
                 let not_found = || ImportError::FaceNotFound {
@@ -1112,7 +1154,7 @@ impl MeshFile {
                     .iter()
                     .map(|&l| e.nodes[l])
                     .collect();
-                (sorted(&ids), label)
+                (face_key(ids.iter().copied()).unwrap_or_default(), label)
             }
         };
         let Some(list) = owners.get(&key) else {
@@ -1144,7 +1186,7 @@ impl MeshFile {
     fn check_outward(
         &self,
         set: &str,
-        face: &FileFace,
+        line: usize,
         e: &FileElement,
         ids: &[u64],
         node_index: &HashMap<u64, usize>,
@@ -1163,12 +1205,54 @@ impl MeshFile {
         let out = (centre - xe).dot(&normal);
         if out.is_nan() || out <= 0.0 {
             return Err(ImportError::FaceOrientation {
-                at: self.place(face.line()),
+                at: self.place(line),
                 set: set.to_string(),
                 face: format!("{ids:?}"),
                 element: e.id,
             });
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_jacobian_of_a_box_is_its_volume_over_eight() {
+        // a 2 x 3 x 5 box: det = 30 / 8 everywhere; mirrored, -30 / 8
+        let x = hex8::NODE_XI.map(|p| [1.0 + p[0], 1.5 * (1.0 + p[1]), 2.5 * (1.0 + p[2])]);
+        for xi in hex8::gauss_points() {
+            assert!((hex8_det(&x, xi) - 30.0 / 8.0).abs() < 1e-14);
+        }
+        let m = x.map(|p| [-p[0], p[1], p[2]]);
+        assert!((hex8_det(&m, [0.0; 3]) + 30.0 / 8.0).abs() < 1e-14);
+    }
+
+    #[test]
+    fn face_keys_ignore_the_node_order_and_refuse_too_many_nodes() {
+        assert_eq!(
+            face_key([4, 1, 3, 2].into_iter()),
+            face_key([1, 2, 3, 4].into_iter())
+        );
+        assert_ne!(
+            face_key([1, 2, 3].into_iter()),
+            face_key([1, 2, 3, 4].into_iter())
+        );
+        assert_eq!(face_key(0..9), None);
+    }
+
+    #[test]
+    fn places_map_global_lines_back_to_included_files() {
+        let mut f = MeshFile::empty(Path::new("a.inp"), Format::Abaqus, false);
+        f.lines.files.push("b.inp".into());
+        // a.inp lines 1-3, b.inp lines 1-2 (global 4-5), a.inp from line 4 (global 6)
+        f.lines.segments = vec![(1, 0, 1), (4, 1, 1), (6, 0, 4)];
+        assert_eq!(f.place(2).to_string(), "a.inp, line 2");
+        assert_eq!(f.place(5).to_string(), "b.inp, line 2");
+        assert_eq!(f.place(7).to_string(), "a.inp, line 5");
+        f.lines.bytes = true;
+        assert_eq!(f.place(7).to_string(), "a.inp, byte 7");
     }
 }
