@@ -122,6 +122,16 @@ mod pressure_tests {
     use super::*;
     use num_dual::Dual64;
 
+    /// A pressure load of magnitude 1 on the quads `faces`.
+    fn load(faces: &[[usize; 4]]) -> PressureLoad {
+        PressureLoad {
+            name: "p".into(),
+            faces: FaceSet::quad4(faces),
+            value: 1.0,
+            amplitude: Amplitude::ramp(),
+        }
+    }
+
     #[test]
     fn pressure_on_a_flat_quad_is_p_times_area_shared_by_the_bilinear_weights() {
         // a 2 x 3 rectangle in z = 0, normal +z: each node a quarter of p * 6, against +z
@@ -131,12 +141,7 @@ mod pressure_tests {
             Vector3::new(2.0, 3.0, 0.0),
             Vector3::new(0.0, 3.0, 0.0),
         ];
-        let load = PressureLoad {
-            name: "p".into(),
-            faces: FaceSet::quad4(&[[0, 1, 2, 3]]),
-            value: 1.0,
-            amplitude: Amplitude::ramp(),
-        };
+        let load = load(&[[0, 1, 2, 3]]);
         let mut r = vec![0.0; 12];
         load.add_to_residual(&x, 2.0, &mut r);
         for a in 0..4 {
@@ -172,12 +177,7 @@ mod pressure_tests {
             .iter()
             .map(|f| [f.nodes[0], f.nodes[1], f.nodes[2], f.nodes[3]])
             .collect();
-        let load = PressureLoad {
-            name: "p".into(),
-            faces: FaceSet::quad4(&faces),
-            value: 1.0,
-            amplitude: Amplitude::ramp(),
-        };
+        let load = load(&faces);
         let mut r = vec![0.0; 24];
         load.add_to_residual(&x, 3.0, &mut r);
         for c in 0..3 {

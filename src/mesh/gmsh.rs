@@ -692,43 +692,26 @@ impl Out {
     fn text(&mut self, t: &str) {
         self.s.extend_from_slice(t.as_bytes());
     }
-    /// An ASCII line of values, or the values in binary.
-    fn int(&mut self, v: i32) {
-        if self.binary {
-            let b = if self.big_endian {
-                v.to_be_bytes()
-            } else {
-                v.to_le_bytes()
-            };
-            self.s.extend_from_slice(&b);
+    /// A value: its text and a space in ASCII, its bytes (`le` or `be`) in binary.
+    fn value<const N: usize>(&mut self, ascii: std::fmt::Arguments, le: [u8; N], be: [u8; N]) {
+        if !self.binary {
+            self.s.extend_from_slice(format!("{ascii} ").as_bytes());
+        } else if self.big_endian {
+            self.s.extend_from_slice(&be);
         } else {
-            self.text(&format!("{v} "));
+            self.s.extend_from_slice(&le);
         }
+    }
+    fn int(&mut self, v: i32) {
+        self.value(format_args!("{v}"), v.to_le_bytes(), v.to_be_bytes());
     }
     fn size(&mut self, v: usize) {
-        if self.binary {
-            let v = v as u64;
-            let b = if self.big_endian {
-                v.to_be_bytes()
-            } else {
-                v.to_le_bytes()
-            };
-            self.s.extend_from_slice(&b);
-        } else {
-            self.text(&format!("{v} "));
-        }
+        let v = v as u64;
+        self.value(format_args!("{v}"), v.to_le_bytes(), v.to_be_bytes());
     }
     fn f64(&mut self, v: f64) {
-        if self.binary {
-            let b = if self.big_endian {
-                v.to_be_bytes()
-            } else {
-                v.to_le_bytes()
-            };
-            self.s.extend_from_slice(&b);
-        } else {
-            self.text(&format!("{v:?} "));
-        }
+        // `{:?}`: the shortest text that reads back to the same double
+        self.value(format_args!("{v:?}"), v.to_le_bytes(), v.to_be_bytes());
     }
     /// End of an ASCII line (nothing in binary).
     fn nl(&mut self) {

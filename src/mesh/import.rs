@@ -1,4 +1,4 @@
-//! Imported meshes: a mesh file as it states itself ([`MeshFile`], read by [`super::gmsh`]
+//! Imported meshes: a mesh file as it states itself ([`MeshFile`], read by [`super::read`]: [`super::gmsh`]
 //! and [`super::abaqus`]), and how one of its bodies and its sets enter a [`super::Mesh`]
 //! ([`MeshFile::add_to`]).
 //!
@@ -6,7 +6,7 @@
 //! use fricsens::mesh::{import, Mesh};
 //! use std::path::Path;
 //!
-//! let file = import::read(Path::new("bracket.msh"))?; // or .inp
+//! let file = fricsens::mesh::read(Path::new("bracket.msh"))?; // or .inp
 //! let mut mesh = Mesh::default();
 //! // the hexahedra of physical volume "bracket", its sets as "bracket.NAME"
 //! let body = file.add_to(&mut mesh, "bracket", Some("bracket"))?;

@@ -293,7 +293,7 @@ pub fn boundary_driven(
         SparsePattern::new(n, &refs, &[]).map_err(|e| fail(format!("pattern: {e}")))?,
     );
     let mut k = SparseMatrix::new(pattern.clone());
-    // isotropic operator per element: Laplace (g_a . g_b) I, or elasticity with E = 1, nu = 0.3
+    // isotropic operator per element: Laplace (mu = 1), or elasticity with E = 1, nu = 0.3
     let (lambda, mu) = match smoothing {
         Smoothing::Laplace => (0.0, 1.0),
         Smoothing::Elastic => {
@@ -322,12 +322,10 @@ pub fn boundary_driven(
                     let dot = ga.dot(gc);
                     for i in 0..3 {
                         for j in 0..3 {
-                            let mut v = lambda * ga[i] * gc[j] + mu * gc[i] * ga[j];
-                            if i == j {
-                                v += mu * dot;
-                            }
-                            if smoothing == Smoothing::Laplace {
-                                v = if i == j { dot } else { 0.0 };
+                            // Laplace: (g_a . g_c) I; elasticity adds the coupling terms
+                            let mut v = if i == j { mu * dot } else { 0.0 };
+                            if smoothing == Smoothing::Elastic {
+                                v += lambda * ga[i] * gc[j] + mu * gc[i] * ga[j];
                             }
                             ke[(3 * a + i) * 24 + 3 * c + j] += v * det;
                         }

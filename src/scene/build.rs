@@ -121,30 +121,30 @@ impl Scene {
         };
         let x = mesh.coordinates::<f64>(&mesh.block_geometry());
         let bad = |e: crate::mesh::ShapeMapError| invalid(at, e.to_string());
+        let affine = |kind: MapKind, reference: f64| {
+            node_set(&sh.nodes, &format!("{at}.nodes")).map(|nodes| (nodes, kind, reference))
+        };
         let (nodes, kind, reference) = match &sh.map {
-            MapSpec::Translate { direction } => (
-                node_set(&sh.nodes, &format!("{at}.nodes"))?,
+            MapSpec::Translate { direction } => affine(
                 MapKind::Translate {
                     direction: *direction,
                 },
                 0.0,
-            ),
-            MapSpec::Rotate { centre, axis } => (
-                node_set(&sh.nodes, &format!("{at}.nodes"))?,
+            )?,
+            MapSpec::Rotate { centre, axis } => affine(
                 MapKind::Rotate {
                     centre: *centre,
                     axis: *axis,
                 },
                 0.0,
-            ),
-            MapSpec::Scale { centre, axis } => (
-                node_set(&sh.nodes, &format!("{at}.nodes"))?,
+            )?,
+            MapSpec::Scale { centre, axis } => affine(
                 MapKind::Scale {
                     centre: *centre,
                     axis: *axis,
                 },
                 1.0,
-            ),
+            )?,
             MapSpec::Morph { mesh: file, set } => {
                 let b = body()?;
                 let source = self.bodies.iter().find_map(|s| match &s.geometry {

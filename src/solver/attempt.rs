@@ -430,11 +430,7 @@ impl Solver<'_> {
         }
         for (l, load) in self.model.pressures.iter().enumerate() {
             let p = self.lifted.pressures[l] * load.amplitude.at(t);
-            if p != 0.0 {
-                f_ext += load
-                    .force_norm(&self.lifted.coords, p, residual.len())
-                    .powi(2);
-            }
+            f_ext += (p * self.unit_pressure_norms[l]).powi(2);
         }
         let f_ref = r_fixed.sqrt().max(f_ext.sqrt());
         (r_free, f_ref)

@@ -39,6 +39,9 @@ pub struct Solver<'m> {
     /// The force of a strain of 1e-6 over the smallest element face of the stiffest body: the
     /// reference force of the energy and round-off criteria before any force has been seen.
     pub(super) force_floor: f64,
+    /// Norm of each pressure load's nodal forces at unit pressure on the reference faces
+    /// (the forces are linear in the pressure: the force criterion scales them).
+    pub(super) unit_pressure_norms: Vec<f64>,
 }
 
 impl<'m> Solver<'m> {
@@ -62,10 +65,14 @@ impl<'m> Solver<'m> {
         let matrix = SparseMatrix::new(assembler.pattern.clone());
         let linear = LinearSolver::new(assembler.pattern.clone())?;
         let penetration_floor = PENETRATION_LIMIT_SCALE * bounding_diagonal(&lifted.coords);
+        let unit_pressure_norms = (model.pressures.iter())
+            .map(|p| p.force_norm(&lifted.coords, 1.0, assembler.dofs.n_total))
+            .collect();
         Ok(Solver {
             model,
             assembler,
             lifted,
+            unit_pressure_norms,
             linear,
             matrix,
             constrained,

@@ -157,15 +157,8 @@ pub struct Deck {
     pub times: Vec<f64>,
 }
 
-/// CalculiX face `k` (S1..S6) of a hex8, as local node indices.
-const CCX_FACES: [[usize; 4]; 6] = [
-    [0, 1, 2, 3],
-    [4, 7, 6, 5],
-    [0, 4, 5, 1],
-    [1, 5, 6, 2],
-    [2, 6, 7, 3],
-    [3, 7, 4, 0],
-];
+// CalculiX face `k` (S1..S6) of a hex8, as local node indices: the Abaqus sides the importer reads
+use crate::mesh::import::ABAQUS_HEX8_SIDES as CCX_FACES;
 
 fn sorted4(f: &[usize; 4]) -> [usize; 4] {
     let mut s = *f;

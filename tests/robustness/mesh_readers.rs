@@ -311,8 +311,8 @@ fn gmsh_ascii_binary_and_inp_exports_of_one_model_give_one_body() {
 
 #[test]
 fn gmsh_parametric_nodes_are_read_past() {
-    let a = import::read(&fixtures().join("gmsh_box.msh")).unwrap();
-    let b = import::read(&fixtures().join("gmsh_box_param.msh")).unwrap();
+    let a = fricsens::mesh::read(&fixtures().join("gmsh_box.msh")).unwrap();
+    let b = fricsens::mesh::read(&fixtures().join("gmsh_box_param.msh")).unwrap();
     assert_eq!(contents(&a), contents(&b));
 }
 
@@ -321,7 +321,7 @@ fn gmsh_parametric_nodes_are_read_past() {
 #[test]
 fn gmsh_writes_only_the_nodes_its_saved_elements_use() {
     let p = fixtures().join("gmsh_surface_only.msh");
-    let f = import::read(&p).unwrap();
+    let f = fricsens::mesh::read(&p).unwrap();
     let used: BTreeSet<u64> = f
         .other_elements
         .iter()
@@ -947,7 +947,7 @@ fn large_block_through_both_formats() {
         }
         let written = t.elapsed();
         let t = std::time::Instant::now();
-        let f = import::read(&p).unwrap();
+        let f = fricsens::mesh::read(&p).unwrap();
         let read = t.elapsed();
         let t = std::time::Instant::now();
         let mut m2 = Mesh::default();
