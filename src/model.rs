@@ -328,6 +328,9 @@ pub struct Lifted<S: Scalar> {
     pub tangential: Vec<S>,
     /// Values of the shape maps.
     pub shape: Vec<S>,
+    /// Tributary area of each hitting node of each contact pair at these reference
+    /// coordinates (the pair's `area` where it has no faces).
+    pub area: Vec<Vec<S>>,
     /// Magnitudes of the pressure loads.
     pub pressures: Vec<S>,
 }
@@ -601,8 +604,16 @@ impl Model {
                 DesignParam::Pressure { index } => pressures[index] = *v,
             }
         }
+        let coords = self.mesh.coordinates_at(&geometry, &shape);
+        let area = (self.contacts.iter())
+            .map(|c| match &c.hitting_faces {
+                Some(faces) => faces.tributary_areas(&coords, &c.hitting),
+                None => c.area.iter().map(|a| S::lift(*a)).collect(),
+            })
+            .collect();
         Lifted {
-            coords: self.mesh.coordinates_at(&geometry, &shape),
+            coords,
+            area,
             shape,
             pressures,
             material,

@@ -122,14 +122,14 @@ pub enum ResponseKind {
         /// 0, 1, 2 for x, y, z.
         component: usize,
     },
-    /// Normal contact force over tributary area at hitting node `node` of pair `pair`.
+    /// Normal contact force over tributary area at hitting node `node` of pair `pair`. The
+    /// area is the node's share of the hitting faces at the evaluated design's reference
+    /// coordinates, so a shape parameter moves it ([`Lifted::area`](crate::model::Lifted::area)).
     ContactPressure {
         /// Contact pair index in the model.
         pair: usize,
         /// Hitting node, counted within the pair.
         node: usize,
-        /// Tributary area of the node in the reference configuration.
-        area: f64,
     },
     /// One history scalar (e.g. the equivalent plastic strain of a Gauss point), by its index
     /// in the global history vector.
@@ -225,8 +225,11 @@ impl Response {
                 Some(c) => -c.pair_force[*pair][*component],
                 None => S::zero(),
             },
-            ResponseKind::ContactPressure { pair, node, area } => match (at.contact, at.flat) {
-                (Some(c), Some(flat)) => c.normal_force[flat[*pair] + node] / *area,
+            ResponseKind::ContactPressure { pair, node } => match (at.contact, at.flat) {
+                (Some(c), Some(flat)) => {
+                    let k = flat[*pair] + node;
+                    c.normal_force[k] / c.area[k]
+                }
                 _ => S::zero(),
             },
         }

@@ -186,12 +186,13 @@ pub(crate) fn evaluate<S: Scalar>(
             eps_t,
             k: pair.constraint_scale,
             activation: pair.activation,
-            area: 1.0,
+            area: S::one(),
             elastic_stick: false,
         };
         for (i, &s) in pair.hitting.iter().enumerate() {
             let flat = layout.flat[p] + i;
-            par.area = pair.area[i];
+            par.area = lifted.area[p][i];
+            out.area[flat] = par.area;
             par.eps_t = eps_t * pair.tangential_weight[i];
             let block = &layout.blocks[p][i];
             let lam_dof = layout.lambda[p] + i;
@@ -571,7 +572,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
         eps_t,
         k: pair.constraint_scale,
         activation: pair.activation,
-        area: pair.area[i],
+        area: Ad::<N>::from_re(lifted.area[p][i].value()),
         elastic_stick: forced,
     };
     let ko = node_kernel(

@@ -11,6 +11,9 @@ pub struct ContactEval<S: Scalar> {
     pub choice: Vec<ContactChoice>,
     /// Normal force per hitting node.
     pub normal_force: Vec<S>,
+    /// Tributary area per hitting node at the evaluation's design (pressure = normal force
+    /// over it).
+    pub area: Vec<S>,
     /// Total contact force on each pair's target (minus the sum of the forces on its
     /// hitting nodes): the reaction of a rigid target.
     pub pair_force: Vec<Vector3<S>>,
@@ -31,6 +34,7 @@ impl<S: Scalar> ContactEval<S> {
         ContactEval {
             choice: vec![ContactChoice::default(); n_hitting],
             normal_force: vec![S::zero(); n_hitting],
+            area: vec![S::one(); n_hitting],
             pair_force: vec![Vector3::zeros(); n_pairs],
             force: vec![Vector3::zeros(); n_hitting],
             traction: vec![Vector3::zeros(); n_hitting],

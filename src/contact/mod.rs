@@ -147,8 +147,13 @@ pub struct ContactPair {
     pub name: String,
     /// Hitting nodes.
     pub hitting: Vec<usize>,
-    /// Tributary reference area of each hitting node.
+    /// Tributary reference area of each hitting node, at the nominal design.
     pub area: Vec<f64>,
+    /// The faces the hitting nodes and their areas came from (`None`: a node set, every area
+    /// one). With them each evaluation recomputes the areas at its design's reference
+    /// coordinates ([`Lifted::area`](crate::model::Lifted::area)), so that a shape parameter
+    /// reaches the contact pressures and the penalty laws.
+    pub hitting_faces: Option<FaceSet>,
     /// What the hitting nodes touch.
     pub target: Target,
     /// Normal contact law.
@@ -436,8 +441,9 @@ pub struct KernelParams<'a, S: Scalar> {
     pub k: f64,
     /// Gap weight of the active-set rule ([`ContactPair::activation`]).
     pub activation: f64,
-    /// Tributary area of the hitting node (scales the penalty laws).
-    pub area: f64,
+    /// Tributary area of the hitting node (scales the penalty laws), at the evaluation's
+    /// design.
+    pub area: S,
     /// The stick branch imposed by `frozen` is the elastic predictor, the friction force the
     /// trial force `t_trial` whatever the law: the primal solver's forced stick (slip
     /// reversal). Coulomb-type laws stick so anyway; a smooth law (regularised Coulomb) keeps
@@ -523,17 +529,17 @@ pub fn node_kernel<S: Scalar>(
             // from the first iteration
             NormalLaw::Penalty { .. } => g.value() <= 0.0,
             NormalLaw::Augmented { stiffness, .. } => {
-                lambda_bar.value() - stiffness * par.area * g.value() >= 0.0
+                lambda_bar.value() - stiffness * par.area.value() * g.value() >= 0.0
             }
         },
     };
     let (p_n, r_lambda) = match (par.normal, active) {
         (NormalLaw::Lagrange, true) => (lambda, -g * k),
         (NormalLaw::Lagrange, false) => (S::zero(), lambda),
-        (NormalLaw::Penalty { stiffness }, true) => (-g * (stiffness * par.area), lambda),
+        (NormalLaw::Penalty { stiffness }, true) => (-g * (par.area * stiffness), lambda),
         (NormalLaw::Penalty { .. }, false) => (S::zero(), lambda),
         (NormalLaw::Augmented { stiffness, .. }, true) => {
-            (lambda_bar - g * (stiffness * par.area), lambda)
+            (lambda_bar - g * (par.area * stiffness), lambda)
         }
         (NormalLaw::Augmented { .. }, false) => (S::zero(), lambda),
     };

@@ -27,27 +27,6 @@ pub fn face_set_nodes(faces: &FaceSet) -> Vec<usize> {
     nodes
 }
 
-/// Tributary area of each of `nodes` (sorted) over `faces` at coordinates `x`: each face's
-/// area shared among its nodes by its family (a quarter each on a quad4).
-pub fn tributary_areas(x: &[Vector3<f64>], faces: &FaceSet, nodes: &[usize]) -> Vec<f64> {
-    // position of each node in `nodes` (the first, as a linear search would find)
-    let mut index = HashMap::with_capacity(nodes.len());
-    for (k, n) in nodes.iter().enumerate() {
-        index.entry(*n).or_insert(k);
-    }
-    let mut area = vec![0.0; nodes.len()];
-    for k in 0..faces.len() {
-        let family = faces.face(k).family;
-        let a = family.area(&faces.coordinates(k, x));
-        for (l, n) in faces.nodes(k).iter().enumerate() {
-            if let Some(&j) = index.get(n) {
-                area[j] += family.tributary_share(a, l);
-            }
-        }
-    }
-    area
-}
-
 /// Per node of `nodes` (sorted, with tributary areas `area`) on the boundary faces `faces`:
 /// `A_i / h_i`, the node's area over the thickness of the element layer under it (the mean of
 /// twice the distance from each adjacent face's centre to its element's centre). `None` when a
@@ -393,7 +372,7 @@ pub fn pair_between_faces(
     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
     let node_group = node_groups(mesh);
     let nodes = face_set_nodes(hitting);
-    let area = tributary_areas(&x, hitting, &nodes);
+    let area = hitting.tributary_areas(&x, &nodes);
     let layer = layer_stiffness(mesh, &x, hitting, &nodes, &area);
     let radius = match search_radius {
         Some(r) => r,
@@ -420,6 +399,7 @@ pub fn pair_between_faces(
         name: name.to_string(),
         hitting: kept,
         area,
+        hitting_faces: Some(hitting.clone()),
         target: super::Target::Faces {
             faces: target.clone(),
         },

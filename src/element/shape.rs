@@ -9,6 +9,7 @@
 //! faces outward counter-clockwise, edges), one arm in each `match` below.
 
 use super::hex8;
+use crate::scalar::{safe_norm, Scalar};
 use nalgebra::Vector3;
 
 /// The shape of an element: its nodes, faces and edges.
@@ -141,18 +142,19 @@ impl FaceFamily {
 
     /// Reference area of a face with node coordinates `x` (in the family's node order).
     /// Quad4: the two triangles `(0, 1, 3)` and `(2, 3, 1)`, exact for a planar face.
-    pub fn area(self, x: &[Vector3<f64>]) -> f64 {
+    /// Generic in the scalar, so that a shape parameter's dual part reaches the area.
+    pub fn area<S: Scalar>(self, x: &[Vector3<S>]) -> S {
         match self {
             FaceFamily::Quad4 => {
-                (x[1] - x[0]).cross(&(x[3] - x[0])).norm() * 0.5
-                    + (x[3] - x[2]).cross(&(x[1] - x[2])).norm() * 0.5
+                safe_norm(&(x[1] - x[0]).cross(&(x[3] - x[0]))) * 0.5
+                    + safe_norm(&(x[3] - x[2]).cross(&(x[1] - x[2]))) * 0.5
             }
         }
     }
 
     /// The share of a face's area `area` that node `a` of the face carries (tributary
     /// areas). Quad4: a quarter each.
-    pub fn tributary_share(self, area: f64, _a: usize) -> f64 {
+    pub fn tributary_share<S: Scalar>(self, area: S, _a: usize) -> S {
         match self {
             FaceFamily::Quad4 => area / 4.0,
         }

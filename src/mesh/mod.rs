@@ -27,7 +27,7 @@ pub use shape_map::{MapKind, ShapeMap, ShapeMapError, Smoothing};
 use crate::element::{FaceFamily, Shape};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 
 /// One zone of an axis: a fraction of the block's length split into `elements` elements whose
 /// sizes grow geometrically from the first to the last by `ratio`.
@@ -279,6 +279,34 @@ impl FaceSet {
     /// Every node of every face, face after face (with repetitions).
     pub fn all_nodes(&self) -> &[usize] {
         &self.nodes
+    }
+
+    /// Tributary area of each of `nodes` (sorted) over these faces at coordinates `x`: each face's
+    /// area shared among its nodes by its family (a quarter each on a quad4). Generic in the
+    /// scalar: at design-dependent coordinates (a shape parameter) the areas carry its derivative,
+    /// so that a contact pressure and a penalty law follow the design's geometry.
+    pub fn tributary_areas<S: Scalar>(&self, x: &[Vector3<S>], nodes: &[usize]) -> Vec<S> {
+        // position of each node in `nodes` (the first, as a linear search would find)
+        let mut index = HashMap::with_capacity(nodes.len());
+        for (k, n) in nodes.iter().enumerate() {
+            index.entry(*n).or_insert(k);
+        }
+        let mut area = vec![S::zero(); nodes.len()];
+        let mut corners = [Vector3::<S>::zeros(); MAX_FACE_NODES];
+        for k in 0..self.len() {
+            let family = self.face(k).family;
+            let face = self.nodes(k);
+            for (c, n) in corners.iter_mut().zip(face) {
+                *c = x[*n];
+            }
+            let a = family.area(&corners[..face.len()]);
+            for (l, n) in face.iter().enumerate() {
+                if let Some(&j) = index.get(n) {
+                    area[j] += family.tributary_share(a, l);
+                }
+            }
+        }
+        area
     }
 
     /// The coordinates of face `k`'s nodes (at most eight nodes per face).

@@ -448,7 +448,7 @@ impl Scene {
             let weights = match mesh.face_sets.get(&l.set) {
                 Some(faces) if !faces.is_empty() => {
                     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
-                    let area = setup::tributary_areas(&x, faces, &nodes);
+                    let area = faces.tributary_areas(&x, &nodes);
                     let total: f64 = area.iter().sum();
                     if !(total.is_finite() && total > 0.0) {
                         return Err(invalid(
@@ -578,7 +578,6 @@ impl Scene {
                             kind: ResponseKind::ContactPressure {
                                 pair: p,
                                 node: *node,
-                                area: c.area[*node],
                             },
                         });
                     }
@@ -834,25 +833,26 @@ impl Scene {
             // hitting nodes and their tributary areas
             // per hitting node: tributary area, and the stiffness A_i / h_i of the element
             // layer under it (none for a node set)
-            let (hitting, area, layer) = if let Some(faces) = mesh.face_sets.get(&c.hitting) {
-                let nodes = setup::face_set_nodes(faces);
-                let area = setup::tributary_areas(&x, faces, &nodes);
-                let layer = setup::layer_stiffness(mesh, &x, faces, &nodes, &area);
-                (nodes, area, layer)
-            } else if let Some(nodes) = mesh.node_sets.get(&c.hitting) {
-                if nodes.is_empty() {
+            let (hitting, area, layer, hitting_faces) =
+                if let Some(faces) = mesh.face_sets.get(&c.hitting) {
+                    let nodes = setup::face_set_nodes(faces);
+                    let area = faces.tributary_areas(&x, &nodes);
+                    let layer = setup::layer_stiffness(mesh, &x, faces, &nodes, &area);
+                    (nodes, area, layer, Some(faces.clone()))
+                } else if let Some(nodes) = mesh.node_sets.get(&c.hitting) {
+                    if nodes.is_empty() {
+                        return Err(invalid(
+                            &format!("{at}.hitting"),
+                            format!("node set '{}' is empty", c.hitting),
+                        ));
+                    }
+                    (nodes.clone(), vec![1.0; nodes.len()], None, None)
+                } else {
                     return Err(invalid(
                         &format!("{at}.hitting"),
-                        format!("node set '{}' is empty", c.hitting),
+                        format!("no face set or node set named '{}'", c.hitting),
                     ));
-                }
-                (nodes.clone(), vec![1.0; nodes.len()], None)
-            } else {
-                return Err(invalid(
-                    &format!("{at}.hitting"),
-                    format!("no face set or node set named '{}'", c.hitting),
-                ));
-            };
+                };
             if let Some(r) = c.search_radius {
                 positive(r, &format!("{at}.search_radius"))?;
             }
@@ -1072,6 +1072,7 @@ impl Scene {
                 name: c.name.clone(),
                 hitting,
                 area,
+                hitting_faces,
                 target,
                 normal: c.normal,
                 friction,

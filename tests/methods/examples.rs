@@ -23,6 +23,10 @@ mod leaf_spring;
 #[path = "../../examples/indentation_study.rs"]
 mod indentation_study;
 
+#[allow(dead_code)]
+#[path = "../../examples/curved_punch.rs"]
+mod curved_punch;
+
 #[path = "../../examples/own_friction_law.rs"]
 mod own_friction_law;
 
@@ -55,4 +59,13 @@ fn leaf_spring_is_path_dependent_and_ddm_agrees_with_central_fdm() {
 fn indentation_study_methods_agree() {
     let s = indentation_study::study(2, 5).expect("the study runs");
     assert!(s.max_difference.iter().all(|d| *d <= 1e-5));
+}
+
+/// About 20 s of computing: the punch-on-slab scene (Gmsh mesh), DDM and SDM for four
+/// parameters, central FDM of the radius and mu (four reruns).
+#[test]
+fn curved_punch_from_gmsh_radius_and_mu_agree_across_methods() {
+    let s = curved_punch::study().expect("the study runs");
+    assert!(s.max_difference.iter().all(|d| *d <= 1e-4));
+    assert!(s.homogeneity <= 1e-8);
 }

@@ -142,7 +142,7 @@ fn patch_in_code() -> Model {
     ];
     let top = faces_where(&mesh, upper, &x, |p| near(p.y, 2.0));
     let top_nodes = setup::face_set_nodes(&top);
-    let area = setup::tributary_areas(&x, &top, &top_nodes);
+    let area = top.tributary_areas(&x, &top_nodes);
     let total: f64 = area.iter().sum();
     let loads = vec![NodalLoad {
         name: "p".into(),

@@ -164,3 +164,53 @@ fn a_shape_map_at_its_reference_value_leaves_the_analysis_bit_for_bit() {
         assert_eq!(l.coords, x0);
     }
 }
+
+#[test]
+fn contact_areas_follow_a_shape_parameter_as_geometry_says() {
+    // the slider scaled about a point by s / s_ref: every face's area scales by (s / s_ref)^2
+    // (3-D similarity), so each hitting node's tributary area is A_ref (s / s_ref)^2 with the
+    // derivative 2 A_ref / s_ref at s_ref; a translation leaves every area alone
+    use num_dual::Dual64;
+    for (map, exponent) in [(2usize, 2.0), (0, 0.0)] {
+        let spec = maps().remove(map);
+        let name = spec.name.clone();
+        let model = scene(spec).build().unwrap();
+        let p = fricsens::sensitivity::Parameter::by_name(&model, &name).unwrap();
+        let (b, db) = (p.value, 0.1 * p.value.abs().max(1.0));
+        let seeded: Vec<_> = (p.targets.iter())
+            .map(|t| (*t, Dual64::new(b, 1.0)))
+            .collect();
+        let moved: Vec<_> = (p.targets.iter()).map(|t| (*t, b + db)).collect();
+        let (at, perturbed) = (model.lifted(&seeded), model.lifted::<f64>(&moved));
+        let ratio = if exponent == 0.0 {
+            1.0
+        } else {
+            ((b + db) / b).powf(exponent)
+        };
+        let pair = &model.contacts[0];
+        assert!(pair.hitting_faces.is_some());
+        for (i, a) in pair.area.iter().enumerate() {
+            assert!(
+                (at.area[0][i].re - a).abs() <= 1e-15 * a,
+                "{name}: area at b_ref"
+            );
+            // (the translation's reference is 0: its derivative is 0, not 0 / 0)
+            let derivative = if exponent == 0.0 {
+                0.0
+            } else {
+                exponent * a / b
+            };
+            assert!(
+                (at.area[0][i].eps - derivative).abs() <= 1e-13 * a / b.abs().max(1.0),
+                "{name}: dA/db {} vs {derivative}",
+                at.area[0][i].eps
+            );
+            assert!(
+                (perturbed.area[0][i] - a * ratio).abs() <= 1e-13 * a * ratio,
+                "{name}: A at b + db {} vs {}",
+                perturbed.area[0][i],
+                a * ratio
+            );
+        }
+    }
+}
