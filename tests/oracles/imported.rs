@@ -381,3 +381,60 @@ fn a_morph_ddm_equals_central_fdm_along_a_frictional_slide_of_a_curved_punch() {
         assert!(worst < 1e-5, "{}: {worst:.2e}", param.name);
     }
 }
+
+#[test]
+fn the_vtk_output_of_an_imported_mesh_carries_its_cells_points_and_the_lame_field() {
+    // meshes/lame-octant.toml run and written as VTK; the file read back: 6912 hexahedra (3 blocks of 12 x 12 x 16) on the
+    // Gmsh mesh's points, and on every point of the inner surface (|X| = 1 by construction of
+    // the mesh) the radial displacement of Lamé's closed form within 1 %
+    use fricsens::output::{write_run, VtkOutput};
+    use vtkio::model::{Attribute, CellType, DataSet, VertexNumbers};
+    let model = scene("meshes/lame-octant.toml").build().unwrap();
+    let res = fricsens::solver::Solver::new(&model)
+        .unwrap()
+        .run(&Default::default(), &mut fricsens::solver::NoObserver)
+        .unwrap();
+    let dir = common::scratch_path("lame-vtk");
+    write_run(&dir, &model, &res, VtkOutput::Every(1)).unwrap();
+    let vtk = vtkio::Vtk::import(dir.join("vtk").join("step_0001.vtu")).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not an unstructured grid")
+    };
+    let piece = pieces[0].load_piece_data(None).unwrap();
+    let points: Vec<f64> = piece.points.cast_into().unwrap();
+    assert_eq!(piece.cells.types.len(), 3 * 12 * 12 * 16);
+    assert!(piece.cells.types.iter().all(|t| *t == CellType::Hexahedron));
+    let VertexNumbers::XML { connectivity, .. } = &piece.cells.cell_verts else {
+        panic!("legacy cell numbering in an XML file")
+    };
+    let n = points.len() / 3;
+    assert!(connectivity.iter().all(|v| (*v as usize) < n));
+    let displacement: Vec<f64> = piece
+        .data
+        .point
+        .iter()
+        .find_map(|a| match a {
+            Attribute::DataArray(d) if d.name == "displacement" => d.data.clone().cast_into(),
+            _ => None,
+        })
+        .expect("a displacement field");
+    let u = lame_bore(1.0, 1.0, 2.0, 1000.0, 0.3);
+    let mut inner = 0;
+    for k in 0..n {
+        let x = nalgebra::Vector3::new(points[3 * k], points[3 * k + 1], points[3 * k + 2]);
+        if (x.norm() - 1.0).abs() > 1e-9 {
+            continue;
+        }
+        inner += 1;
+        let d = nalgebra::Vector3::new(
+            displacement[3 * k],
+            displacement[3 * k + 1],
+            displacement[3 * k + 2],
+        );
+        let radial = d.dot(&x);
+        assert!((radial - u).abs() <= 0.01 * u, "point {k}: {radial} vs {u}");
+    }
+    // (12 x 12 on each of the three cube-sphere blocks, sharing their edges: 3 x 13^2 - 3 x 13 + 1)
+    assert_eq!(inner, 469);
+}

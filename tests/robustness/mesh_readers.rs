@@ -961,3 +961,36 @@ fn large_block_through_both_formats() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn meshes_of_two_bodies_that_overlap_at_the_start_are_refused_naming_nodes_and_depth() {
+    // tests/meshes/overlap.{inp,toml}: the upper brick's bottom face starts 0.1 inside the
+    // lower brick's top face (by construction of the hand-written file)
+    use fricsens::solver::{AnalysisError, PrecheckError, Solver};
+    let scene = fricsens::scene::Scene::from_file(&fixtures().join("overlap.toml")).unwrap();
+    let model = scene.build().unwrap();
+    let bottom = &model.mesh.node_sets["upper.UpperBottom"];
+    let err = match Solver::new(&model) {
+        Err(e) => e,
+        Ok(_) => panic!("overlapping meshes accepted"),
+    };
+    let message = err.to_string();
+    match err {
+        AnalysisError::Precheck(PrecheckError::Overlap { pair, nodes, .. }) => {
+            assert_eq!(pair, "stack");
+            let named: BTreeSet<usize> = nodes.iter().map(|(n, _)| *n).collect();
+            assert_eq!(named, bottom.iter().copied().collect::<BTreeSet<_>>());
+            for (n, depth) in &nodes {
+                assert!((depth - 0.1).abs() <= 1e-12, "node {n}: depth {depth}");
+            }
+        }
+        other => panic!("not an overlap: {other}"),
+    }
+    for needle in [
+        "'stack'",
+        "4 hitting node(s) start inside the target",
+        "1.000e-1",
+    ] {
+        assert!(message.contains(needle), "{needle:?} not in {message}");
+    }
+}
