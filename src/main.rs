@@ -197,6 +197,30 @@ enum Command {
         #[arg(long)]
         notes: Option<PathBuf>,
     },
+    /// The mesh readers' fuzzer: mutants of a block written as MSH 4.1 ASCII, binary and
+    /// .inp, and of any --file, read and imported; none may panic, and every refusal must name
+    /// its file. Writes mesh-fuzz.md and mesh-fuzz.json; keeps each panicking mutant in
+    /// --corpus. Exits 1 if any mutant panicked.
+    FuzzMeshes {
+        /// Number of mutants.
+        #[arg(long, default_value_t = 10_000)]
+        mutants: usize,
+        /// The mutation generator's seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Also mutate this .msh or .inp file (repeat), e.g. your mesher's output.
+        #[arg(long = "file")]
+        files: Vec<PathBuf>,
+        /// A file an *INCLUDE of a --file names (repeat): copied beside each mutant.
+        #[arg(long = "include")]
+        includes: Vec<PathBuf>,
+        /// Keep each panicking mutant here.
+        #[arg(long, default_value = "tests/corpus/meshes")]
+        corpus: PathBuf,
+        /// Output directory (mesh-fuzz.md, mesh-fuzz.json).
+        #[arg(long, default_value = "validation/robustness")]
+        out: PathBuf,
+    },
     /// Primal analysis: history CSV, Newton records, VTK files.
     Run {
         /// A built-in scene name or a TOML scene file.
@@ -644,6 +668,58 @@ fn scaling(
 }
 
 #[allow(clippy::too_many_arguments)]
+fn fuzz_meshes(
+    mutants: usize,
+    seed: u64,
+    files: Vec<PathBuf>,
+    includes: Vec<PathBuf>,
+    corpus: PathBuf,
+    out: PathBuf,
+) -> Result<(), String> {
+    use fricsens::studies::mesh_fuzz::{builtin_seeds, run, seed_from, MeshFuzzOptions};
+    let mut seeds = builtin_seeds().map_err(|e| e.to_string())?;
+    for f in &files {
+        seeds.push(seed_from(f).map_err(|e| e.to_string())?);
+    }
+    let opts = MeshFuzzOptions {
+        mutants,
+        seed,
+        seeds,
+        includes,
+        corpus: Some(corpus),
+    };
+    let scratch = std::env::temp_dir().join(format!("fricsens-fuzz-meshes-{}", std::process::id()));
+    // a panic's message goes into the report, not onto the terminal
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let report = run(&opts, &scratch);
+    std::panic::set_hook(hook);
+    let _ = std::fs::remove_dir_all(&scratch);
+    let report = report.map_err(|e| e.to_string())?;
+    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let md = report.markdown();
+    let write = |name: &str, text: &str| {
+        let p = out.join(name);
+        std::fs::write(&p, text).map_err(|e| format!("{}: {e}", p.display()))
+    };
+    write("mesh-fuzz.md", &md)?;
+    write(
+        "mesh-fuzz.json",
+        &serde_json::to_string_pretty(&report).expect("the report serialises"),
+    )?;
+    out!("{md}");
+    if report.clean() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} mutant(s) panicked and {} refusal(s) do not name the file: see {}",
+            report.panics.len(),
+            report.unnamed.len(),
+            out.join("mesh-fuzz.md").display()
+        ))
+    }
+}
+
 fn fuzz(
     seeds: Vec<u64>,
     scenes: Vec<String>,
@@ -810,6 +886,14 @@ fn main() -> ExitCode {
             };
             fuzz(list, scenes, out, corpus, time_limit, before, notes)
         }
+        Command::FuzzMeshes {
+            mutants,
+            seed,
+            files,
+            includes,
+            corpus,
+            out,
+        } => fuzz_meshes(mutants, seed, files, includes, corpus, out),
         Command::Run {
             scene,
             out,

@@ -8,6 +8,7 @@
 //! * [`ccx`] — the comparison with CalculiX;
 //! * [`scaling`] — cost and memory against mesh size;
 //! * [`fuzz`] — the physics fuzzer: random valid contact scenes run with default settings;
+//! * [`mesh_fuzz`] — the mesh readers' fuzzer: mutated Gmsh and Abaqus files, none may panic;
 //! * [`plot`] — the SVG figures they draw.
 //!
 //! Nothing in the library's core imports from here.
@@ -15,6 +16,7 @@
 pub mod ccx;
 pub mod compare_laws;
 pub mod fuzz;
+pub mod mesh_fuzz;
 pub mod plot;
 pub mod scaling;
 pub mod validate;

@@ -8,7 +8,6 @@ use fricsens::mesh::import::{FileFace, ImportError, ImportedBody, MeshFile};
 use fricsens::mesh::{abaqus, gmsh, Axis, BlockSpec, Mesh, Zone};
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, BTreeSet};
-use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
 fn fixtures() -> PathBuf {
@@ -715,188 +714,38 @@ fn non_finite_coordinates_and_duplicate_elements() {
 // Fuzzing
 // ---------------------------------------------------------------------------------------
 
-/// xorshift64*.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+/// A campaign of the library's mesh fuzzer (`fricsens::studies::mesh_fuzz`, also
+/// `fricsens fuzz-meshes`): its built-in seeds (a block written as .msh ASCII, binary and
+/// .inp), the hand-written .inp (with its include) and real Gmsh binary output.
+fn fuzz(n: usize, seed: u64) {
+    use fricsens::studies::mesh_fuzz::{builtin_seeds, run, seed_from, MeshFuzzOptions};
+    let mut seeds = builtin_seeds().unwrap();
+    for f in ["hand.inp", "gmsh_box_bin.msh"] {
+        seeds.push(seed_from(&fixtures().join(f)).unwrap());
     }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
-
-/// Spans of numeric-looking tokens.
-fn numbers(b: &[u8]) -> Vec<(usize, usize)> {
-    let num = |c: u8| c.is_ascii_digit() || matches!(c, b'.' | b'-' | b'+' | b'e' | b'E');
-    let mut v = Vec::new();
-    let mut k = 0;
-    while k < b.len() {
-        if num(b[k]) {
-            let s = k;
-            while k < b.len() && num(b[k]) {
-                k += 1;
-            }
-            if b[s..k].iter().any(u8::is_ascii_digit) {
-                v.push((s, k));
-            }
-        } else {
-            k += 1;
-        }
-    }
-    v
-}
-
-fn mutate(seed: &[u8], rng: &mut Rng) -> Vec<u8> {
-    let mut b = seed.to_vec();
-    for _ in 0..1 + rng.below(3) {
-        let mut lines: Vec<Vec<u8>> = b.split(|&c| c == b'\n').map(<[u8]>::to_vec).collect();
-        match rng.below(7) {
-            0 => {
-                let at = rng.below(b.len() + 1);
-                b.truncate(at);
-            }
-            1 if lines.len() > 1 => {
-                let k = rng.below(lines.len());
-                lines.remove(k);
-                b = lines.join(&b'\n');
-            }
-            2 => {
-                let k = rng.below(lines.len());
-                let l = lines[k].clone();
-                lines.insert(k, l);
-                b = lines.join(&b'\n');
-            }
-            3 => {
-                let (i, j) = (rng.below(lines.len()), rng.below(lines.len()));
-                lines.swap(i, j);
-                b = lines.join(&b'\n');
-            }
-            4 | 5 => {
-                let spans = numbers(&b);
-                if !spans.is_empty() {
-                    let (s, e) = spans[rng.below(spans.len())];
-                    let with: &[u8] = [
-                        &b"1e308"[..],
-                        b"-1",
-                        b"NaN",
-                        b"inf",
-                        b"999999999999",
-                        b"18446744073709551616",
-                        b"0",
-                        b"-0",
-                        b"abc",
-                        b"",
-                        b"4.1",
-                        b"2",
-                        b"1e-300",
-                        b"3",
-                    ][rng.below(14)];
-                    b.splice(s..e, with.iter().copied());
-                }
-            }
-            _ => {
-                if !b.is_empty() {
-                    for _ in 0..1 + rng.below(4) {
-                        let k = rng.below(b.len());
-                        b[k] ^= 1 << rng.below(8);
-                    }
-                }
-            }
-        }
-    }
-    b
-}
-
-/// The seeds: the writers' 2 x 2 x 2 block as .msh ASCII, .msh binary, .inp, and the
-/// hand-written .inp (with its include).
-fn seeds(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let (m, x) = block("b", [2, 2, 2]);
-    let bodies = vec![("b".to_string(), 0)];
-    let a = dir.join("seed.msh");
-    let b = dir.join("seed_bin.msh");
-    let c = dir.join("seed.inp");
-    gmsh::write(&m, &x, &bodies, &a, false).unwrap();
-    gmsh::write(&m, &x, &bodies, &b, true).unwrap();
-    abaqus::write(&m, &x, &bodies, &c).unwrap();
-    let read = |p: &Path| std::fs::read(p).unwrap();
-    vec![
-        ("msh".into(), read(&a)),
-        ("msh".into(), read(&b)),
-        ("inp".into(), read(&c)),
-        ("inp".into(), read(&fixtures().join("hand.inp"))),
-        ("msh".into(), read(&fixtures().join("gmsh_box_bin.msh"))),
-    ]
+    let dir = scratch(&format!("fuzz-{seed}"));
+    let opts = MeshFuzzOptions {
+        mutants: n,
+        seed,
+        seeds,
+        includes: vec![fixtures().join("hand_nodes.inp")],
+        corpus: Some(corpus()),
+    };
+    let report = run(&opts, &dir).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    println!("{}", report.markdown());
+    assert!(report.clean(), "{}", report.markdown());
+    // the mutator must reach both outcomes
+    assert!(
+        report.accepted > 0 && report.refused_total() > n / 4,
+        "{} accepted, {} refused",
+        report.accepted,
+        report.refused_total()
+    );
 }
 
 fn corpus() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/meshes")
-}
-
-/// Read and import `path`; `Err(())` on a panic.
-fn survives(path: &Path) -> Result<Result<(), ImportError>, ()> {
-    catch_unwind(AssertUnwindSafe(|| {
-        let f = fricsens::mesh::read(path)?;
-        let mut m = Mesh::default();
-        f.add_to(&mut m, "b", None)?;
-        for name in f.set_names() {
-            let _ = f.add_to(&mut m, &name, Some(&name));
-        }
-        Ok(())
-    }))
-    .map_err(|_| ())
-}
-
-fn fuzz(n: usize, seed: u64) {
-    let dir = scratch(&format!("fuzz-{seed}"));
-    std::fs::copy(
-        fixtures().join("hand_nodes.inp"),
-        dir.join("hand_nodes.inp"),
-    )
-    .unwrap();
-    let seeds = seeds(&dir);
-    let mut rng = Rng(seed);
-    let (mut ok, mut err) = (0, 0);
-    let mut slowest = (std::time::Duration::ZERO, 0);
-    for k in 0..n {
-        let (ext, s) = &seeds[k % seeds.len()];
-        let bytes = mutate(s, &mut rng);
-        let path = dir.join(format!("mutant.{ext}"));
-        std::fs::write(&path, &bytes).unwrap();
-        let t = std::time::Instant::now();
-        let outcome = survives(&path);
-        if t.elapsed() > slowest.0 {
-            slowest = (t.elapsed(), k);
-        }
-        match outcome {
-            Ok(Ok(())) => ok += 1,
-            Ok(Err(e)) => {
-                err += 1;
-                let msg = e.to_string();
-                assert!(
-                    msg.contains("mutant.") || msg.contains("hand_nodes.inp"),
-                    "mutant {k}: the file is not named: {msg}"
-                );
-            }
-            Err(()) => {
-                std::fs::create_dir_all(corpus()).unwrap();
-                let keep = corpus().join(format!("panic-{seed}-{k}.{ext}"));
-                std::fs::write(&keep, &bytes).unwrap();
-                panic!("mutant {k} panicked; kept as {}", keep.display());
-            }
-        }
-    }
-    let _ = std::fs::remove_dir_all(&dir);
-    println!(
-        "{ok} accepted, {err} refused; slowest: mutant {} in {:?}",
-        slowest.1, slowest.0
-    );
-    // the mutator must reach both outcomes
-    assert!(ok > 0 && err > n / 4, "{ok} accepted, {err} refused");
 }
 
 #[test]
@@ -925,7 +774,11 @@ fn the_corpus_of_once_panicking_meshes_passes() {
     for f in dir {
         let p = f.unwrap().path();
         if p.extension().is_some_and(|e| e == "msh" || e == "inp") {
-            assert!(survives(&p).is_ok(), "{} panics", p.display());
+            assert!(
+                fricsens::studies::mesh_fuzz::survives(&p).is_ok(),
+                "{} panics",
+                p.display()
+            );
         }
     }
 }
