@@ -545,6 +545,12 @@ fn validate(
         } else {
             ValidateOptions::default().reduced_fdm
         },
+        // the imported-geometry section with the default scenes only
+        imported: if names.is_empty() {
+            ValidateOptions::default().imported
+        } else {
+            None
+        },
         ..ValidateOptions::default()
     };
     let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {

@@ -7,199 +7,58 @@
 use crate::common;
 use fricsens::prelude::*;
 use fricsens::response::ResponseKind;
-use fricsens::scene::{BodyGeometry, MapSpec, MeshSource, ShapeSpec, TargetSpec};
+use fricsens::scene::{BodyGeometry, MapSpec, MeshSource, ShapeSpec};
 use fricsens::sensitivity::Method;
+use fricsens::studies::validate::imported;
+use fricsens::studies::validate::OracleRow;
 use std::path::Path;
 
 fn scene(file: &str) -> Scene {
     Scene::from_file(Path::new(file)).unwrap()
 }
 
-/// Two-body Hertz (shared/oracles.md section 4 with 1/R = 1/R1 + 1/R2 and
-/// 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2): the parameters of meshes/hertz-cylinders.toml.
-struct TwoCylinders {
-    r1: f64,
-    r2: f64,
-    e1: f64,
-    nu1: f64,
-    e2: f64,
-    nu2: f64,
-    /// Load per unit length (the half model carries half of it over its thickness).
-    p: f64,
+// The closed forms and their tolerances live in the library, where `fricsens validate` puts
+// the same rows into the report's "Imported geometry" section
+// (`fricsens::studies::validate::imported`, whose docs derive each one).
+
+fn meshes() -> &'static Path {
+    Path::new("meshes")
 }
 
-impl TwoCylinders {
-    fn e_star(&self) -> f64 {
-        1.0 / ((1.0 - self.nu1 * self.nu1) / self.e1 + (1.0 - self.nu2 * self.nu2) / self.e2)
+fn assert_rows(rows: &[OracleRow]) {
+    for o in rows {
+        println!(
+            "{}: {}: {:.6e} vs {:.6e} ({:.2e}, tolerance {:.0e})",
+            o.scene, o.quantity, o.got, o.expected, o.rel_error, o.tolerance
+        );
     }
-    fn radius(&self) -> f64 {
-        1.0 / (1.0 / self.r1 + 1.0 / self.r2)
-    }
-    fn half_width(&self) -> f64 {
-        (4.0 * self.p * self.radius() / (std::f64::consts::PI * self.e_star())).sqrt()
-    }
-    fn peak(&self) -> f64 {
-        2.0 * self.p / (std::f64::consts::PI * self.half_width())
-    }
-    /// d p0 / d E1 at fixed P: p0 = sqrt(P E* / (pi R)), dE*/dE1 = E*^2 (1 - nu1^2) / E1^2.
-    fn dpeak_de1(&self) -> f64 {
-        let es = self.e_star();
-        self.peak() / (2.0 * es) * es * es * (1.0 - self.nu1 * self.nu1) / (self.e1 * self.e1)
+    for o in rows {
+        assert!(o.pass, "{}: {}: {:.2e}", o.scene, o.quantity, o.rel_error);
     }
 }
 
 #[test]
 fn hertz_between_two_elastic_cylinders_both_master_slave_directions() {
-    let h = TwoCylinders {
-        r1: 8.0,
-        r2: 12.0,
-        e1: 2e5,
-        nu1: 0.3,
-        e2: 1e5,
-        nu2: 0.25,
-        p: 13.21875 * 2.0 / 0.025,
-    };
+    // half-width and peak within 3 %, d p0 / d E1 within 4 % (the limits), the
+    // nodal forces in equilibrium with the load to 7e-4 (the curvature's share)
     for reverse in [false, true] {
-        let mut s = scene("meshes/hertz-cylinders.toml");
-        if reverse {
-            s.contacts[0].hitting = "lower.lower-contact".into();
-            s.contacts[0].target = TargetSpec::Faces("upper.upper-contact".into());
-        }
-        let model = s.build().unwrap();
-        let res = common::sens(&model, &["upper.E"], Method::Ddm, 0.0);
-        let last = res.increments.last().unwrap();
-        let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
-        // nodal normal forces f = p A at the hitting nodes, their x, the peak pressure
-        let (mut force, mut moment2) = (0.0, 0.0);
-        let mut peak = (0.0f64, 0.0f64);
-        for (r, resp) in model.responses.iter().enumerate() {
-            if let ResponseKind::ContactPressure { pair, node } = resp.kind {
-                let n = model.contacts[pair].hitting[node];
-                let f = last.values[r] * model.contacts[pair].area[node];
-                force += f;
-                moment2 += f * x[n].x * x[n].x;
-                if last.values[r] > peak.0 {
-                    peak = (last.values[r], last.derivatives[r][0]);
-                }
-            }
-        }
-        // the smooth measure of oracles.md: M2 = integral p x^2 = P a^2 / 4 (the half model's
-        // sums over x >= 0 have the same ratio)
-        let a_eff = 2.0 * (moment2 / force).sqrt();
-        let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
-        println!(
-            "reverse {reverse}: total force {force:.5} (half model {:.5}), a_eff {a_eff:.5} vs {:.5} ({:.2} %), p0 {:.2} vs {:.2} ({:.2} %), dp0/dE1 {:.4e} vs {:.4e} ({:.2} %)",
-            0.5 * h.p * 0.025,
-            h.half_width(),
-            100.0 * rel(a_eff, h.half_width()),
-            peak.0,
-            h.peak(),
-            100.0 * rel(peak.0, h.peak()),
-            peak.1,
-            h.dpeak_de1(),
-            100.0 * rel(peak.1, h.dpeak_de1())
-        );
-        // equilibrium: the normal forces' y components carry the load exactly; their sum
-        // exceeds it by the curvature, 1 - cos(a / R1) = 7e-4 at the edge of the zone
-        assert!(rel(force, 0.5 * h.p * 0.025) < 7e-4);
-        assert!(rel(a_eff, h.half_width()) < 0.03);
-        assert!(rel(peak.0, h.peak()) < 0.03);
-        assert!(rel(peak.1, h.dpeak_de1()) < 0.04);
+        assert_rows(&imported::hertz_cylinders(meshes(), reverse).unwrap());
     }
-}
-
-/// Lamé's bore displacement of a thick sphere (inner a, outer b) under internal pressure p,
-/// generic so that a dual number gives its derivatives exactly.
-fn lame_bore<S: fricsens::scalar::Scalar>(p: f64, a: S, b: f64, e: S, nu: S) -> S {
-    let l = S::lift;
-    let a3 = a * a * a;
-    let b3 = l(b * b * b);
-    a * l(p) / (e * (b3 - a3)) * ((l(1.0) - nu * l(2.0)) * a3 + (nu + l(1.0)) * b3 * l(0.5))
 }
 
 #[test]
 fn lame_sphere_bore_displacement_and_its_derivatives_including_the_inner_radius() {
-    use num_dual::Dual64;
-    let model = scene("meshes/lame-octant.toml").build().unwrap();
-    let res = common::sens(&model, &["E", "nu", "a"], Method::Ddm, 0.0);
-    let last = res.increments.last().unwrap();
-    let (p, a, b, e, nu) = (1.0, 1.0, 2.0, 1000.0, 0.3);
-    let u = lame_bore(p, a, b, e, nu);
-    let d = Dual64::from;
-    let s = Dual64::new;
-    let du_de = lame_bore(p, d(a), b, s(e, 1.0), d(nu)).eps;
-    let du_dnu = lame_bore(p, d(a), b, d(e), s(nu, 1.0)).eps;
-    let du_da = lame_bore(p, s(a, 1.0), b, d(e), d(nu)).eps;
-    let rel = |x: f64, y: f64| (x - y).abs() / y.abs();
-    let got = [
-        last.values[0],
-        last.derivatives[0][0],
-        last.derivatives[0][1],
-        last.derivatives[0][2],
-    ];
-    let want = [u, du_de, du_dnu, du_da];
-    for (what, (g, w)) in ["u(a)", "du/dE", "du/dnu", "du/da"]
-        .iter()
-        .zip(got.iter().zip(want))
-    {
-        println!(
-            "{what}: {g:.6e} vs Lamé {w:.6e} ({:.3} %)",
-            100.0 * rel(*g, w)
-        );
-    }
-    // the 1 % for the displacement; the derivatives carry the same discretisation
-    // error (du/dE = -u/E exactly), du/dnu and du/da a derivative of it: 1 % as well
-    for (g, w) in got.iter().zip(want) {
-        assert!(rel(*g, w) < 0.01);
-    }
-    // DDM against central FDM of reruns for the shape parameter (an independent method)
-    let fdm = common::sens(&model, &["a"], Method::FdmCentral, 1e-6);
-    let f = fdm.increments.last().unwrap().derivatives[0][0];
-    assert!(
-        rel(f, last.derivatives[0][2]) < 1e-6,
-        "{f} vs {}",
-        last.derivatives[0][2]
-    );
+    // u(a), du/dE, du/dnu and du/da (a boundary-driven field) within 1 % of Lamé's closed
+    // form, and du/da within 1e-6 of central FDM of reruns
+    assert_rows(&imported::lame_sphere(meshes()).unwrap());
 }
 
 #[test]
 fn a_morph_and_the_affine_map_of_the_same_change_give_the_same_ddm_sensitivity() {
     // lame-octant-scaled.msh is lame-octant.msh scaled by 1.05 about the origin (same
     // topology): the morph X_A + b (X_B - X_A) moves the nodes by 0.05 X_A per unit b, the
-    // scale about the origin by X_A per unit factor: d/db = 0.05 d/ds
-    let mut s = scene("meshes/lame-octant.toml");
-    s.study.params.clear();
-    s.shapes = vec![
-        ShapeSpec {
-            name: "morph".into(),
-            nodes: "shell".into(),
-            value: None,
-            map: MapSpec::Morph {
-                mesh: "lame-octant-scaled.msh".into(),
-                set: None,
-            },
-        },
-        ShapeSpec {
-            name: "scale".into(),
-            nodes: "shell.all".into(),
-            value: None,
-            map: MapSpec::Scale {
-                centre: [0.0; 3],
-                axis: None,
-            },
-        },
-    ];
-    let model = s.build().unwrap();
-    let res = common::sens(&model, &["morph", "scale"], Method::Ddm, 0.0);
-    for inc in &res.increments {
-        let (m, a) = (inc.derivatives[0][0], inc.derivatives[0][1]);
-        println!("morph {m:.12e}, 0.05 x affine {:.12e}", 0.05 * a);
-        assert!(
-            (m - 0.05 * a).abs() <= 1e-10 * m.abs(),
-            "{m} vs {}",
-            0.05 * a
-        );
-    }
+    // scale about the origin by X_A per unit factor: d/db = 0.05 d/ds, to 1e-10
+    assert_rows(&imported::morph_against_scale(meshes()).unwrap());
 }
 
 #[test]
@@ -419,7 +278,7 @@ fn the_vtk_output_of_an_imported_mesh_carries_its_cells_points_and_the_lame_fiel
             _ => None,
         })
         .expect("a displacement field");
-    let u = lame_bore(1.0, 1.0, 2.0, 1000.0, 0.3);
+    let u = imported::lame_bore(1.0, 1.0, 2.0, 1000.0, 0.3);
     let mut inner = 0;
     for k in 0..n {
         let x = nalgebra::Vector3::new(points[3 * k], points[3 * k + 1], points[3 * k + 2]);

@@ -26,6 +26,7 @@ fn reduced_validation_agrees_and_writes_the_report() {
         betas: vec![1e-2, 1e-4, 1e-6, 1e-8],
         // the friction-law section on a coarse strip
         friction_laws: Some(20),
+        imported: None,
         ..ValidateOptions::default()
     };
     let v = validate(&scenes, &opts).expect("validation runs");
@@ -112,6 +113,7 @@ fn paper_scene_agreement(scene: fricsens::scene::Scene, fdm_tol: f64) {
         reduced_fdm: vec![],
         friction_laws: None,
         refined_batch: false,
+        imported: None,
         ..ValidateOptions::default()
     };
     let v = validate(std::slice::from_ref(&scene), &opts).expect("validation runs");

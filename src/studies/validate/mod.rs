@@ -26,6 +26,7 @@ use crate::studies::plot::PlotError;
 use std::path::{Path, PathBuf};
 
 mod figures;
+pub mod imported;
 mod report;
 use figures::*;
 use report::*;
@@ -50,6 +51,9 @@ pub struct ValidateOptions {
     /// Measure the batched cost on [`refined_leaf_spring`] too (one more primal run of about
     /// a minute) when the leaf spring is validated.
     pub refined_batch: bool,
+    /// The folder of the imported-geometry scenes (`meshes/`): their closed forms go into the
+    /// report ([`imported`]); `None`, or a folder without them, leaves the section out.
+    pub imported: Option<PathBuf>,
 }
 
 /// The finite-difference betas of a scene in [`ValidateOptions::reduced_fdm`] (those of the
@@ -68,6 +72,7 @@ impl Default for ValidateOptions {
             reduced_fdm: vec!["leaf-spring".into(), "hertz".into()],
             friction_laws: Some(100),
             refined_batch: true,
+            imported: Some(PathBuf::from("meshes")),
         }
     }
 }
@@ -90,6 +95,9 @@ pub enum ValidateError {
     /// A figure could not be written.
     #[error(transparent)]
     Plot(#[from] PlotError),
+    /// An imported-geometry check failed to run.
+    #[error(transparent)]
+    Imported(#[from] imported::ImportedError),
     /// The friction-law comparison failed.
     #[error(transparent)]
     Laws(#[from] crate::studies::compare_laws::CompareLawsError),
@@ -237,6 +245,8 @@ pub struct Validation {
     pub scenes: Vec<SceneValidation>,
     /// Closed-form checks.
     pub oracles: Vec<OracleRow>,
+    /// Closed-form and independent checks of the scenes around imported meshes.
+    pub imported: Vec<OracleRow>,
     /// Perturbation sizes of the sweep.
     pub betas: Vec<f64>,
     /// Error floor as a fraction of the largest |sensitivity| over the history.
@@ -692,6 +702,10 @@ pub fn validate_observed(
         }
         None => None,
     };
+    let imported = match &opts.imported {
+        Some(dir) => imported::imported_oracles(dir)?,
+        None => Vec::new(),
+    };
     let mut batched = Vec::new();
     if let Some(s) = scenes.iter().find(|s| s.name == "leaf-spring") {
         batched.push(batched_cost(s, opts.figure_beta)?);
@@ -702,6 +716,7 @@ pub fn validate_observed(
     let validation = Validation {
         scenes: out,
         oracles: oracle_rows,
+        imported,
         betas: opts.betas.clone(),
         floor: opts.floor,
         wall_seconds: start.elapsed().as_secs_f64(),

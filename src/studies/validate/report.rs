@@ -331,6 +331,7 @@ pub(super) fn report(
             if o.pass { "pass" } else { "**FAIL**" }
         );
     }
+    write_imported(&mut s, val);
     let _ = writeln!(s, "\n## The paper's figures, redrawn\n");
     for (f, what) in [
         ("fig4-indentation-pressure.svg", "Contact pressure under the block after sliding (paper fig. 4)."),
@@ -634,4 +635,46 @@ pub(super) fn findings(
     }
     let _ = writeln!(s, "\nForward differences (SDM, FDM) trade truncation error, which is proportional to beta, against round-off, which is proportional to 1/beta. Central differences make truncation proportional to beta^2, so their best beta is larger and their best error smaller. SDM's round-off is that of one residual evaluation at a fixed state, so it goes down to about sqrt(machine epsilon). FDM's round-off is the Newton tolerance of two separate analyses divided by beta: it is worse by orders of magnitude, and its best beta is larger. DDM has no beta, is exact to the linear solve, and costs about as much as SDM. It is the method to use when the kernels are generic, as all of fricsens' are. SDM central is the check that needs no dual numbers, and FDM is the check that needs nothing but reruns. Away from the flagged increments all methods converge to DDM. At a flagged increment a finite perturbation crosses the kink, so a difference returns a mix of the one-sided derivatives.\n");
     s
+}
+
+/// The imported-geometry oracles ([`super::imported`]).
+fn write_imported(s: &mut String, val: &Validation) {
+    if val.imported.is_empty() {
+        return;
+    }
+    let _ = writeln!(s, "\n## Imported geometry\n");
+    let pass = val.imported.iter().filter(|o| o.pass).count();
+    let _ = writeln!(
+        s,
+        "Scenes around Gmsh meshes (`meshes/`, made by `meshes/make_meshes.py`), DDM against \
+         closed forms and independent methods: {pass} of {} pass. Two elastic cylinders of \
+         different radii and moduli in plane strain (R1 = 8, R2 = 12, E1 = 2e5, E2 = 1e5, 18 \
+         elements across the half-width), in both master/slave directions: two-body Hertz with \
+         1/R = 1/R1 + 1/R2 and 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2, the half-width measured \
+         by the second moment of the nodal forces. The Lamé thick sphere under internal pressure \
+         (an octant of 6912 hex8): the bore's displacement and its derivatives in E, nu and the \
+         inner radius a, a shape parameter through a boundary-driven design velocity field, \
+         against the closed form differentiated by dual numbers, and against central FDM of \
+         reruns. A morph to the same mesh scaled by 1.05 against the scale map of the same \
+         change. `cargo test --release --test oracles imported` asserts the same rows.\n",
+        val.imported.len()
+    );
+    let _ = writeln!(
+        s,
+        "| scene | quantity | expected | fricsens (DDM) | relative error | tolerance | |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    for o in &val.imported {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.6e} | {:.6e} | {:.2e} | {:.0e} | {} |",
+            o.scene,
+            o.quantity,
+            o.expected,
+            o.got,
+            o.rel_error,
+            o.tolerance,
+            if o.pass { "pass" } else { "**FAIL**" }
+        );
+    }
 }
