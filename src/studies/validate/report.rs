@@ -313,24 +313,7 @@ pub(super) fn report(
     }
     write_time_ledger(&mut s, val);
     let _ = writeln!(s, "\n## Closed forms\n");
-    let _ = writeln!(
-        s,
-        "| scene | quantity | expected | fricsens (DDM) | relative error | tolerance | |"
-    );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
-    for o in &val.oracles {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {:.6e} | {:.6e} | {:.2e} | {:.0e} | {} |",
-            o.scene,
-            o.quantity,
-            o.expected,
-            o.got,
-            o.rel_error,
-            o.tolerance,
-            if o.pass { "pass" } else { "**FAIL**" }
-        );
-    }
+    write_oracle_table(&mut s, &val.oracles);
     write_imported(&mut s, val);
     let _ = writeln!(s, "\n## The paper's figures, redrawn\n");
     for (f, what) in [
@@ -659,12 +642,17 @@ fn write_imported(s: &mut String, val: &Validation) {
          change. `cargo test --release --test oracles imported` asserts the same rows.\n",
         val.imported.len()
     );
+    write_oracle_table(s, &val.imported);
+}
+
+/// A table of closed-form checks.
+fn write_oracle_table(s: &mut String, rows: &[OracleRow]) {
     let _ = writeln!(
         s,
         "| scene | quantity | expected | fricsens (DDM) | relative error | tolerance | |"
     );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|");
-    for o in &val.imported {
+    for o in rows {
         let _ = writeln!(
             s,
             "| {} | {} | {:.6e} | {:.6e} | {:.2e} | {:.0e} | {} |",
