@@ -188,8 +188,10 @@ pub fn write_pvd(path: &Path, files: &[(f64, String)]) -> Result<(), OutputError
 }
 
 /// Contact state map of increment `k` as point fields: `contact_state` (-1 not a hitting node,
-/// 0 open, 1 closed frictionless, 2 stick, 3 slip), `normal_force`, `friction_force` (its
-/// direction is the slip direction) and `contact_force`.
+/// 0 open, 1 closed frictionless, 2 stick, 3 slip), `normal_force`, the contact pressure over
+/// the node's reference tributary area (`contact_pressure_nominal`) and over its current one
+/// (`contact_pressure_current`, the Cauchy pressure CalculiX and Abaqus report),
+/// `friction_force` (its direction is the slip direction) and `contact_force`.
 pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
     let mut extra = ExtraFields::default();
     let Some(c) = res.contact.get(k) else {
@@ -201,6 +203,8 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
     let n = model.mesh.n_nodes();
     let mut state = vec![-1.0; n];
     let mut normal = vec![0.0; n];
+    let mut nominal = vec![0.0; n];
+    let mut current = vec![0.0; n];
     let mut friction = vec![0.0; 3 * n];
     let mut force = vec![0.0; 3 * n];
     for (p, pair) in model.contacts.iter().enumerate() {
@@ -212,6 +216,8 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
             }
             state[node] = c.choice[f].state.code();
             normal[node] += c.normal_force[f];
+            nominal[node] += c.normal_force[f] / c.area[f];
+            current[node] += c.normal_force[f] / c.current_area[f];
             for j in 0..3 {
                 // three components per node, as the nodal unknowns
                 friction[crate::model::node_dof(node, j)] += c.traction[f][j];
@@ -221,6 +227,12 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
     }
     extra.point.push(("contact_state".into(), 1, state));
     extra.point.push(("normal_force".into(), 1, normal));
+    extra
+        .point
+        .push(("contact_pressure_nominal".into(), 1, nominal));
+    extra
+        .point
+        .push(("contact_pressure_current".into(), 1, current));
     extra.point.push(("friction_force".into(), 3, friction));
     extra.point.push(("contact_force".into(), 3, force));
     extra

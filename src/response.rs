@@ -122,14 +122,17 @@ pub enum ResponseKind {
         /// 0, 1, 2 for x, y, z.
         component: usize,
     },
-    /// Normal contact force over tributary area at hitting node `node` of pair `pair`. The
-    /// area is the node's share of the hitting faces at the evaluated design's reference
-    /// coordinates, so a shape parameter moves it ([`Lifted::area`](crate::model::Lifted::area)).
+    /// Normal contact force over tributary area at hitting node `node` of pair `pair`: the
+    /// node's share of the hitting faces in the reference configuration at the evaluated
+    /// design (a shape parameter moves it: [`Lifted::area`](crate::model::Lifted::area)), or
+    /// in the current configuration ([`PressureMeasure`]).
     ContactPressure {
         /// Contact pair index in the model.
         pair: usize,
         /// Hitting node, counted within the pair.
         node: usize,
+        /// Over which area.
+        measure: PressureMeasure,
     },
     /// One history scalar (e.g. the equivalent plastic strain of a Gauss point), by its index
     /// in the global history vector.
@@ -192,6 +195,31 @@ impl ResponseKind {
     }
 }
 
+/// Which area a contact pressure divides the normal force by.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PressureMeasure {
+    /// The nominal (first Piola-Kirchhoff-like) pressure: over the node's tributary area in the
+    /// reference configuration. Equal to the current one under small strains; the default, as
+    /// fricsens has always reported it.
+    #[default]
+    Nominal,
+    /// The Cauchy (true) pressure: over the node's tributary area in the current configuration,
+    /// as CalculiX, Abaqus and most papers report contact pressure. Its derivative includes how
+    /// the area deforms.
+    Current,
+}
+
+impl PressureMeasure {
+    /// The name in scene files, CSV headers and VTK arrays: `nominal` or `current`.
+    pub fn name(self) -> &'static str {
+        match self {
+            PressureMeasure::Nominal => "nominal",
+            PressureMeasure::Current => "current",
+        }
+    }
+}
+
 /// A named response.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Response {
@@ -225,10 +253,18 @@ impl Response {
                 Some(c) => -c.pair_force[*pair][*component],
                 None => S::zero(),
             },
-            ResponseKind::ContactPressure { pair, node } => match (at.contact, at.flat) {
+            ResponseKind::ContactPressure {
+                pair,
+                node,
+                measure,
+            } => match (at.contact, at.flat) {
                 (Some(c), Some(flat)) => {
                     let k = flat[*pair] + node;
-                    c.normal_force[k] / c.area[k]
+                    c.normal_force[k]
+                        / match measure {
+                            PressureMeasure::Nominal => c.area[k],
+                            PressureMeasure::Current => c.current_area[k],
+                        }
                 }
                 _ => S::zero(),
             },

@@ -189,6 +189,12 @@ pub(crate) fn evaluate<S: Scalar>(
             area: S::one(),
             elastic_stick: false,
         };
+        if let Some(faces) = &pair.hitting_faces {
+            // the current tributary areas, for the Cauchy pressure
+            let current = faces.tributary_areas_at(|n| node_pos(lifted, z, n), &pair.hitting);
+            let first = layout.flat[p];
+            out.current_area[first..first + current.len()].copy_from_slice(&current);
+        }
         for (i, &s) in pair.hitting.iter().enumerate() {
             let flat = layout.flat[p] + i;
             par.area = lifted.area[p][i];

@@ -11,9 +11,13 @@ pub struct ContactEval<S: Scalar> {
     pub choice: Vec<ContactChoice>,
     /// Normal force per hitting node.
     pub normal_force: Vec<S>,
-    /// Tributary area per hitting node at the evaluation's design (pressure = normal force
-    /// over it).
+    /// Tributary area per hitting node at the evaluation's design, in the reference
+    /// configuration (nominal pressure = normal force over it).
     pub area: Vec<S>,
+    /// Tributary area per hitting node in the current (deformed) configuration (Cauchy, or
+    /// true, pressure = normal force over it; what CalculiX and Abaqus report). One for a
+    /// node-set pair, like `area`.
+    pub current_area: Vec<S>,
     /// Total contact force on each pair's target (minus the sum of the forces on its
     /// hitting nodes): the reaction of a rigid target.
     pub pair_force: Vec<Vector3<S>>,
@@ -35,6 +39,7 @@ impl<S: Scalar> ContactEval<S> {
             choice: vec![ContactChoice::default(); n_hitting],
             normal_force: vec![S::zero(); n_hitting],
             area: vec![S::one(); n_hitting],
+            current_area: vec![S::one(); n_hitting],
             pair_force: vec![Vector3::zeros(); n_pairs],
             force: vec![Vector3::zeros(); n_hitting],
             traction: vec![Vector3::zeros(); n_hitting],

@@ -286,6 +286,15 @@ impl FaceSet {
     /// scalar: at design-dependent coordinates (a shape parameter) the areas carry its derivative,
     /// so that a contact pressure and a penalty law follow the design's geometry.
     pub fn tributary_areas<S: Scalar>(&self, x: &[Vector3<S>], nodes: &[usize]) -> Vec<S> {
+        self.tributary_areas_at(|n| x[n], nodes)
+    }
+
+    /// [`FaceSet::tributary_areas`] with node `n` at `x(n)` (a deformed position, say).
+    pub fn tributary_areas_at<S: Scalar>(
+        &self,
+        x: impl Fn(usize) -> Vector3<S>,
+        nodes: &[usize],
+    ) -> Vec<S> {
         // position of each node in `nodes` (the first, as a linear search would find)
         let mut index = HashMap::with_capacity(nodes.len());
         for (k, n) in nodes.iter().enumerate() {
@@ -297,7 +306,7 @@ impl FaceSet {
             let family = self.face(k).family;
             let face = self.nodes(k);
             for (c, n) in corners.iter_mut().zip(face) {
-                *c = x[*n];
+                *c = x(*n);
             }
             let a = family.area(&corners[..face.len()]);
             for (l, n) in face.iter().enumerate() {

@@ -564,7 +564,12 @@ impl Scene {
                     pair: contact_index(&contacts, pair, &format!("responses[{i}].pair"))?,
                     component: component.index(),
                 },
-                ResponseSpec::PressureProfile { name, pair, along } => {
+                ResponseSpec::PressureProfile {
+                    name,
+                    pair,
+                    along,
+                    area,
+                } => {
                     let p = contact_index(&contacts, pair, &format!("responses[{i}].pair"))?;
                     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
                     let c = &contacts[p];
@@ -578,6 +583,7 @@ impl Scene {
                             kind: ResponseKind::ContactPressure {
                                 pair: p,
                                 node: *node,
+                                measure: *area,
                             },
                         });
                     }

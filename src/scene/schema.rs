@@ -494,6 +494,10 @@ pub struct ContactSpec {
     pub search_radius: Option<f64>,
 }
 
+fn is_nominal(m: &crate::response::PressureMeasure) -> bool {
+    *m == crate::response::PressureMeasure::Nominal
+}
+
 pub(crate) fn lagrange() -> NormalLaw {
     NormalLaw::Lagrange
 }
@@ -530,7 +534,9 @@ pub enum ResponseSpec {
         component: Component,
     },
     /// Contact pressure (normal force / tributary area) at every hitting node of a pair: one
-    /// response per node, named `NAME[i]`, ordered along `along`.
+    /// response per node, named `NAME[i]`, ordered along `along`. `area = "nominal"` (the
+    /// default) divides by the reference tributary area, `area = "current"` by the deformed one
+    /// (the Cauchy pressure that CalculiX and Abaqus report).
     PressureProfile {
         /// Response name prefix.
         name: String,
@@ -538,6 +544,9 @@ pub enum ResponseSpec {
         pair: String,
         /// Coordinate the nodes are ordered by (reference configuration).
         along: Component,
+        /// Over which area: `nominal` (reference) or `current` (deformed).
+        #[serde(default, skip_serializing_if = "is_nominal")]
+        area: crate::response::PressureMeasure,
     },
     /// A history variable of one Gauss point: `element` counts within the body, `point` is
     /// the Gauss point (0-7), `variable` names a history entry of the body's material

@@ -20,5 +20,6 @@ mod locking;
 mod materials;
 mod mesh_in_code;
 mod plasticity;
+mod pressure_measures;
 mod shape_maps;
 mod springs;

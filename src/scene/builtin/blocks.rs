@@ -70,6 +70,7 @@ pub fn contact_patch(friction: Option<f64>) -> Scene {
             name: "p".into(),
             pair: "interface".into(),
             along: Component::X,
+            area: Default::default(),
         }],
         solver: SolverSettings::default(),
         study: StudySpec::default(),

@@ -121,6 +121,7 @@ pub fn hertz(h: &HertzSpec) -> Scene {
                 name: "p".into(),
                 pair: "cylinder".into(),
                 along: Component::X,
+                area: Default::default(),
             },
             ResponseSpec::TargetForce {
                 name: "cylinder-force-y".into(),

@@ -165,6 +165,7 @@ pub(crate) fn indentation_mesh(
                 name: "p".into(),
                 pair: "block".into(),
                 along: Component::X,
+                area: Default::default(),
             },
         ],
         solver: SolverSettings::default(),

@@ -173,7 +173,7 @@ pub fn hertz_cylinders(meshes: &Path, reverse: bool) -> Result<Vec<OracleRow>, I
     let (mut force, mut moment2) = (0.0, 0.0);
     let mut peak = (0.0f64, 0.0f64);
     for (r, resp) in model.responses.iter().enumerate() {
-        if let ResponseKind::ContactPressure { pair, node } = resp.kind {
+        if let ResponseKind::ContactPressure { pair, node, .. } = resp.kind {
             let n = model.contacts[pair].hitting[node];
             let f = last.values[r] * model.contacts[pair].area[node];
             force += f;
