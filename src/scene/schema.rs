@@ -257,7 +257,12 @@ pub struct PrescribedSpec {
     pub amplitude: Vec<(f64, f64)>,
 }
 
-/// A total force `value * amplitude(t)` shared equally by the nodes of a set.
+/// A total force `value * amplitude(t)` in one component over a set. On a face set it is a
+/// uniform traction over the set's reference faces: each node takes its tributary share of
+/// the area (the consistent nodal forces of a uniform traction on parallelogram quad4 faces).
+/// On a node set (no faces: an intersection such as `b.xmax & b.all`, a Gmsh point group, an
+/// Abaqus `NSET`) the nodes share it equally. A pressure that follows a shape parameter's
+/// faces is a `[[pressures]]` entry.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LoadSpec {

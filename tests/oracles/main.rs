@@ -16,6 +16,7 @@ mod contact_tangent;
 mod element;
 mod friction_laws;
 mod imported;
+mod loads;
 mod locking;
 mod materials;
 mod mesh_in_code;
