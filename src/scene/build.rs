@@ -29,28 +29,22 @@ impl Scene {
                 names.push((set.clone(), format!("responses[{i}].set")));
             }
         }
+        for (i, s) in self.springs.iter().enumerate() {
+            names.push((s.a.clone(), format!("springs[{i}].a")));
+            if let Some(b) = &s.b {
+                names.push((b.clone(), format!("springs[{i}].b")));
+            }
+        }
+        let x = mesh.coordinates::<f64>(&mesh.block_geometry());
         for (name, field) in names {
-            if !name.contains('&') || mesh.node_sets.contains_key(&name) {
+            if mesh.node_sets.contains_key(&name) {
                 continue;
             }
-            let mut nodes: Option<Vec<usize>> = None;
-            for part in name.split('&').map(str::trim) {
-                let v = mesh.node_sets.get(part).ok_or_else(|| {
-                    invalid(&field, format!("no node set named '{part}' (in '{name}')"))
-                })?;
-                nodes = Some(match nodes {
-                    None => v.clone(),
-                    Some(n) => n.into_iter().filter(|k| v.contains(k)).collect(),
-                });
+            let nodes =
+                set_expression(&name, &mesh.node_sets, &x).map_err(|why| invalid(&field, why))?;
+            if let Some(nodes) = nodes {
+                mesh.node_sets.insert(name, nodes);
             }
-            let nodes = nodes.unwrap_or_default();
-            if nodes.is_empty() {
-                return Err(invalid(
-                    &field,
-                    format!("the intersection '{name}' is empty"),
-                ));
-            }
-            mesh.node_sets.insert(name, nodes);
         }
         Ok(())
     }
@@ -709,6 +703,84 @@ impl Scene {
 
 /// A mesh path as given in a scene: relative to the scene file's folder (or the working
 /// folder when the scene was not read from a file).
+/// The nodes of a set expression: node sets, `node N` (mesh node number N, as in messages and
+/// VTK files) and `near X Y Z` (the node nearest to the point in the reference configuration)
+/// joined by `&` (intersection; `near` picks among the nodes of the other parts, or of the
+/// whole mesh). `None` for a plain name (looked up, and reported if missing, by its user).
+fn set_expression(
+    name: &str,
+    sets: &std::collections::BTreeMap<String, Vec<usize>>,
+    x: &[nalgebra::Vector3<f64>],
+) -> Result<Option<Vec<usize>>, String> {
+    let parts: Vec<&str> = name.split('&').map(str::trim).collect();
+    let special = |p: &str| p.starts_with("node ") || p.starts_with("near ");
+    if parts.len() == 1 && !special(parts[0]) {
+        return Ok(None);
+    }
+    let mut nodes: Option<Vec<usize>> = None;
+    let mut near: Option<nalgebra::Vector3<f64>> = None;
+    for part in &parts {
+        let v: Vec<usize> = if let Some(id) = part.strip_prefix("node ") {
+            let n: usize = id
+                .trim()
+                .parse()
+                .map_err(|_| format!("'{part}': a node number, e.g. 'node 17'"))?;
+            if n >= x.len() {
+                return Err(format!(
+                    "'{part}': the mesh has nodes 0 to {}",
+                    x.len().saturating_sub(1)
+                ));
+            }
+            vec![n]
+        } else if let Some(at) = part.strip_prefix("near ") {
+            let c: Vec<f64> = at
+                .split(|ch: char| ch.is_whitespace() || ch == ',')
+                .filter(|t| !t.is_empty())
+                .map(str::parse)
+                .collect::<Result<_, _>>()
+                .map_err(|_| format!("'{part}': three coordinates, e.g. 'near 20 0 0.25'"))?;
+            if c.len() != 3 || c.iter().any(|v| !v.is_finite()) {
+                return Err(format!(
+                    "'{part}': three coordinates, e.g. 'near 20 0 0.25'"
+                ));
+            }
+            near = Some(nalgebra::Vector3::new(c[0], c[1], c[2]));
+            continue;
+        } else {
+            sets.get(*part)
+                .cloned()
+                .ok_or_else(|| format!("no node set named '{part}' (in '{name}')"))?
+        };
+        nodes = Some(match nodes {
+            None => v,
+            Some(n) => n.into_iter().filter(|k| v.contains(k)).collect(),
+        });
+    }
+    let mut nodes = nodes.unwrap_or_else(|| (0..x.len()).collect());
+    if let Some(p) = near {
+        let d = |n: usize| (x[n] - p).norm();
+        let best = nodes.iter().copied().min_by(|a, b| d(*a).total_cmp(&d(*b)));
+        let Some(best) = best else {
+            return Err(format!("'{name}': no node to pick from"));
+        };
+        // two nodes at one place (the two bodies' nodes at a contact point): say which
+        let tied: Vec<usize> = (nodes.iter().copied())
+            .filter(|n| *n != best && (x[*n] - x[best]).norm() <= 1e-12 * (1.0 + x[best].norm()))
+            .collect();
+        if !tied.is_empty() {
+            return Err(format!(
+                "'{name}': nodes {best} and {} are both nearest (at one place); intersect with a body's set, e.g. 'BODY.all & near ...'",
+                tied[0]
+            ));
+        }
+        nodes = vec![best];
+    }
+    if nodes.is_empty() {
+        return Err(format!("the intersection '{name}' is empty"));
+    }
+    Ok(Some(nodes))
+}
+
 fn resolve(folder: Option<&std::path::Path>, file: &std::path::Path) -> std::path::PathBuf {
     match folder {
         Some(dir) if file.is_relative() => dir.join(file),

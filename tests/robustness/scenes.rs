@@ -109,3 +109,64 @@ fn indentation_slides_at_the_coulomb_limit_with_an_asymmetric_pressure() {
         "sliding pressure still symmetric"
     );
 }
+
+#[test]
+fn single_nodes_by_number_or_by_the_nearest_point_make_sets_for_responses_and_springs() {
+    use fricsens::response::ResponseKind;
+    use fricsens::scene::{Component, ResponseSpec};
+    let file = std::path::Path::new("meshes/punch-on-slab.toml");
+    let with = |set: &str| {
+        let mut s = Scene::from_file(file).unwrap();
+        s.responses = vec![ResponseSpec::Displacement {
+            name: "u".into(),
+            set: set.into(),
+            component: Component::Y,
+        }];
+        s
+    };
+    let nodes_of = |s: Scene| match s.build().map(|m| m.responses[0].kind.clone()) {
+        Ok(ResponseKind::Displacement { nodes, .. }) => Ok(nodes),
+        Ok(other) => panic!("{other:?}"),
+        Err(e) => Err(e.to_string()),
+    };
+    // the contact point (20, 0, 0) holds a punch node and a slab node (the bodies are not
+    // merged): the nearest node of the slab is the slab's, and it is at the point
+    let model = with("slab.all").build().unwrap();
+    let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+    let slab = nodes_of(with("slab.all & near 20 0 0")).unwrap();
+    assert_eq!(slab.len(), 1);
+    assert!(model.mesh.node_sets["slab.all"].contains(&slab[0]));
+    assert_eq!(x[slab[0]], nalgebra::Vector3::new(20.0, 0.0, 0.0));
+    let punch = nodes_of(with("punch.all & near 20, 0, 0")).unwrap();
+    assert!(model.mesh.node_sets["punch.all"].contains(&punch[0]) && punch[0] != slab[0]);
+    // by number, as messages and VTK files number nodes
+    assert_eq!(nodes_of(with(&format!("node {}", slab[0]))).unwrap(), slab);
+    // the whole mesh has two nearest nodes there: refused, naming both
+    let e = nodes_of(with("near 20 0 0")).unwrap_err();
+    for needle in [
+        "responses[0].set",
+        "both nearest",
+        &slab[0].to_string(),
+        &punch[0].to_string(),
+    ] {
+        assert!(e.contains(needle), "{needle:?} not in {e}");
+    }
+    // malformed
+    for (bad, needle) in [
+        ("node x", "a node number"),
+        ("node 99999999", "the mesh has nodes 0 to"),
+        ("near 1 2", "three coordinates"),
+        ("slab.all & near 1 nan 0", "three coordinates"),
+    ] {
+        let e = nodes_of(with(bad)).unwrap_err();
+        assert!(e.contains(needle), "{bad}: {needle:?} not in {e}");
+    }
+    // a spring takes the same expressions: the punch's contact node tied to the ground
+    let mut s = with("slab.all");
+    s.springs.push(fricsens::scene::SpringSpec {
+        a: "punch.all & near 20 0 0".into(),
+        b: None,
+        stiffness: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+    });
+    assert_eq!(s.build().unwrap().springs.len(), 1);
+}
