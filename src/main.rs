@@ -262,7 +262,9 @@ fn sensitivity(
     krylov: bool,
     out: Option<PathBuf>,
 ) -> Result<(), String> {
-    use fricsens::sensitivity::{run_sensitivity, Method, Parameter, Settings, TangentChoice};
+    use fricsens::sensitivity::{
+        run_sensitivity_watched, Method, Parameter, Settings, TangentChoice,
+    };
     let scene = Scene::load(scene_name).map_err(|e| e.to_string())?;
     let beta = beta.unwrap_or_else(|| scene.study.beta());
     if !(beta > 0.0 && beta < 1.0) {
@@ -301,7 +303,15 @@ fn sensitivity(
         krylov,
         ..Settings::default()
     };
-    let (res, sens) = run_sensitivity(&model, &params, &settings).map_err(|e| e.to_string())?;
+    let bar = progress(model.times.len());
+    if settings.method.is_inline() {
+        bar.set_prefix(settings.method.name());
+    } else {
+        bar.set_prefix("nominal run (then the reruns)");
+    }
+    let run = run_sensitivity_watched(&model, &params, &settings, &mut |c| show(&bar, c));
+    bar.finish_and_clear();
+    let (res, sens) = run.map_err(|e| e.to_string())?;
     let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     // CSV: one row per increment, value and derivatives of every response
@@ -427,19 +437,29 @@ struct Progress(ProgressBar);
 
 impl Observer for Progress {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
-        self.0.set_position(c.index as u64);
-        self.0.set_message(format!(
-            "t = {:.4}, {} iterations",
-            c.time, c.record.iterations
-        ));
+        show(&self.0, c);
         Ok(())
     }
+}
+
+/// Where a run is: increment, pseudo-time, iterations and cutbacks of the increment.
+fn show(bar: &ProgressBar, c: &Converged<'_>) {
+    bar.set_position(c.index as u64);
+    bar.set_message(format!(
+        "t = {:.4}, {} iterations{}",
+        c.time,
+        c.record.iterations,
+        match c.record.cutbacks {
+            0 => String::new(),
+            n => format!(", {n} cutbacks"),
+        }
+    ));
 }
 
 fn progress(n: usize) -> ProgressBar {
     let pb = ProgressBar::new(n as u64);
     pb.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} increments {msg} [{elapsed}]")
+        ProgressStyle::with_template("{prefix} {bar:40} {pos}/{len} increments {msg} [{elapsed}]")
             .expect("valid template"),
     );
     pb

@@ -73,7 +73,7 @@ pub fn run_inline_sweep(
         }
         .into());
     }
-    let (res, out, _) = inline_sweep(model, params, settings)?;
+    let (res, out, _) = inline_sweep(model, params, settings, &mut |_| {})?;
     Ok((res, out))
 }
 
@@ -83,6 +83,7 @@ pub(super) fn inline_sweep(
     model: &Model,
     params: &[Parameter],
     settings: &[Settings],
+    watch: &mut dyn FnMut(&Converged<'_>),
 ) -> Result<(Results, Vec<SensitivityResults>, Vec<Option<AnalysisError>>), AnalysisError> {
     let mut engines = Engines {
         engines: settings
@@ -92,7 +93,7 @@ pub(super) fn inline_sweep(
         errors: settings.iter().map(|_| None).collect(),
     };
     let mut solver = Solver::new(model)?;
-    let res = solver.run(&RunOptions::default(), &mut engines)?;
+    let res = solver.run(&RunOptions::default(), &mut Watched(&mut engines, watch))?;
     // the engines' own work and their floor probes are not the primal run's
     let inline: f64 = engines
         .engines
@@ -121,10 +122,32 @@ pub fn run_fdm_sweep(
     betas: &[f64],
     central: bool,
 ) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
+    fdm_sweep(model, params, betas, central, &mut |_| {})
+}
+
+/// An observer followed by a look at each converged increment (a progress display).
+struct Watched<'a, O: Observer>(&'a mut O, &'a mut dyn FnMut(&Converged<'_>));
+
+impl<O: Observer> Observer for Watched<'_, O> {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        self.0.converged(c)?;
+        (self.1)(c);
+        Ok(())
+    }
+}
+
+/// [`run_fdm_sweep`], `watch` seeing each converged increment of the nominal run.
+pub(super) fn fdm_sweep(
+    model: &Model,
+    params: &[Parameter],
+    betas: &[f64],
+    central: bool,
+    watch: &mut dyn FnMut(&Converged<'_>),
+) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
     use rayon::prelude::*;
     let t0 = Instant::now();
     let mut solver = Solver::new(model)?;
-    let nominal = solver.run(&RunOptions::default(), &mut NoObserver)?;
+    let nominal = solver.run(&RunOptions::default(), &mut Watched(&mut NoObserver, watch))?;
     let primal_seconds = t0.elapsed().as_secs_f64();
     let times: Vec<f64> = nominal.times[1..].to_vec();
     let base = responses_at(model, &nominal, &times)?;

@@ -339,15 +339,28 @@ pub fn run_sensitivity(
     params: &[Parameter],
     settings: &Settings,
 ) -> Result<(Results, SensitivityResults), AnalysisError> {
+    run_sensitivity_watched(model, params, settings, &mut |_| {})
+}
+
+/// [`run_sensitivity`], `watch` seeing each converged increment of the primal run (with the
+/// in-line methods' work for it done; for FDM, of the nominal run before the reruns): a
+/// progress display.
+pub fn run_sensitivity_watched(
+    model: &Model,
+    params: &[Parameter],
+    settings: &Settings,
+    watch: &mut dyn FnMut(&crate::solver::Converged<'_>),
+) -> Result<(Results, SensitivityResults), AnalysisError> {
     let (res, mut out) = if settings.method.is_inline() {
-        let (res, out, mut errors) = inline_sweep(model, params, std::slice::from_ref(settings))?;
+        let (res, out, mut errors) =
+            inline_sweep(model, params, std::slice::from_ref(settings), watch)?;
         if let Some(e) = errors.pop().flatten() {
             return Err(e);
         }
         (res, out)
     } else {
         let central = settings.method == Method::FdmCentral;
-        run_fdm_sweep(model, params, &[settings.beta], central)?
+        fdm_sweep(model, params, &[settings.beta], central, watch)?
     };
     // the sweep of one beta gives [forward] or [forward, central]: the requested one is last
     let s = out.pop().expect("one result per setting");
