@@ -270,7 +270,11 @@ fn sensitivity(
     if !(beta > 0.0 && beta < 1.0) {
         return Err(format!("--beta must lie in (0, 1), got {beta}"));
     }
+    print_defaults(scene_name)?;
     let model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
+    for n in &model.notes {
+        eprintln!("default: {n}");
+    }
     let names = if names.is_empty() {
         if scene.study.params.is_empty() {
             return Err(format!(
@@ -465,8 +469,22 @@ fn progress(n: usize) -> ProgressBar {
     pb
 }
 
+/// For a scene file, print every setting it leaves to its default, with the value in effect.
+fn print_defaults(scene_name: &str) -> Result<(), String> {
+    let path = std::path::Path::new(scene_name);
+    if !path.is_file() {
+        return Ok(());
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{scene_name}: {e}"))?;
+    for d in Scene::defaulted(&text, scene_name).map_err(|e| e.to_string())? {
+        eprintln!("default: {d}");
+    }
+    Ok(())
+}
+
 fn run(scene_name: &str, out: Option<PathBuf>, vtk: output::VtkOutput) -> Result<(), String> {
     let scene = Scene::load(scene_name).map_err(|e| e.to_string())?;
+    print_defaults(scene_name)?;
     let model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
     let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
     for n in &model.notes {

@@ -833,6 +833,52 @@ pub(crate) fn toml_path(text: &str, err: &toml::de::Error) -> Option<String> {
     (!path.is_empty()).then_some(path)
 }
 
+/// The keys of `full` missing from `given`, with their values (see [`Scene::defaulted`]).
+fn defaulted_keys(
+    full: &toml::Value,
+    given: Option<&toml::Value>,
+    path: &str,
+    out: &mut Vec<String>,
+) {
+    let join = |k: &str| {
+        if path.is_empty() {
+            k.to_string()
+        } else {
+            format!("{path}.{k}")
+        }
+    };
+    match (full, given) {
+        (toml::Value::Table(t), Some(toml::Value::Table(g))) => {
+            for (k, v) in t {
+                defaulted_keys(v, g.get(k), &join(k), out);
+            }
+        }
+        (toml::Value::Array(a), Some(toml::Value::Array(g)))
+            if a.iter().all(toml::Value::is_table) && a.len() == g.len() =>
+        {
+            for (i, (v, w)) in a.iter().zip(g).enumerate() {
+                defaulted_keys(v, Some(w), &format!("{path}[{i}]"), out);
+            }
+        }
+        (_, Some(_)) => {}
+        // nothing declared is nothing defaulted
+        (toml::Value::Array(a), None) if a.is_empty() => {}
+        (v, None) => {
+            let shown = match v {
+                toml::Value::Table(t) => {
+                    // a whole table left out: its keys one by one
+                    for (k, w) in t {
+                        defaulted_keys(w, None, &join(k), out);
+                    }
+                    return;
+                }
+                other => other.to_string(),
+            };
+            out.push(format!("{path} = {shown}"));
+        }
+    }
+}
+
 impl Scene {
     /// Parse a scene from TOML text; `file` names the source in errors.
     pub fn from_toml(text: &str, file: &str) -> Result<Scene, SceneError> {
@@ -846,6 +892,24 @@ impl Scene {
                 },
             }
         })
+    }
+
+    /// The settings a scene text leaves to their defaults, each as `path = value` with the
+    /// value in effect (`bodies[0].kinematics = "large"`): every key of the complete scene
+    /// ([`Scene::to_toml`]) that the text does not give. `fricsens run` and `fricsens
+    /// sensitivity` print them before a scene file's run.
+    pub fn defaulted(text: &str, file: &str) -> Result<Vec<String>, SceneError> {
+        let scene = Self::from_toml(text, file)?;
+        let parse = |t: &str| {
+            toml::from_str::<toml::Value>(t).map_err(|e| SceneError::Parse {
+                file: file.to_string(),
+                message: e.to_string(),
+            })
+        };
+        let (given, full) = (parse(text)?, parse(&scene.to_toml()?)?);
+        let mut out = Vec::new();
+        defaulted_keys(&full, Some(&given), "", &mut out);
+        Ok(out)
     }
 
     /// Read a scene file.

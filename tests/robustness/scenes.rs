@@ -170,3 +170,36 @@ fn single_nodes_by_number_or_by_the_nearest_point_make_sets_for_responses_and_sp
     });
     assert_eq!(s.build().unwrap().springs.len(), 1);
 }
+
+#[test]
+fn a_scene_file_is_told_which_settings_it_left_to_their_defaults() {
+    // meshes/punch-on-slab.toml gives kinematics but not formulation, the press's value but
+    // not the base's, no [solver] table; empty lists (no loads) are nothing defaulted
+    let text = std::fs::read_to_string("meshes/punch-on-slab.toml").unwrap();
+    let d = Scene::defaulted(&text, "punch-on-slab.toml").unwrap();
+    for want in [
+        "bodies[0].formulation = \"incompatible-modes\"",
+        "bodies[1].formulation = \"incompatible-modes\"",
+        "prescribed[0].value = 0.0",
+        "solver.max_iterations = 30",
+    ] {
+        assert!(d.iter().any(|l| l == want), "{want:?} not in {d:#?}");
+    }
+    for absent in [
+        "kinematics",
+        "loads",
+        "prescribed[1].value",
+        "contacts[0].friction",
+    ] {
+        assert!(
+            !d.iter().any(|l| l.contains(absent)),
+            "{absent:?} in {d:#?}"
+        );
+    }
+    // a complete scene has nothing left to default
+    let full = Scene::from_toml(&text, "x").unwrap().to_toml().unwrap();
+    assert_eq!(
+        Scene::defaulted(&full, "full.toml").unwrap(),
+        Vec::<String>::new()
+    );
+}
