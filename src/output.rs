@@ -74,6 +74,54 @@ pub fn write_history_csv(path: &Path, model: &Model, res: &Results) -> Result<()
     std::fs::write(path, s).map_err(io(path))
 }
 
+/// Write `contact.csv`, long format: one row per hitting node of every pair at every stored
+/// increment, with the node's number, its reference (`X`, `Y`, `Z`) and current (`x`, `y`,
+/// `z`) coordinates, its state (0 open, 1 closed frictionless, 2 stick, 3 slip), normal force,
+/// both contact pressures (`p_nominal` over the reference tributary area, `p_current` over the
+/// deformed one: the Cauchy pressure CalculiX and Abaqus report) and friction force. The
+/// numbers and coordinates are those of the VTK files.
+pub fn write_contact_csv(path: &Path, model: &Model, res: &Results) -> Result<(), OutputError> {
+    let mut s = String::from(
+        "increment,time,pair,node,X,Y,Z,x,y,z,state,normal_force,p_nominal,p_current,friction_x,friction_y,friction_z\n",
+    );
+    let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+    for (k, t) in res.times.iter().enumerate() {
+        let (Some(c), Some(z)) = (res.contact.get(k), res.states.get(k)) else {
+            continue;
+        };
+        for (p, pair) in model.contacts.iter().enumerate() {
+            let first = res.contact_flat.get(p).copied().unwrap_or(0);
+            for (i, &n) in pair.hitting.iter().enumerate() {
+                let f = first + i;
+                if f >= c.choice.len() {
+                    continue;
+                }
+                let u = &z[crate::model::node_dofs(n)];
+                let (r, fr) = (x[n], c.traction[f]);
+                let _ = writeln!(
+                    s,
+                    "{k},{t:.10e},{},{n},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e}",
+                    pair.name,
+                    r[0],
+                    r[1],
+                    r[2],
+                    r[0] + u[0],
+                    r[1] + u[1],
+                    r[2] + u[2],
+                    c.choice[f].state.code(),
+                    c.normal_force[f],
+                    c.normal_force[f] / c.area[f],
+                    c.normal_force[f] / c.current_area[f],
+                    fr[0],
+                    fr[1],
+                    fr[2]
+                );
+            }
+        }
+    }
+    std::fs::write(path, s).map_err(io(path))
+}
+
 /// Point and cell fields of one increment beyond displacement and stress.
 #[derive(Default)]
 pub struct ExtraFields {
@@ -257,7 +305,8 @@ impl VtkOutput {
     }
 }
 
-/// Write the whole run: `history.csv`, `newton.json`, and, as `vtk` says, `vtk/` with one
+/// Write the whole run: `history.csv`, `contact.csv` (with contact pairs), `newton.json`, and,
+/// as `vtk` says, `vtk/` with one
 /// `.vtu` per written increment and the `.pvd` collection of them.
 pub fn write_run(
     dir: &Path,
@@ -267,6 +316,9 @@ pub fn write_run(
 ) -> Result<(), OutputError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     write_history_csv(&dir.join("history.csv"), model, res)?;
+    if !model.contacts.is_empty() {
+        write_contact_csv(&dir.join("contact.csv"), model, res)?;
+    }
     let p = dir.join("newton.json");
     let json = serde_json::to_string_pretty(&res.records).expect("records serialise");
     std::fs::write(&p, json).map_err(io(&p))?;

@@ -94,3 +94,75 @@ fn the_current_pressure_integrates_to_the_normal_force_and_ddm_equals_central_fd
         assert!(worst < 1e-6, "{}: {worst:.2e}", param.name);
     }
 }
+
+#[test]
+fn the_per_node_contact_csv_reads_back_equal_to_the_vtk_files() {
+    // the paper's sliding block, shortened: contact.csv's last increment against the last
+    // .vtu: node numbers index the VTK points, reference and current positions, the normal
+    // force and both pressures agree to the CSV's 13 digits
+    use fricsens::output::{write_run, VtkOutput};
+    use vtkio::model::{Attribute, DataSet};
+    let model = builtin::indentation(1, 2).build().unwrap();
+    let res = Solver::new(&model)
+        .unwrap()
+        .run(&Default::default(), &mut fricsens::solver::NoObserver)
+        .unwrap();
+    let dir = common::scratch_path("contact-csv");
+    write_run(&dir, &model, &res, VtkOutput::Every(100)).unwrap();
+    let last = res.times.len() - 1;
+    let csv = std::fs::read_to_string(dir.join("contact.csv")).unwrap();
+    let vtk = vtkio::Vtk::import(dir.join("vtk").join(format!("step_{last:04}.vtu"))).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not an unstructured grid")
+    };
+    let piece = pieces[0].load_piece_data(None).unwrap();
+    let points: Vec<f64> = piece.points.cast_into().unwrap();
+    let field = |name: &str| -> Vec<f64> {
+        (piece.data.point.iter())
+            .find_map(|a| match a {
+                Attribute::DataArray(d) if d.name == name => d.data.clone().cast_into(),
+                _ => None,
+            })
+            .unwrap_or_else(|| panic!("no {name}"))
+    };
+    let (u, normal) = (field("displacement"), field("normal_force"));
+    let (nominal, current) = (
+        field("contact_pressure_nominal"),
+        field("contact_pressure_current"),
+    );
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1e-30);
+    let mut rows = 0;
+    let mut pressed = 0;
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        if f[col("increment")].parse::<usize>().unwrap() != last {
+            continue;
+        }
+        rows += 1;
+        let n: usize = f[col("node")].parse().unwrap();
+        let v = |name: &str| f[col(name)].parse::<f64>().unwrap();
+        for (a, c) in ["X", "Y", "Z"].iter().enumerate() {
+            assert!(close(v(c), points[3 * n + a]), "node {n}: {c}");
+            let current = ["x", "y", "z"][a];
+            assert!(
+                close(v(current), points[3 * n + a] + u[3 * n + a]),
+                "node {n}: {current}"
+            );
+        }
+        assert!(
+            close(v("normal_force"), normal[n]),
+            "node {n}: normal force"
+        );
+        assert!(close(v("p_nominal"), nominal[n]), "node {n}: p_nominal");
+        assert!(close(v("p_current"), current[n]), "node {n}: p_current");
+        if v("normal_force") > 0.0 {
+            pressed += 1;
+        }
+    }
+    assert_eq!(rows, model.contacts[0].hitting.len());
+    assert!(pressed > 0);
+}
