@@ -166,3 +166,55 @@ fn the_per_node_contact_csv_reads_back_equal_to_the_vtk_files() {
     assert_eq!(rows, model.contacts[0].hitting.len());
     assert!(pressed > 0);
 }
+
+#[test]
+fn the_current_pressure_of_a_large_deformation_contact_ddm_equals_central_fdm() {
+    // the Gmsh punch pressed 0.25 into the slab and slid (large kinematics): the deformed
+    // areas differ from the reference ones by per cents, so the current pressure's derivative
+    // carries the area's dependence on the displacements; DDM against central FDM of reruns
+    let mut s = Scene::from_file(std::path::Path::new("meshes/punch-on-slab.toml")).unwrap();
+    for r in &mut s.responses {
+        if let ResponseSpec::PressureProfile { area, .. } = r {
+            *area = PressureMeasure::Current;
+        }
+    }
+    let model = s.build().unwrap();
+    let (ps, ddm, fdm) = common::ddm_and_central_fdm(&model, &["mu", "slab.E"]);
+    let res = Solver::new(&model)
+        .unwrap()
+        .run(&Default::default(), &mut fricsens::solver::NoObserver)
+        .unwrap();
+    // how far the two measures are apart here: the largest |A_ref / A_cur - 1| of a pressed node
+    let c = res.contact.last().unwrap();
+    let spread = (0..c.area.len())
+        .filter(|f| c.normal_force[*f] > 0.0)
+        .map(|f| (c.area[f] / c.current_area[f] - 1.0).abs())
+        .fold(0.0f64, f64::max);
+    println!("largest area change of a pressed node: {spread:.3e}");
+    assert!(spread > 1e-3);
+    let pressures: Vec<usize> = (0..model.responses.len())
+        .filter(|r| {
+            matches!(
+                model.responses[*r].kind,
+                ResponseKind::ContactPressure { .. }
+            )
+        })
+        .collect();
+    for (p, param) in ps.iter().enumerate() {
+        let scale = (ddm.increments.iter())
+            .flat_map(|i| pressures.iter().map(move |r| i.derivatives[*r][p].abs()))
+            .fold(0.0f64, f64::max);
+        let mut worst: f64 = 0.0;
+        for (a, b) in ddm.increments.iter().zip(&fdm.increments) {
+            for &r in &pressures {
+                worst = worst.max((a.derivatives[r][p] - b.derivatives[r][p]).abs() / scale);
+            }
+        }
+        println!(
+            "{}: DDM vs central FDM {worst:.2e} of {scale:.4e}",
+            param.name
+        );
+        // central FDM, beta = 1e-6: truncation beta^2, the reruns' round-off about 1e-10
+        assert!(worst < 1e-6, "{}: {worst:.2e}", param.name);
+    }
+}
