@@ -19,15 +19,17 @@
 //!
 //! by three methods: **DDM** (dual numbers: the exact derivative of the discrete equations),
 //! **SDM** (the paper's semi-analytical method, forward, beta = 1e-6) and **central FDM**
-//! (beta = 1e-5, four complete reruns: R and mu, each +- beta; each rerun of R rebuilds the
-//! punch's mesh at R (1 +- beta)).
+//! (beta = 1e-5, four complete reruns: R and mu, each +- beta; a rerun of R maps the punch's
+//! nodes to R (1 +- beta) and recomputes the contact areas there, while the contact pair's
+//! derived numerical settings, such as its candidate faces and tangential penalty, stay those
+//! of the nominal design).
 //!
 //! **Why.** This is what a researcher brings: a curved part meshed in their own mesher, in
 //! frictional contact with another deformable part, and a shape parameter that is not a block
 //! length. The shape sensitivity goes through the mesh map, the element kernels, the contact
 //! search on a curved and moving surface and the friction history.
 //!
-//! **Result.** Run `cargo run --release --example curved_punch` (about 10 s on two cores, most
+//! **Result.** Run `cargo run --release --example curved_punch` (about 15 s on two cores, most
 //! of it FDM's reruns). The example asserts, and so the run shows:
 //!
 //! * central FDM and forward SDM agree with DDM to 1e-4 of each derivative in the table

@@ -147,7 +147,10 @@ pub struct ContactPair {
     pub name: String,
     /// Hitting nodes.
     pub hitting: Vec<usize>,
-    /// Tributary reference area of each hitting node, at the nominal design.
+    /// Tributary reference area of each hitting node, at the nominal design. With
+    /// `hitting_faces` the evaluations use the areas recomputed at their design
+    /// ([`Lifted::area`](crate::model::Lifted::area)), equal to these at the nominal one: this
+    /// copy serves the pre-checks and exports. Without faces (a node set) these are the areas.
     pub area: Vec<f64>,
     /// The faces the hitting nodes and their areas came from (`None`: a node set, every area
     /// one). With them each evaluation recomputes the areas at its design's reference

@@ -140,7 +140,8 @@ impl FaceFamily {
         }
     }
 
-    /// Reference area of a face with node coordinates `x` (in the family's node order).
+    /// Area of a face with node coordinates `x` (in the family's node order): reference or
+    /// deformed, whichever `x` holds.
     /// Quad4: the two triangles `(0, 1, 3)` and `(2, 3, 1)`, exact for a planar face.
     /// Generic in the scalar, so that a shape parameter's dual part reaches the area.
     pub fn area<S: Scalar>(self, x: &[Vector3<S>]) -> S {

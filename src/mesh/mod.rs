@@ -281,7 +281,7 @@ impl FaceSet {
         &self.nodes
     }
 
-    /// Tributary area of each of `nodes` (sorted) over these faces at coordinates `x`: each face's
+    /// Tributary area of each of `nodes` over these faces at coordinates `x`: each face's
     /// area shared among its nodes by its family (a quarter each on a quad4). Generic in the
     /// scalar: at design-dependent coordinates (a shape parameter) the areas carry its derivative,
     /// so that a contact pressure and a penalty law follow the design's geometry.

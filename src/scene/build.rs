@@ -701,8 +701,6 @@ impl Scene {
     }
 }
 
-/// A mesh path as given in a scene: relative to the scene file's folder (or the working
-/// folder when the scene was not read from a file).
 /// The nodes of a set expression: node sets, `node N` (mesh node number N, as in messages and
 /// VTK files) and `near X Y Z` (the node nearest to the point in the reference configuration)
 /// joined by `&` (intersection; `near` picks among the nodes of the other parts, or of the
@@ -781,6 +779,8 @@ fn set_expression(
     Ok(Some(nodes))
 }
 
+/// A mesh path as given in a scene: relative to the scene file's folder (or the working
+/// folder when the scene was not read from a file).
 fn resolve(folder: Option<&std::path::Path>, file: &std::path::Path) -> std::path::PathBuf {
     match folder {
         Some(dir) if file.is_relative() => dir.join(file),

@@ -499,10 +499,6 @@ pub struct ContactSpec {
     pub search_radius: Option<f64>,
 }
 
-fn is_nominal(m: &crate::response::PressureMeasure) -> bool {
-    *m == crate::response::PressureMeasure::Nominal
-}
-
 pub(crate) fn lagrange() -> NormalLaw {
     NormalLaw::Lagrange
 }
@@ -550,7 +546,7 @@ pub enum ResponseSpec {
         /// Coordinate the nodes are ordered by (reference configuration).
         along: Component,
         /// Over which area: `nominal` (reference) or `current` (deformed).
-        #[serde(default, skip_serializing_if = "is_nominal")]
+        #[serde(default)]
         area: crate::response::PressureMeasure,
     },
     /// A history variable of one Gauss point: `element` counts within the body, `point` is

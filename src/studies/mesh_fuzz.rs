@@ -157,7 +157,11 @@ pub fn builtin_seeds() -> Result<Vec<SeedFile>, ImportError> {
     .expect("a valid block");
     let x = m.coordinates::<f64>(&m.block_geometry());
     let bodies = vec![("b".to_string(), 0)];
-    let dir = std::env::temp_dir().join(format!("fricsens-mesh-seeds-{}", std::process::id()));
+    // one folder per call, so that concurrent callers do not share files
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir =
+        std::env::temp_dir().join(format!("fricsens-mesh-seeds-{}-{call}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| ImportError::Io {
         file: dir.clone(),
         message: e.to_string(),
@@ -294,19 +298,23 @@ fn kind(e: &ImportError) -> String {
         .to_string()
 }
 
-/// Read and import `path` whole and set by set, as a scene would.
-pub fn read_and_import(path: &Path) -> Result<(), ImportError> {
+/// Read and import `path` whole and set by set, as a scene would: the refusals of single sets
+/// (a node set is no body, say), or the refusal of the whole file.
+pub fn read_and_import(path: &Path) -> Result<Vec<ImportError>, ImportError> {
     let f = crate::mesh::read(path)?;
     let mut m = Mesh::default();
     f.add_to(&mut m, "b", None)?;
+    let mut refused = Vec::new();
     for name in f.set_names() {
-        let _ = f.add_to(&mut m, &name, Some(&name));
+        if let Err(e) = f.add_to(&mut m, &name, Some(&name)) {
+            refused.push(e);
+        }
     }
-    Ok(())
+    Ok(refused)
 }
 
 /// Read `path` catching a panic: `Err(message)` if it panicked.
-pub fn survives(path: &Path) -> Result<Result<(), ImportError>, String> {
+pub fn survives(path: &Path) -> Result<Result<Vec<ImportError>, ImportError>, String> {
     catch_unwind(AssertUnwindSafe(|| read_and_import(path))).map_err(|p| {
         p.downcast_ref::<String>()
             .cloned()
@@ -351,17 +359,27 @@ pub fn run(opts: &MeshFuzzOptions, dir: &Path) -> Result<MeshFuzzReport, ImportE
         if t.elapsed() > slowest.1 {
             slowest = (k, t.elapsed());
         }
+        // an error names the mutant, or the included file it comes from
+        let named = |msg: &str| {
+            msg.contains("mutant.")
+                || (opts.includes.iter())
+                    .filter_map(|p| p.file_name()?.to_str())
+                    .any(|n| msg.contains(n))
+        };
         match outcome {
-            Ok(Ok(())) => report.accepted += 1,
+            Ok(Ok(sets)) => {
+                report.accepted += 1;
+                for e in sets {
+                    let msg = e.to_string();
+                    if !named(&msg) {
+                        report.unnamed.push((k, msg));
+                    }
+                }
+            }
             Ok(Err(e)) => {
                 *report.refused.entry(kind(&e)).or_default() += 1;
                 let msg = e.to_string();
-                // an included file's error names that file
-                let named = msg.contains("mutant.")
-                    || (opts.includes.iter())
-                        .filter_map(|p| p.file_name()?.to_str())
-                        .any(|n| msg.contains(n));
-                if !named {
+                if !named(&msg) {
                     report.unnamed.push((k, msg));
                 }
             }

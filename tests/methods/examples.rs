@@ -61,7 +61,7 @@ fn indentation_study_methods_agree() {
     assert!(s.max_difference.iter().all(|d| *d <= 1e-5));
 }
 
-/// About 20 s of computing: the punch-on-slab scene (Gmsh mesh), DDM and SDM for four
+/// About 15 s of computing: the punch-on-slab scene (Gmsh mesh), DDM and SDM for four
 /// parameters, central FDM of the radius and mu (four reruns).
 #[test]
 fn curved_punch_from_gmsh_radius_and_mu_agree_across_methods() {

@@ -41,7 +41,19 @@ fn the_current_pressure_integrates_to_the_normal_force_and_ddm_equals_central_fd
         // the deformed tributary areas of this increment, from its displacements
         let z = &res.states[k + 1];
         let at = |n: usize| x[n] + nalgebra::Vector3::new(z[3 * n], z[3 * n + 1], z[3 * n + 2]);
-        let current = faces.tributary_areas_at(at, &pair.hitting);
+        // each face's area by the cross product of its diagonals (exact for a planar quad, and
+        // not the code's two-triangle split), a quarter to each of its nodes
+        let index = |n: usize| pair.hitting.iter().position(|h| *h == n);
+        let mut current = vec![0.0; pair.hitting.len()];
+        for f in 0..faces.len() {
+            let q = faces.nodes(f);
+            let area = 0.5 * (at(q[2]) - at(q[0])).cross(&(at(q[3]) - at(q[1]))).norm();
+            for n in q {
+                if let Some(i) = index(*n) {
+                    current[i] += 0.25 * area;
+                }
+            }
+        }
         let normal = &res.contact[k + 1].normal_force;
         let (mut integral, mut total) = (0.0, 0.0);
         for r in 0..model.responses.len() {
@@ -60,7 +72,7 @@ fn the_current_pressure_integrates_to_the_normal_force_and_ddm_equals_central_fd
                         .unwrap();
                     let ratio = current[node] / pair.area[node];
                     let (pn, pc) = (inc.values[r], inc.values[twin]);
-                    assert!((pn - pc * ratio).abs() <= 1e-12 * pn.abs().max(1e-300));
+                    assert!((pn - pc * ratio).abs() <= 1e-11 * pn.abs().max(1e-300));
                     if pn > 0.0 {
                         closed += 1;
                         assert!(pn != pc, "node {node}: the measures coincide");
@@ -68,6 +80,8 @@ fn the_current_pressure_integrates_to_the_normal_force_and_ddm_equals_central_fd
                 }
             }
         }
+        // the faces stay planar to round-off here (plane strain: the two rows of a face move
+        // alike), so the diagonal formula and the code's split agree to about 1e-15
         assert!(
             (integral - total).abs() <= 1e-12 * total.abs(),
             "increment {}: {integral} vs {total}",
@@ -90,8 +104,10 @@ fn the_current_pressure_integrates_to_the_normal_force_and_ddm_equals_central_fd
             "{}: DDM vs central FDM {worst:.2e} of {scale:.4e}",
             param.name
         );
-        // central FDM, beta = 1e-6: truncation beta^2, the reruns' round-off about 1e-10
-        assert!(worst < 1e-6, "{}: {worst:.2e}", param.name);
+        // central FDM, beta = 1e-6: truncation of order beta^2; the reruns converge to a
+        // relative force tolerance of 1e-9, which over 2 beta can reach 5e-4 of a response per
+        // unit, but Newton's last step leaves far less: 3e-8 measured; 1e-7 leaves a margin of 3
+        assert!(worst < 1e-7, "{}: {worst:.2e}", param.name);
     }
 }
 
@@ -214,7 +230,9 @@ fn the_current_pressure_of_a_large_deformation_contact_ddm_equals_central_fdm() 
             "{}: DDM vs central FDM {worst:.2e} of {scale:.4e}",
             param.name
         );
-        // central FDM, beta = 1e-6: truncation beta^2, the reruns' round-off about 1e-10
-        assert!(worst < 1e-6, "{}: {worst:.2e}", param.name);
+        // central FDM, beta = 1e-6: truncation of order beta^2; the reruns converge to a
+        // relative force tolerance of 1e-9, which over 2 beta can reach 5e-4 of a response per
+        // unit, but Newton's last step leaves far less: 3e-8 measured; 1e-7 leaves a margin of 3
+        assert!(worst < 1e-7, "{}: {worst:.2e}", param.name);
     }
 }

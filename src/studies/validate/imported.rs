@@ -173,7 +173,14 @@ pub fn hertz_cylinders(meshes: &Path, reverse: bool) -> Result<Vec<OracleRow>, I
     let (mut force, mut moment2) = (0.0, 0.0);
     let mut peak = (0.0f64, 0.0f64);
     for (r, resp) in model.responses.iter().enumerate() {
-        if let ResponseKind::ContactPressure { pair, node, .. } = resp.kind {
+        // the nominal pressures times their reference areas are the nodal forces (the scene's
+        // profile is nominal; a current one would need the deformed areas)
+        if let ResponseKind::ContactPressure {
+            pair,
+            node,
+            measure: crate::response::PressureMeasure::Nominal,
+        } = resp.kind
+        {
             let n = model.contacts[pair].hitting[node];
             let f = last.values[r] * model.contacts[pair].area[node];
             force += f;
