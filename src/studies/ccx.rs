@@ -14,7 +14,9 @@
 //!   kinematics sets it (CalculiX's `*ELASTIC` under `NLGEOM` is St Venant-Kirchhoff).
 //! * St Venant-Kirchhoff materials as `*ELASTIC`; J2 plasticity and Neo-Hookean are refused.
 //! * prescribed displacements as `*BOUNDARY` on node sets, nodal loads as `*CLOAD`, each with
-//!   its amplitude written as `*AMPLITUDE, TIME=TOTAL TIME`;
+//!   its amplitude written as `*AMPLITUDE, TIME=TOTAL TIME`; pressure loads as `*CLOAD` too,
+//!   with fricsens' consistent nodal forces on the reference faces (fricsens' pressure is a
+//!   dead load; CalculiX's `*DLOAD` would follow the deformed faces under `NLGEOM`);
 //! * the load history as one `*STATIC, DIRECT` step per run of equal increments, so CalculiX
 //!   takes exactly fricsens' increments (`DIRECT` switches its automatic incrementation off);
 //! * `*CONTROLS` with fricsens' force tolerance as CalculiX's residual and correction ratios,
@@ -569,6 +571,27 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
                 l.component + 1,
                 l.value * w
             );
+        }
+    }
+    // pressure loads: fricsens' consistent nodal forces on the reference faces (a dead load,
+    // as fricsens applies it, where CalculiX's *DLOAD would follow the deformed faces under
+    // NLGEOM), written as concentrated loads with the pressure's amplitude
+    for (i, pl) in model.pressures.iter().enumerate() {
+        let mut r = vec![0.0; crate::element::NODE_DOFS * x.len()];
+        pl.add_to_residual(&x, pl.value, &mut r);
+        let mut nodes: Vec<usize> = pl.faces.all_nodes().to_vec();
+        nodes.sort_unstable();
+        nodes.dedup();
+        write_amplitude(&mut s, &format!("APR{i}"), &pl.amplitude);
+        let _ = writeln!(step_bc, "*CLOAD,AMPLITUDE=APR{i}");
+        for n in nodes {
+            for c in 0..3 {
+                // the residual holds internal minus external force
+                let f = -r[crate::element::node_dof(n, c)];
+                if f != 0.0 {
+                    let _ = writeln!(step_bc, "{},{},{f:.12e}", n + 1, c + 1);
+                }
+            }
         }
     }
     // steps: runs of equal increments

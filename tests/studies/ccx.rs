@@ -7,12 +7,16 @@
 use crate::common::{fricsens, scratch_path};
 
 use fricsens::element::Hex8Formulation;
-use fricsens::scene::indentation;
+use fricsens::scene::{indentation, Scene};
 use fricsens::studies::ccx::{
     compare, export, find_ccx, keyword_counts, parse_dat_forces, variation, CcxError,
     CompareOptions, ExportOptions,
 };
 use std::path::Path;
+
+fn scene(file: &str) -> Scene {
+    Scene::from_file(Path::new(file)).unwrap()
+}
 
 /// Lines of the data block that follows the first line starting with `keyword`.
 fn block_lines(deck: &str, keyword: &str) -> usize {
@@ -193,4 +197,27 @@ fn reduced_indentation_against_calculix() {
     assert!(md.starts_with("## Against CalculiX"));
     assert!(dir.join("ccx.svg").exists() && dir.join("ccx.csv").exists());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn pressure_loads_are_the_consistent_nodal_forces() {
+    // the Lamé octant's bore: a pressure p on the inner octant of a sphere of radius a pushes
+    // it with p pi a^2 / 4 along each axis (the projected quarter disc), up to the faceting
+    let model = scene("meshes/lame-octant.toml").build().unwrap();
+    let deck = export(&model, &ExportOptions::default()).unwrap();
+    let text = &deck.text;
+    let start = text.find("*CLOAD,AMPLITUDE=APR0\n").unwrap();
+    let mut total = [0.0; 3];
+    for l in text[start..]
+        .lines()
+        .skip(1)
+        .take_while(|l| !l.starts_with('*'))
+    {
+        let f: Vec<&str> = l.split(',').collect();
+        total[f[1].parse::<usize>().unwrap() - 1] += f[2].parse::<f64>().unwrap();
+    }
+    let expected = std::f64::consts::PI / 4.0;
+    for t in total {
+        assert!((t / expected - 1.0).abs() < 5e-3, "{total:?} vs {expected}");
+    }
 }
