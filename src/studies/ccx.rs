@@ -2,7 +2,7 @@
 //! reaction forces back, and compare it with fricsens — cost of the primal, force histories,
 //! and the peer's own finite-difference sensitivity (two reruns) against fricsens' DDM.
 //!
-//! *Why one file of over 1,000 lines:* the deck writer and the reader of ccx's `.dat` output are
+//! *Why one file of over 1,500 lines:* the deck writer and the reader of ccx's `.dat` output are
 //! the two directions of one format and change together; the comparison they serve is the rest.
 //!
 //! ## The deck
@@ -22,18 +22,44 @@
 //! * `*CONTROLS` with fricsens' force tolerance as CalculiX's residual and correction ratios,
 //!   fricsens' iteration limit as its iteration limit, and no cutback (see
 //!   [`ExportOptions`]);
-//! * contact as node-to-face penalty contact (`TYPE=NODE TO SURFACE`, large sliding): the
-//!   slave surface is made of the free element faces whose four nodes are hitting nodes (a
-//!   nodal surface if there are none), the master of the target faces. A rigid
-//!   [`RigidSurface::RoundedBox`] target is meshed: its side facing the hitting nodes (the
-//!   flat face, its two rounded edges and one radius of the adjacent faces), extruded along
-//!   z over the hitting nodes' extent, one layer of `C3D8` elements made a `*RIGID BODY`
-//!   whose reference node carries the prescribed motion and whose `RF` is the force on the
-//!   block. Other rigid surfaces are refused.
+//! * contact: the slave surface is made of the free element faces whose four nodes are hitting
+//!   nodes (a nodal surface if they do not cover the hitting nodes), the master of the target
+//!   faces, each an element face `(element, S1..S6)` (the Abaqus sides the importer reads) on
+//!   the target body's boundary, so that CalculiX takes its outward normal.
+//!   - A rigid target is node-to-face penalty contact (`TYPE=NODE TO SURFACE`, large
+//!     sliding). A [`RigidSurface::RoundedBox`] is meshed: its side facing the hitting nodes
+//!     (the flat face, its two rounded edges and one radius of the adjacent faces), extruded
+//!     along z over the hitting nodes' extent, one layer of `C3D8` elements made a
+//!     `*RIGID BODY` whose reference node carries the prescribed motion and whose `RF` is the
+//!     force on the block. Other rigid surfaces are refused.
+//!   - Faces of a deformable body ([`Target::Faces`]) are surface-to-surface penalty contact
+//!     (`TYPE=SURFACE TO SURFACE`). Node to surface would be the closer image of fricsens'
+//!     node-to-segment contact (a hitting node against the target facets), but it does not
+//!     solve these scenes: on the punch (`meshes/punch-on-slab.toml`) and on Hertz's two
+//!     cylinders its contact set chatters from the first increment and CalculiX stops
+//!     diverging, on the punch even with automatic incrementation (it stalls at 62 % of the
+//!     press), presumably because the slave nodes of a one-element-thick plane-strain mesh lie
+//!     on the edges of the master surface, where the projection of a node is found or lost by
+//!     round-off. Surface to surface checks the slave faces' integration points, which lie
+//!     inside the faces, and solves both with fricsens' increments. Both discretize the same
+//!     contact; they differ in where the gap is measured (nodes against facets, or
+//!     integration points against facets), an O(h^2 / R) difference on curved surfaces that
+//!     the report discusses. Hitting nodes that do not make whole faces stay node to surface.
+//!   - A body that no prescribed displacement holds in some direction (the loaded cylinder of
+//!     Hertz, a block under pressure) is carried by contact alone. fricsens' multipliers
+//!     activate a closed node at the first iteration; CalculiX's surface-to-surface penalty
+//!     has no contact element until an integration point penetrates, and the body floats. Such
+//!     a pair gets `ADJUST = adjust_fraction * sqrt(A)`: slave nodes within that distance of
+//!     the master are moved onto it at the start (on Hertz, 7.2e-5 mm: the first ring of nodes
+//!     beside the line of first contact, whose gap is 2.8e-5 mm).
 //! * normal contact `PRESSURE-OVERCLOSURE=LINEAR` with slope `K = factor * k / A` (`k` the
 //!   pair's constraint scale, force per unit gap, `A` the median tributary area of the
-//!   hitting nodes), Coulomb friction `*FRICTION` with `mu` and the stick slope
-//!   `eps_T / A` (fricsens' tangential stiffness per unit area).
+//!   hitting nodes; node to surface also takes the tension at large clearance), Coulomb
+//!   friction `*FRICTION` with `mu` and the stick slope `eps_T / A` (fricsens' tangential
+//!   stiffness per unit area), the same for both kinds of pair.
+//! * output: the rigid bodies' reference nodes (`RF, U`), and the node set of every reaction
+//!   response (`*NODE PRINT, TOTALS=ONLY`: CalculiX sums the reactions before printing them to
+//!   7 digits) and of every displacement response (each node's `U`).
 //!
 //! CalculiX's contact is a penalty (the bodies overlap by `p / K`), fricsens' a Lagrange
 //! multiplier (no overlap): the force histories differ by about the overlap over the
@@ -119,6 +145,10 @@ pub struct ExportOptions {
     pub arc_segments: usize,
     /// Facets along the flat face of a rigid box.
     pub flat_segments: usize,
+    /// `ADJUST` distance of a face-to-face pair over the square root of its median tributary
+    /// area, written only when the pair touches a body that no prescribed displacement holds
+    /// in some direction (see [`export`]'s documentation).
+    pub adjust_fraction: f64,
 }
 
 impl Default for ExportOptions {
@@ -128,6 +158,7 @@ impl Default for ExportOptions {
             tension_fraction: 1e-6,
             arc_segments: 32,
             flat_segments: 6,
+            adjust_fraction: 5e-3,
         }
     }
 }
@@ -155,6 +186,11 @@ pub struct Deck {
     pub stick_slope: Vec<f64>,
     /// Median tributary area of each pair's hitting nodes.
     pub median_area: Vec<f64>,
+    /// `ADJUST` distance of each pair (0: none; see [`ExportOptions::adjust_fraction`]).
+    pub adjust: Vec<f64>,
+    /// Responses whose node set is printed (set [`response_set`]`(k)`): every reaction
+    /// response (its total `RF`) and every displacement response (each node's `U`).
+    pub printed: Vec<usize>,
     /// End time of every increment CalculiX is told to take.
     pub times: Vec<f64>,
 }
@@ -240,9 +276,10 @@ fn box_profile(
 /// Write `model` as a CalculiX input deck.
 ///
 /// # Errors
-/// [`CcxError::Unsupported`] for what is not translated: F-bar elements, J2 plasticity,
-/// Neo-Hookean, springs, friction laws other than Coulomb, rigid surfaces other than a rounded
-/// box with the hitting nodes below it; [`CcxError::Option`] for out-of-range options.
+/// [`CcxError::Unsupported`] for what is not translated (naming the body or pair): F-bar
+/// elements, J2 plasticity, Neo-Hookean, springs, friction laws other than Coulomb, rigid
+/// surfaces other than a rounded box with the hitting nodes below it, target faces that are
+/// not boundary faces of an element; [`CcxError::Option`] for out-of-range options.
 pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
     if !(opts.normal_factor.is_finite() && opts.normal_factor > 0.0) {
         return Err(CcxError::Option(format!(
@@ -340,8 +377,8 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
     let mut rigid_text = String::new();
     let mut step_bc = String::new();
     let mut reference_nodes = Vec::new();
-    let (mut normal_stiffness, mut tension, mut stick_slope, mut median_area) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut normal_stiffness, mut tension, mut stick_slope, mut median_area, mut adjust) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut node_print = Vec::new();
     for (ci, pair) in model.contacts.iter().enumerate() {
         let a_med = median(&pair.area);
@@ -349,7 +386,6 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         let sig_inf = opts.tension_fraction * young_max.max(f64::MIN_POSITIVE);
         median_area.push(a_med);
         normal_stiffness.push(k_n);
-        tension.push(sig_inf);
         // slave surface: free faces whose four nodes are hitting nodes
         let hitting: HashSet<usize> = pair.hitting.iter().copied().collect();
         let mut slave: Vec<(usize, usize)> = face_of
@@ -362,7 +398,13 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
             .iter()
             .flat_map(|&(e, k)| CCX_FACES[k].map(|l| model.mesh.element_nodes(e)[l]))
             .collect();
-        if !slave.is_empty() && covered.len() == hitting.len() {
+        let element_slave = !slave.is_empty() && covered.len() == hitting.len();
+        // face to face between deformable bodies: surface to surface (it needs an element-face
+        // slave surface; hitting nodes that are not whole faces stay node to surface)
+        let faces_target = matches!(pair.target, Target::Faces { .. }) && element_slave;
+        // CalculiX's surface-to-surface contact has no tension at large clearance
+        tension.push(if faces_target { 0.0 } else { sig_inf });
+        if element_slave {
             let _ = writeln!(contact_text, "*SURFACE,NAME=SLAVE{ci},TYPE=ELEMENT");
             for (e, k) in &slave {
                 let _ = writeln!(contact_text, "{},S{}", e + 1, k + 1);
@@ -380,11 +422,18 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
                     let f = &crate::contact::quad_nodes(faces, k);
                     let owners = face_of.get(&sorted4(f)).ok_or_else(|| {
                         CcxError::Unsupported(format!(
-                            "pair '{}': target face {f:?} is not an element face",
+                            "pair '{}': target face {k} (nodes {f:?}) is not an element face",
                             pair.name
                         ))
                     })?;
-                    let (e, k) = owners[0];
+                    let &[(e, k)] = owners.as_slice() else {
+                        return Err(CcxError::Unsupported(format!(
+                            "pair '{}': target face {k} (nodes {f:?}) is shared by {} elements, \
+                             not a boundary face",
+                            pair.name,
+                            owners.len()
+                        )));
+                    };
                     let _ = writeln!(contact_text, "{},S{}", e + 1, k + 1);
                 }
                 reference_nodes.push(None);
@@ -500,15 +549,23 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
                         }
                     }
                 }
-                node_print.push(format!("REF{ci}"));
+                node_print.push(format!("*NODE PRINT,NSET=REF{ci}\nRF,U"));
                 reference_nodes.push(Some(reference));
             }
         }
         let _ = writeln!(contact_text, "*SURFACE INTERACTION,NAME=SI{ci}");
-        let _ = writeln!(
-            contact_text,
-            "*SURFACE BEHAVIOR,PRESSURE-OVERCLOSURE=LINEAR\n{k_n:.9e},{sig_inf:.9e}"
-        );
+        if faces_target {
+            // surface to surface: no tension at large clearance
+            let _ = writeln!(
+                contact_text,
+                "*SURFACE BEHAVIOR,PRESSURE-OVERCLOSURE=LINEAR\n{k_n:.9e}"
+            );
+        } else {
+            let _ = writeln!(
+                contact_text,
+                "*SURFACE BEHAVIOR,PRESSURE-OVERCLOSURE=LINEAR\n{k_n:.9e},{sig_inf:.9e}"
+            );
+        }
         match &pair.friction {
             None => stick_slope.push(0.0),
             Some(f @ Friction::Coulomb(_)) => {
@@ -528,10 +585,29 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
                 )))
             }
         }
-        let _ = writeln!(
-            contact_text,
-            "*CONTACT PAIR,INTERACTION=SI{ci},TYPE=NODE TO SURFACE\nSLAVE{ci},MASTER{ci}"
-        );
+        if faces_target {
+            let d = if adjusted_pair(model, pair) {
+                opts.adjust_fraction * a_med.sqrt()
+            } else {
+                0.0
+            };
+            adjust.push(d);
+            let _ = writeln!(
+                contact_text,
+                "*CONTACT PAIR,INTERACTION=SI{ci},TYPE=SURFACE TO SURFACE{}\nSLAVE{ci},MASTER{ci}",
+                if d > 0.0 {
+                    format!(",ADJUST={d:.6e}")
+                } else {
+                    String::new()
+                }
+            );
+        } else {
+            adjust.push(0.0);
+            let _ = writeln!(
+                contact_text,
+                "*CONTACT PAIR,INTERACTION=SI{ci},TYPE=NODE TO SURFACE\nSLAVE{ci},MASTER{ci}"
+            );
+        }
     }
     // materials and sections, then the rigid bodies (their elements borrow material M0)
     for (b, body) in model.bodies.iter().enumerate() {
@@ -594,6 +670,20 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
             }
         }
     }
+    // node sets of the reaction and displacement responses: the total reaction (CalculiX sums
+    // the full-precision values before printing) or every node's displacement
+    let mut printed = Vec::new();
+    for (k, r) in model.responses.iter().enumerate() {
+        let (nodes, print) = match &r.kind {
+            ResponseKind::Reaction { nodes, .. } => (nodes, "TOTALS=ONLY\nRF"),
+            ResponseKind::Displacement { nodes, .. } => (nodes, "TOTALS=NO\nU"),
+            _ => continue,
+        };
+        let _ = writeln!(s, "*NSET,NSET={}", response_set(k));
+        write_ids(&mut s, nodes.iter().map(|n| n + 1));
+        node_print.push(format!("*NODE PRINT,NSET={},{print}", response_set(k)));
+        printed.push(k);
+    }
     // steps: runs of equal increments
     let mut runs: Vec<(f64, f64, usize)> = Vec::new(); // (start, increment, count)
     let mut t0 = 0.0;
@@ -629,8 +719,8 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         if k == 0 {
             s.push_str(&step_bc);
         }
-        for set in &node_print {
-            let _ = writeln!(s, "*NODE PRINT,NSET={set}\nRF,U");
+        for print in &node_print {
+            let _ = writeln!(s, "{print}");
         }
         let _ = writeln!(s, "*END STEP");
     }
@@ -646,7 +736,43 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         tension,
         stick_slope,
         median_area,
+        adjust,
+        printed,
         times,
+    })
+}
+
+/// Name of the node set of response `k` in the deck.
+pub fn response_set(k: usize) -> String {
+    format!("R{k}")
+}
+
+/// Whether a face-to-face pair touches a body that no prescribed displacement holds in some
+/// direction (a body carried by contact alone, like the loaded cylinder of the Hertz scene):
+/// CalculiX's surface-to-surface penalty then needs contact at the first iteration, which
+/// `ADJUST` gives by moving the slave nodes within a small distance onto the master.
+fn adjusted_pair(model: &Model, pair: &ContactPair) -> bool {
+    let Target::Faces { faces } = &pair.target else {
+        return false;
+    };
+    let body_nodes = |b: usize| -> HashSet<usize> {
+        model
+            .mesh
+            .group_elements(model.bodies[b].group)
+            .flat_map(|e| model.mesh.element_nodes(e).iter().copied())
+            .collect()
+    };
+    let mut touched: HashSet<usize> = pair.hitting.iter().copied().collect();
+    touched.extend(faces.all_nodes().iter().copied());
+    (0..model.bodies.len()).any(|b| {
+        let nodes = body_nodes(b);
+        !nodes.is_disjoint(&touched)
+            && (0..3).any(|c| {
+                !model
+                    .prescribed
+                    .iter()
+                    .any(|p| p.component == c && p.nodes.iter().any(|n| nodes.contains(n)))
+            })
     })
 }
 
