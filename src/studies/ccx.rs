@@ -79,7 +79,11 @@
 //!   d/d mu is zero in both codes, the Young's modulus of the first body (CalculiX's reruns
 //!   change its `*ELASTIC`; nothing else in the deck depends on it). The report flags the
 //!   increments where CalculiX's two reruns leave the nominal run's branch
-//!   ([`Comparison::off_branch`]): there the difference quotient measures a jump.
+//!   ([`Comparison::off_branch`]): there the difference quotient measures a jump. A rerun
+//!   that stops early leaves the quotient NaN from there on and the report says why (the
+//!   rigid case still fails). On the punch the mu (1 + beta) rerun converges to another state
+//!   at its last two increments, and with two threads it diverged at the last one in one run
+//!   of six (with one thread, three runs printed the same digits).
 
 use crate::contact::geometry::RigidSurface;
 use crate::contact::{ContactPair, Friction, Target};
@@ -914,6 +918,8 @@ pub(crate) struct CcxRun {
     pub values: Vec<(f64, Vec<f64>)>,
     /// Newton iterations CalculiX reports, summed over the increments.
     pub iterations: usize,
+    /// Why CalculiX stopped before the last increment (a run allowed to stop early).
+    pub failure: Option<String>,
 }
 
 /// How CalculiX reports a compared quantity.
@@ -966,11 +972,12 @@ impl Quantity {
 }
 
 /// Write `deck` as `dir/job.inp`, run `ccx` on it with `threads` threads, and read the
-/// `quantities` from its `.dat` file.
+/// `quantities` from its `.dat` file. With `partial`, a run that fails or stops before the
+/// last increment returns what it printed and why it stopped ([`CcxRun::failure`]).
 ///
 /// # Errors
-/// [`CcxError::Io`] for files, [`CcxError::Run`] if ccx cannot start, fails, or stops before
-/// the last increment, [`CcxError::Parse`] for its output.
+/// [`CcxError::Io`] for files, [`CcxError::Run`] if ccx cannot start, or (without `partial`)
+/// fails or stops before the last increment, [`CcxError::Parse`] for its output.
 pub(crate) fn run_ccx(
     ccx: &Path,
     deck: &Deck,
@@ -978,6 +985,7 @@ pub(crate) fn run_ccx(
     job: &str,
     quantities: &[Quantity],
     threads: usize,
+    partial: bool,
 ) -> Result<CcxRun, CcxError> {
     std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     let inp = dir.join(format!("{job}.inp"));
@@ -1003,7 +1011,8 @@ pub(crate) fn run_ccx(
         let lines: Vec<&str> = s.lines().collect();
         lines[lines.len().saturating_sub(15)..].join("\n")
     };
-    if !out.status.success() || stdout.contains("*ERROR") {
+    let failed = !out.status.success() || stdout.contains("*ERROR");
+    if failed && !partial {
         return Err(CcxError::Run {
             job: job.into(),
             what: format!(
@@ -1019,13 +1028,62 @@ pub(crate) fn run_ccx(
         .filter(|l| l.trim_start().starts_with("iteration "))
         .count();
     let dat = dir.join(format!("{job}.dat"));
-    let text = std::fs::read_to_string(&dat).map_err(io_err(&dat))?;
-    // each quantity's history, then the histories zipped by output time
+    let values = match std::fs::read_to_string(&dat)
+        .map_err(io_err(&dat))
+        .and_then(|text| read_quantities(&text, &dat, quantities))
+    {
+        Ok(v) => v,
+        // a failed run may have printed nothing
+        Err(_) if failed => Vec::new(),
+        Err(e) => return Err(e),
+    };
+    let last = deck.times.last().copied().unwrap_or(0.0);
+    let stopped = values
+        .last()
+        .is_none_or(|(t, _)| (t - last).abs() > 1e-6 * last.abs().max(1.0));
+    let failure = (failed || stopped).then(|| {
+        let error: Vec<&str> = stdout
+            .lines()
+            .skip_while(|l| !l.contains("*ERROR"))
+            .take_while(|l| !l.trim().is_empty())
+            .map(str::trim)
+            .collect();
+        format!(
+            "CalculiX stopped after t = {} ({}; {})",
+            values.last().map_or(0.0, |(t, _)| *t),
+            out.status,
+            if error.is_empty() {
+                "no *ERROR line".to_string()
+            } else {
+                error.join(" ")
+            }
+        )
+    });
+    if stopped && !partial {
+        return Err(CcxError::Run {
+            job: job.into(),
+            what: format!("stopped before t = {last}; output ends:\n{}", tail(&stdout)),
+        });
+    }
+    Ok(CcxRun {
+        seconds,
+        values,
+        iterations,
+        failure,
+    })
+}
+
+/// The quantities' histories from a `.dat` file's text, zipped by output time.
+fn read_quantities(
+    text: &str,
+    dat: &Path,
+    quantities: &[Quantity],
+) -> Result<Vec<(f64, Vec<f64>)>, CcxError> {
     let mut histories: Vec<Vec<(f64, f64)>> = Vec::new();
     for q in quantities {
         let h: Vec<(f64, f64)> = match q.source {
             Source::RigidReference { pair, component } => {
-                parse_dat_blocks(&text, DatBlock::Forces, &format!("REF{pair}"), &dat)?
+                parse_dat_blocks(text, DatBlock::Forces, &format!("REF{pair}"), dat)?
                     .into_iter()
                     .map(|(t, f, _)| (t, -f[component]))
                     .collect()
@@ -1033,22 +1091,17 @@ pub(crate) fn run_ccx(
             Source::ReactionTotal {
                 response,
                 component,
-            } => parse_dat_blocks(&text, DatBlock::TotalForce, &response_set(response), &dat)?
+            } => parse_dat_blocks(text, DatBlock::TotalForce, &response_set(response), dat)?
                 .into_iter()
                 .map(|(t, f, _)| (t, f[component]))
                 .collect(),
             Source::MeanDisplacement {
                 response,
                 component,
-            } => parse_dat_blocks(
-                &text,
-                DatBlock::Displacements,
-                &response_set(response),
-                &dat,
-            )?
-            .into_iter()
-            .map(|(t, f, rows)| (t, f[component] / rows as f64))
-            .collect(),
+            } => parse_dat_blocks(text, DatBlock::Displacements, &response_set(response), dat)?
+                .into_iter()
+                .map(|(t, f, rows)| (t, f[component] / rows as f64))
+                .collect(),
         };
         histories.push(h);
     }
@@ -1066,21 +1119,7 @@ pub(crate) fn run_ccx(
             values.push((*t, row));
         }
     }
-    let last = deck.times.last().copied().unwrap_or(0.0);
-    if values
-        .last()
-        .is_none_or(|(t, _)| (t - last).abs() > 1e-6 * last.abs().max(1.0))
-    {
-        return Err(CcxError::Run {
-            job: job.into(),
-            what: format!("stopped before t = {last}; output ends:\n{}", tail(&stdout)),
-        });
-    }
-    Ok(CcxRun {
-        seconds,
-        values,
-        iterations,
-    })
+    Ok(values)
 }
 
 /// Settings of a comparison.
@@ -1149,6 +1188,9 @@ pub struct Comparison {
     pub ccx_iterations: usize,
     /// CalculiX reruns at p (1 + beta) and p (1 - beta), wall seconds.
     pub ccx_rerun_seconds: [f64; 2],
+    /// Why a rerun stopped before the last increment (its difference quotients are NaN from
+    /// there on; only between deformable bodies: the rigid case fails instead).
+    pub ccx_rerun_failures: [Option<String>; 2],
     /// Threads of each code.
     pub threads: usize,
     /// fricsens' force tolerance (also written as CalculiX's ratios).
@@ -1494,6 +1536,7 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
         "nominal",
         quantities,
         opts.threads,
+        false,
     )?;
     let (plus, minus) = if plan.symbol == "mu" {
         ("mu-plus", "mu-minus")
@@ -1512,6 +1555,9 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
             job,
             quantities,
             opts.threads,
+            // a rerun that stops early leaves the difference quotient undefined from there
+            // on (the rigid case keeps its error)
+            plan.rigid.is_none(),
         )?);
     }
     let at = |run: &CcxRun, t: f64| -> Result<Vec<f64>, CcxError> {
@@ -1531,7 +1577,11 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
     let h = 2.0 * opts.beta * plan.value;
     for t in &times {
         ccx.push(at(&nominal, *t)?);
-        let (p, m) = (at(&reruns[0], *t)?, at(&reruns[1], *t)?);
+        let rerun = |r: &CcxRun| match at(r, *t) {
+            Err(_) if r.failure.is_some() => Ok(vec![f64::NAN; quantities.len()]),
+            v => v,
+        };
+        let (p, m) = (rerun(&reruns[0])?, rerun(&reruns[1])?);
         fd.push(p.iter().zip(&m).map(|(p, m)| (p - m) / h).collect());
         ccx_reruns[0].push(p);
         ccx_reruns[1].push(m);
@@ -1560,6 +1610,7 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
         ccx_seconds: nominal.seconds,
         ccx_iterations: nominal.iterations,
         ccx_rerun_seconds: [reruns[0].seconds, reruns[1].seconds],
+        ccx_rerun_failures: [reruns[0].failure.clone(), reruns[1].failure.clone()],
         threads: opts.threads,
         force_tol: model.solver.force_tol,
         formulations: model
@@ -1647,7 +1698,7 @@ impl Comparison {
             self.off_branch(i)
         };
         (0..self.times.len())
-            .filter(|k| !off.contains(k))
+            .filter(|k| !off.contains(k) && (self.rigid || self.fd[*k][i].is_finite()))
             .map(|k| (self.times[k], self.fd[k][i] * scale))
             .collect()
     }
@@ -1888,7 +1939,9 @@ impl Comparison {
             let mut lines = Vec::new();
             for (i, q) in self.quantities.iter().enumerate() {
                 let off = self.off_branch(i);
-                let on: Vec<usize> = (0..self.times.len()).filter(|k| !off.contains(k)).collect();
+                let on: Vec<usize> = (0..self.times.len())
+                    .filter(|k| !off.contains(k) && self.fd[*k][i].is_finite())
+                    .collect();
                 let dd: Vec<f64> = on.iter().map(|&k| self.ddm[k][i]).collect();
                 let fd: Vec<f64> = on.iter().map(|&k| self.fd[k][i]).collect();
                 let (rel, k) = relative_difference(&fd, &dd);
@@ -1901,7 +1954,7 @@ impl Comparison {
                         .join(", ")
                 };
                 lines.push(format!(
-                    "d{}/d{sym}: flagged increments {flagged}; over the other {}, the largest difference FD vs DDM / largest DDM value there is {}",
+                    "d{}/d{sym}: flagged increments {flagged}; over the {} unflagged increments with both reruns, the largest difference FD vs DDM / largest DDM value there is {}",
                     q.label,
                     on.len(),
                     if on.is_empty() {
@@ -1910,6 +1963,14 @@ impl Comparison {
                         format!("{rel:.2e} (increment {})", on[k] + 1)
                     }
                 ));
+            }
+            for (f, sign) in self.ccx_rerun_failures.iter().zip(["+", "-"]) {
+                if let Some(f) = f {
+                    let _ = writeln!(
+                        s,
+                        "\nThe rerun at {sym} (1 {sign} beta) did not reach the end: {f}. Its difference quotients are missing from there on (NaN in `ccx.csv`); CalculiX's nominal run and fricsens' DDM are complete."
+                    );
+                }
             }
             let _ = writeln!(
                 s,

@@ -602,3 +602,67 @@ fn punch_on_slab_against_calculix() {
     assert!(dir.join("ccx.svg").exists() && dir.join("ccx.csv").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A rerun that stops early, played by a stand-in for `ccx` (a shell script that prints the
+/// punch's two reaction totals and stops the mu (1 + beta) rerun after five increments with
+/// CalculiX's divergence message): the comparison completes, the quotient is NaN from there on
+/// and the report says why. Needs no CalculiX.
+#[cfg(unix)]
+#[test]
+fn a_rerun_that_stops_early_leaves_nan_quotients_and_a_note() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch_path("ccx-stand-in");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("ccx");
+    std::fs::write(
+        &program,
+        r#"#!/bin/sh
+if [ "$1" = "-v" ]; then echo " This is Version 0.0"; exit 0; fi
+job=$2; n=10; [ "$job" = mu-plus ] && n=5
+: > "$job.dat"
+i=1
+for t in 0.5 1.0 1.125 1.25 1.375 1.5 1.625 1.75 1.875 2.0; do
+  [ $i -gt $n ] && break
+  for set in R0 R1; do
+    printf ' total force (fx,fy,fz) for set %s and time  %s\n\n  1.0E+00 -7.0E+01 0.0E+00\n\n' $set $t >> "$job.dat"
+  done
+  i=$((i+1))
+done
+if [ $n -lt 10 ]; then echo ' *ERROR: solution seems to diverge; please try'; exit 201; fi
+echo ' iteration 1'
+"#,
+    )
+    .unwrap();
+    std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let model = scene("meshes/punch-on-slab.toml").build().unwrap();
+    let opts = CompareOptions {
+        ccx: program,
+        work: dir.join("work"),
+        beta: 1e-2,
+        threads: 1,
+        export: ExportOptions::default(),
+    };
+    let c = compare(&model, "punch", &opts).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(c.ccx_rerun_failures[1].is_none());
+    let f = c.ccx_rerun_failures[0].as_deref().unwrap();
+    assert!(f.contains("t = 1.375") && f.contains("diverge"), "{f}");
+    for k in 0..10 {
+        // Fx: the stand-in prints 1 N in every run
+        assert_eq!(c.ccx[k][0], 1.0);
+        if k < 5 {
+            assert_eq!(c.fd[k][0], 0.0, "increment {}", k + 1);
+        } else {
+            assert!(c.fd[k][0].is_nan(), "increment {}", k + 1);
+        }
+    }
+    let md = c.markdown();
+    assert!(
+        md.contains("The rerun at mu (1 + beta) did not reach the end"),
+        "{md}"
+    );
+    assert!(
+        md.contains("over the 5 unflagged increments with both reruns"),
+        "{md}"
+    );
+}
