@@ -105,10 +105,12 @@ enum Command {
         beta_min: f64,
     },
     /// Compare with CalculiX (ccx): the same mesh, increments and tolerance; time ratio,
-    /// forces, and ccx's finite-difference d/d mu against fricsens' DDM. Skips (exit 0)
-    /// when ccx is not on PATH.
+    /// forces, and ccx's finite-difference d/d mu (frictionless: d/d E of the first body)
+    /// against fricsens' DDM. Skips (exit 0) when ccx is not on PATH.
     Ccx {
-        /// A built-in scene name or a TOML scene file with a rigid contact target.
+        /// A built-in scene name or a TOML scene file whose contact pairs have a rigid
+        /// rounded-box target (compared: the force on it) or are face to face between
+        /// deformable bodies (compared: the scene's reaction and displacement responses).
         #[arg(default_value = "indentation")]
         scene: String,
         /// Report directory (ccx.csv, ccx.svg, ccx.md).
@@ -663,7 +665,8 @@ fn ccx(
         threads: rayon::current_num_threads(),
         export: ExportOptions::default(),
     };
-    let result = compare(&model, &scene.name, &opts);
+    // the report's name for the scene is what regenerates it: a built-in name or the file
+    let result = compare(&model, scene_name, &opts);
     if keep.is_none() {
         let _ = std::fs::remove_dir_all(&work);
     }

@@ -1,18 +1,140 @@
-//! The CalculiX exporter and comparison (`src/ccx.rs`).
+//! The CalculiX exporter and comparison (`src/studies/ccx.rs`).
 //!
-//! The deck tests need no CalculiX. The comparison itself is `#[ignore]`d (it runs `ccx` three
-//! times and fricsens twice) and skips with a message when `ccx` is not on PATH:
+//! The deck tests need no CalculiX. The comparisons themselves are `#[ignore]`d (each runs
+//! `ccx` three times and fricsens twice) and skip with a message when `ccx` is not on PATH:
 //! `cargo test --release --test studies -- --ignored ccx::`.
 
 use crate::common::{fricsens, scratch_path};
 
+use fricsens::contact::{quad_nodes, Target};
 use fricsens::element::Hex8Formulation;
-use fricsens::scene::indentation;
+use fricsens::material::{J2Plasticity, Material};
+use fricsens::scene::{indentation, Scene, TargetSpec};
 use fricsens::studies::ccx::{
-    compare, export, find_ccx, keyword_counts, parse_dat_forces, variation, CcxError,
-    CompareOptions, ExportOptions,
+    compare, export, find_ccx, keyword_counts, parse_dat_blocks, parse_dat_forces, variation,
+    CcxError, CompareOptions, DatBlock, ExportOptions, Source,
 };
+use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
+
+fn scene(file: &str) -> Scene {
+    Scene::from_file(Path::new(file)).unwrap()
+}
+
+/// The deck's nodes (1-based id to coordinates), elements (id to nodes and element set) and
+/// element surfaces (name to (element, side)), read back from its text.
+struct ParsedDeck {
+    nodes: HashMap<usize, [f64; 3]>,
+    elements: HashMap<usize, (Vec<usize>, String)>,
+    surfaces: HashMap<String, Vec<(usize, usize)>>,
+}
+
+fn parse_deck(deck: &str) -> ParsedDeck {
+    let mut p = ParsedDeck {
+        nodes: HashMap::new(),
+        elements: HashMap::new(),
+        surfaces: HashMap::new(),
+    };
+    let param = |l: &str, key: &str| {
+        l.split(',')
+            .find_map(|f| f.trim().strip_prefix(key).map(str::to_string))
+            .unwrap_or_default()
+    };
+    let mut block = String::new();
+    for l in deck.lines() {
+        if l.starts_with("**") {
+            continue;
+        }
+        if l.starts_with('*') {
+            block = l.to_string();
+            continue;
+        }
+        let f: Vec<&str> = l
+            .split(',')
+            .map(str::trim)
+            .filter(|f| !f.is_empty())
+            .collect();
+        if block.starts_with("*NODE,") || block == "*NODE" {
+            let x: Vec<f64> = f[1..].iter().map(|v| v.parse().unwrap()).collect();
+            p.nodes.insert(f[0].parse().unwrap(), [x[0], x[1], x[2]]);
+        } else if block.starts_with("*ELEMENT") {
+            let ids: Vec<usize> = f.iter().map(|v| v.parse().unwrap()).collect();
+            p.elements
+                .insert(ids[0], (ids[1..].to_vec(), param(&block, "ELSET=")));
+        } else if block.starts_with("*SURFACE,") && block.contains("TYPE=ELEMENT") {
+            let side: usize = f[1].strip_prefix('S').unwrap().parse().unwrap();
+            p.surfaces
+                .entry(param(&block, "NAME="))
+                .or_default()
+                .push((f[0].parse().unwrap(), side));
+        }
+    }
+    p
+}
+
+/// Sides S1..S6 of a C3D8 as 1-based local nodes, from the Abaqus / CalculiX manuals (written
+/// out here rather than taken from the importer, so that the test checks the exporter's
+/// table).
+const C3D8_SIDES: [[usize; 4]; 6] = [
+    [1, 2, 3, 4],
+    [5, 8, 7, 6],
+    [1, 5, 6, 2],
+    [2, 6, 7, 3],
+    [3, 7, 8, 4],
+    [4, 8, 5, 1],
+];
+
+impl ParsedDeck {
+    /// The 0-based model nodes of side `side` (1-based) of element `e`.
+    fn side_nodes(&self, e: usize, side: usize) -> [usize; 4] {
+        let c = &self.elements[&e].0;
+        C3D8_SIDES[side - 1].map(|l| c[l - 1] - 1)
+    }
+
+    /// Every element's faces (sorted model nodes) with their owners.
+    fn face_owners(&self) -> HashMap<[usize; 4], usize> {
+        let mut m = HashMap::new();
+        for &e in self.elements.keys() {
+            for side in 1..=6 {
+                let mut f = self.side_nodes(e, side);
+                f.sort_unstable();
+                *m.entry(f).or_insert(0) += 1;
+            }
+        }
+        m
+    }
+
+    fn x(&self, n: usize) -> [f64; 3] {
+        self.nodes[&(n + 1)]
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn centroid(d: &ParsedDeck, nodes: &[usize]) -> [f64; 3] {
+    let mut c = [0.0; 3];
+    for &n in nodes {
+        let x = d.x(n);
+        for k in 0..3 {
+            c[k] += x[k] / nodes.len() as f64;
+        }
+    }
+    c
+}
 
 /// Lines of the data block that follows the first line starting with `keyword`.
 fn block_lines(deck: &str, keyword: &str) -> usize {
@@ -170,18 +292,21 @@ fn reduced_indentation_against_calculix() {
     let _ = std::fs::remove_dir_all(&work);
     let c = c.unwrap();
     assert_eq!(c.times.len(), 6);
+    assert!(c.rigid);
+    let labels: Vec<&str> = c.quantities.iter().map(|q| q.label.as_str()).collect();
+    assert_eq!(labels, ["Fx", "Fy"]);
     // forces: penalty vs multiplier and the element implementations differ by well under 2 %
-    let fmax = |v: &[[f64; 3]], k: usize| v.iter().map(|f| f[k].abs()).fold(0.0, f64::max);
+    let fmax = |v: &[Vec<f64>], k: usize| v.iter().map(|f| f[k].abs()).fold(0.0, f64::max);
     for k in [0, 1] {
-        let scale = fmax(&c.force_fricsens, k);
-        for (a, b) in c.force_fricsens.iter().zip(&c.force_ccx) {
+        let scale = fmax(&c.fricsens, k);
+        for (a, b) in c.fricsens.iter().zip(&c.ccx) {
             assert!((a[k] - b[k]).abs() < 0.02 * scale, "F[{k}]: {a:?} vs {b:?}");
         }
     }
     // dFx/dmu while sliding: ccx's central difference and fricsens' DDM within 3 %
-    let scale = fmax(&c.dforce_ddm, 0);
+    let scale = fmax(&c.ddm, 0);
     assert!(scale > 0.0);
-    for (a, b) in c.dforce_ddm.iter().zip(&c.dforce_fd) {
+    for (a, b) in c.ddm.iter().zip(&c.fd) {
         assert!(
             (a[0] - b[0]).abs() < 0.03 * scale,
             "dFx/dmu: {a:?} vs {b:?}"
@@ -193,4 +318,351 @@ fn reduced_indentation_against_calculix() {
     assert!(md.starts_with("## Against CalculiX"));
     assert!(dir.join("ccx.svg").exists() && dir.join("ccx.csv").exists());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn punch_deck_pairs_the_punch_faces_with_the_slab_faces_surface_to_surface() {
+    let model = scene("meshes/punch-on-slab.toml").build().unwrap();
+    let deck = export(&model, &ExportOptions::default()).unwrap();
+    let kw = keyword_counts(&deck.text);
+    for (k, n) in [
+        ("ELEMENT", 2), // punch and slab, no rigid body
+        ("MATERIAL", 2),
+        ("ELASTIC", 2),
+        ("SURFACE", 2), // slave and master
+        ("SURFACE INTERACTION", 1),
+        ("SURFACE BEHAVIOR", 1),
+        ("FRICTION", 1),
+        ("CONTACT PAIR", 1),
+        ("STEP", 2),       // press (2 x 0.5) and slide (8 x 0.125)
+        ("NODE PRINT", 4), // the reactions Fx and Fy, in each step
+        ("BOUNDARY", 6),   // base x, y; press; slide; plane strain of each body
+        ("AMPLITUDE", 2),  // press and slide
+        ("CLOAD", 0),
+    ] {
+        assert_eq!(kw.get(k).copied().unwrap_or(0), n, "*{k} in\n{kw:?}");
+    }
+    assert!(!kw.contains_key("RIGID BODY"));
+    assert_eq!(deck.reference_nodes, vec![None]);
+    assert_eq!(deck.element_types, vec!["C3D8I", "C3D8I"]);
+    assert!(deck.nlgeom, "the punch scene is large kinematics");
+    // surface to surface, no tension value, no ADJUST (both bodies are held by prescribed
+    // displacements in every direction)
+    assert!(deck
+        .text
+        .contains("*CONTACT PAIR,INTERACTION=SI0,TYPE=SURFACE TO SURFACE\nSLAVE0,MASTER0\n"));
+    assert_eq!(deck.adjust, vec![0.0]);
+    assert_eq!(deck.tension, vec![0.0]);
+    let k_line = format!(
+        "*SURFACE BEHAVIOR,PRESSURE-OVERCLOSURE=LINEAR\n{:.9e}\n*FRICTION\n",
+        deck.normal_stiffness[0]
+    );
+    assert!(deck.text.contains(&k_line), "{k_line}");
+    // the rigid case's constants: K = 10 k / A, stick slope eps_T / A
+    let pair = &model.contacts[0];
+    let a = deck.median_area[0];
+    assert!((deck.normal_stiffness[0] * a / (10.0 * pair.constraint_scale) - 1.0).abs() < 1e-12);
+    assert!((deck.stick_slope[0] * a / pair.tangential_stiffness - 1.0).abs() < 1e-12);
+    // the prescribed motions of the punch's top with their amplitudes and nonzero values
+    for (value, comp, amp) in [(-0.25, 1, [0.0, 1.0, 1.0]), (1.0, 0, [0.0, 0.0, 1.0])] {
+        let i = model
+            .prescribed
+            .iter()
+            .position(|p| p.value == value && p.component == comp)
+            .unwrap();
+        let bc = format!(
+            "*BOUNDARY,AMPLITUDE=AP{i}\nP{i},{c},{c},{value:.12e}\n",
+            c = comp + 1
+        );
+        assert!(deck.text.contains(&bc), "{bc}");
+        let table = format!(
+            "*AMPLITUDE,NAME=AP{i},TIME=TOTAL TIME\n0.000000000000e0,{:.12e}\n1.000000000000e0,{:.12e}\n2.000000000000e0,{:.12e}\n",
+            amp[0], amp[1], amp[2]
+        );
+        assert!(deck.text.contains(&table), "{table}");
+    }
+    // the reaction responses' node sets are printed as totals
+    assert_eq!(deck.printed, vec![0, 1]);
+    assert!(deck.text.contains("*NODE PRINT,NSET=R0,TOTALS=ONLY\nRF\n"));
+
+    // the surfaces, checked against the model independently of the exporter's side table
+    let d = parse_deck(&deck.text);
+    let owners = d.face_owners();
+    let Target::Faces { faces } = &pair.target else {
+        panic!("a deformable target")
+    };
+    let target: BTreeSet<[usize; 4]> = (0..faces.len())
+        .map(|k| {
+            let mut f = quad_nodes(faces, k);
+            f.sort_unstable();
+            f
+        })
+        .collect();
+    let master = &d.surfaces["MASTER0"];
+    assert_eq!(master.len(), faces.len());
+    let mut seen = BTreeSet::new();
+    for &(e, side) in master {
+        // a slab element (body 1), a face of the target face set, on the slab's boundary
+        assert_eq!(d.elements[&e].1, "B1", "master element {e}");
+        let mut f = d.side_nodes(e, side);
+        f.sort_unstable();
+        assert!(target.contains(&f), "({e}, S{side}) is no target face");
+        assert_eq!(owners[&f], 1, "({e}, S{side}) is an interior face");
+        seen.insert(f);
+    }
+    assert_eq!(seen, target, "every target face once");
+    // the label's face is outward: from the element's centre towards fricsens' outward normal
+    for k in 0..faces.len() {
+        let q = quad_nodes(faces, k);
+        let n = cross(sub(d.x(q[2]), d.x(q[0])), sub(d.x(q[3]), d.x(q[1])));
+        let mut f = q;
+        f.sort_unstable();
+        let &(e, side) = master
+            .iter()
+            .find(|&&(e, side)| {
+                let mut g = d.side_nodes(e, side);
+                g.sort_unstable();
+                g == f
+            })
+            .unwrap();
+        let elem: Vec<usize> = d.elements[&e].0.iter().map(|n| n - 1).collect();
+        let out = sub(centroid(&d, &d.side_nodes(e, side)), centroid(&d, &elem));
+        assert!(dot(out, n) > 0.0, "({e}, S{side}) faces inward");
+    }
+    // the slave surface: punch faces (body 0) made of hitting nodes, covering them all
+    let hitting: BTreeSet<usize> = pair.hitting.iter().copied().collect();
+    let mut covered = BTreeSet::new();
+    for &(e, side) in &d.surfaces["SLAVE0"] {
+        assert_eq!(d.elements[&e].1, "B0", "slave element {e}");
+        let f = d.side_nodes(e, side);
+        assert!(f.iter().all(|n| hitting.contains(n)), "({e}, S{side})");
+        let mut g = f;
+        g.sort_unstable();
+        assert_eq!(owners[&g], 1, "slave ({e}, S{side}) is an interior face");
+        covered.extend(f);
+    }
+    assert_eq!(covered, hitting);
+}
+
+#[test]
+fn frictionless_pairs_several_of_them_and_a_body_held_by_contact() {
+    // Hertz's two cylinders, with a second pair in the other direction: the upper cylinder is
+    // held by contact alone along y, so both pairs get ADJUST
+    let mut s = scene("meshes/hertz-cylinders.toml");
+    let mut reverse = s.contacts[0].clone();
+    reverse.name = "reverse".into();
+    reverse.hitting = "lower.lower-contact".into();
+    reverse.target = TargetSpec::Faces("upper.upper-contact".into());
+    s.contacts.push(reverse);
+    let model = s.build().unwrap();
+    assert!(model.contacts.iter().all(|c| c.friction.is_none()));
+    let deck = export(&model, &ExportOptions::default()).unwrap();
+    let kw = keyword_counts(&deck.text);
+    assert_eq!(kw.get("CONTACT PAIR"), Some(&2));
+    assert_eq!(kw.get("SURFACE INTERACTION"), Some(&2));
+    assert_eq!(kw.get("SURFACE"), Some(&4));
+    assert_eq!(kw.get("FRICTION"), None);
+    assert_eq!(kw.get("CLOAD"), Some(&1), "the load on the upper cylinder");
+    assert!(!deck.nlgeom);
+    assert_eq!(deck.stick_slope, vec![0.0, 0.0]);
+    for c in 0..2 {
+        let d = ExportOptions::default().adjust_fraction * deck.median_area[c].sqrt();
+        assert!((deck.adjust[c] / d - 1.0).abs() < 1e-12);
+        let line = format!(
+            "*CONTACT PAIR,INTERACTION=SI{c},TYPE=SURFACE TO SURFACE,ADJUST={d:.6e}\nSLAVE{c},MASTER{c}\n"
+        );
+        assert!(deck.text.contains(&line), "{line}");
+    }
+    // each pair's master faces are its target's, on the other cylinder
+    let d = parse_deck(&deck.text);
+    for (c, body) in [(0, "B1"), (1, "B0")] {
+        let Target::Faces { faces } = &model.contacts[c].target else {
+            panic!()
+        };
+        let master = &d.surfaces[&format!("MASTER{c}")];
+        assert_eq!(master.len(), faces.len());
+        assert!(master.iter().all(|(e, _)| d.elements[e].1 == body));
+    }
+}
+
+#[test]
+fn pressure_loads_are_the_consistent_nodal_forces() {
+    // the Lamé octant's bore: a pressure p on the inner octant of a sphere of radius a pushes
+    // it with p pi a^2 / 4 along each axis (the projected quarter disc), up to the faceting
+    let model = scene("meshes/lame-octant.toml").build().unwrap();
+    let deck = export(&model, &ExportOptions::default()).unwrap();
+    let text = &deck.text;
+    let start = text.find("*CLOAD,AMPLITUDE=APR0\n").unwrap();
+    let mut total = [0.0; 3];
+    for l in text[start..]
+        .lines()
+        .skip(1)
+        .take_while(|l| !l.starts_with('*'))
+    {
+        let f: Vec<&str> = l.split(',').collect();
+        total[f[1].parse::<usize>().unwrap() - 1] += f[2].parse::<f64>().unwrap();
+    }
+    let expected = std::f64::consts::PI / 4.0;
+    for t in total {
+        assert!((t / expected - 1.0).abs() < 5e-3, "{total:?} vs {expected}");
+    }
+}
+
+#[test]
+fn what_calculix_cannot_be_told_names_what_and_where() {
+    let mut s = scene("meshes/punch-on-slab.toml");
+    s.bodies[1].material = Material::J2(J2Plasticity::linear(1000.0, 0.3, 10.0, 100.0));
+    let model = s.build().unwrap();
+    match export(&model, &ExportOptions::default()) {
+        Err(CcxError::Unsupported(m)) => assert!(m.contains("'slab'") && m.contains("J2"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+    // a rigid cylinder (the built-in Hertz) is not meshed
+    let model = fricsens::scene::Scene::load("hertz")
+        .unwrap()
+        .build()
+        .unwrap();
+    match export(&model, &ExportOptions::default()) {
+        Err(CcxError::Unsupported(m)) => assert!(m.contains("rounded box"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn dat_totals_and_displacements_are_read() {
+    let dat = "
+ total force (fx,fy,fz) for set R0 and time  0.5000000E+00
+
+       -9.188995E-03 -3.080528E+01  2.715606E-13
+
+ displacements (vx,vy,vz) for set R1 and time  0.5000000E+00
+
+        12  1.000000E-03 -2.000000E-02  0.000000E+00
+        13  3.000000E-03 -4.000000E-02  0.000000E+00
+";
+    let t = parse_dat_blocks(dat, DatBlock::TotalForce, "R0", Path::new("x.dat")).unwrap();
+    assert_eq!(t, vec![(0.5, [-9.188995e-3, -30.80528, 2.715606e-13], 1)]);
+    let u = parse_dat_blocks(dat, DatBlock::Displacements, "R1", Path::new("x.dat")).unwrap();
+    assert_eq!(u.len(), 1);
+    assert_eq!(u[0].2, 2);
+    assert!((u[0].1[1] - -0.06).abs() < 1e-15);
+    assert!(parse_dat_blocks(dat, DatBlock::Forces, "R0", Path::new("x.dat")).is_err());
+}
+
+/// The punch pressed into and slid along the slab, solved by both codes.
+#[test]
+#[ignore = "runs CalculiX three times (about two minutes); skips without ccx"]
+fn punch_on_slab_against_calculix() {
+    let Some(ccx) = find_ccx() else {
+        println!(
+            "ccx not found: skipping the CalculiX comparison (install Debian package calculix-ccx)"
+        );
+        return;
+    };
+    let model = scene("meshes/punch-on-slab.toml").build().unwrap();
+    let work = scratch_path("ccx-punch-test");
+    let opts = CompareOptions {
+        ccx,
+        work: work.clone(),
+        beta: 1e-2,
+        threads: 2,
+        export: ExportOptions::default(),
+    };
+    let c = compare(&model, "meshes/punch-on-slab.toml", &opts);
+    let _ = std::fs::remove_dir_all(&work);
+    let c = c.unwrap();
+    assert!(!c.rigid);
+    assert_eq!(c.symbol, "mu");
+    assert_eq!(c.times.len(), 10);
+    let labels: Vec<&str> = c.quantities.iter().map(|q| q.label.as_str()).collect();
+    assert_eq!(labels, ["Fx", "Fy"]);
+    assert!(matches!(
+        c.quantities[1].source,
+        Source::ReactionTotal { component: 1, .. }
+    ));
+    // The final press reaction Fy within 2 %. Why 2 %: (a) the penalty overlap p / K, at
+    // most 64 MPa / 3.5e5 MPa/mm = 1.8e-4 mm, is 0.07 % of the 0.25 mm indentation; (b)
+    // CalculiX's surface-to-surface contact sees the punch's facets at their integration
+    // points, which lie inside the arc by about h^2 / (12 R) = 0.47^2 / 120 = 1.8e-3 mm where
+    // fricsens' node-to-segment contact sees the nodes on it: 0.7 % of the indentation, at
+    // most 1.1 % of the force for a contact force growing like the indentation to the power
+    // 1.5; (c) the two incompatible-mode bricks differ by about 0.5 % on the indentation
+    // scene. Together 1.7 %.
+    let (f, g) = (c.fricsens.last().unwrap()[1], c.ccx.last().unwrap()[1]);
+    assert!(f < -60.0, "the punch is pressed down: {f}");
+    assert!(
+        (g - f).abs() < 0.02 * f.abs(),
+        "Fy: fricsens {f}, CalculiX {g}"
+    );
+    let dir = scratch_path("ccx-punch-report");
+    c.write(&dir).unwrap();
+    let md = std::fs::read_to_string(dir.join("ccx.md")).unwrap();
+    assert!(md.starts_with("## Against CalculiX"));
+    assert!(md.contains("### Responses") && md.contains("Branch check"));
+    assert!(dir.join("ccx.svg").exists() && dir.join("ccx.csv").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A rerun that stops early, played by a stand-in for `ccx` (a shell script that prints the
+/// punch's two reaction totals and stops the mu (1 + beta) rerun after five increments with
+/// CalculiX's divergence message): the comparison completes, the quotient is NaN from there on
+/// and the report says why. Needs no CalculiX.
+#[cfg(unix)]
+#[test]
+fn a_rerun_that_stops_early_leaves_nan_quotients_and_a_note() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch_path("ccx-stand-in");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("ccx");
+    std::fs::write(
+        &program,
+        r#"#!/bin/sh
+if [ "$1" = "-v" ]; then echo " This is Version 0.0"; exit 0; fi
+job=$2; n=10; [ "$job" = mu-plus ] && n=5
+: > "$job.dat"
+i=1
+for t in 0.5 1.0 1.125 1.25 1.375 1.5 1.625 1.75 1.875 2.0; do
+  [ $i -gt $n ] && break
+  for set in R0 R1; do
+    printf ' total force (fx,fy,fz) for set %s and time  %s\n\n  1.0E+00 -7.0E+01 0.0E+00\n\n' $set $t >> "$job.dat"
+  done
+  i=$((i+1))
+done
+if [ $n -lt 10 ]; then echo ' *ERROR: solution seems to diverge; please try'; exit 201; fi
+echo ' iteration 1'
+"#,
+    )
+    .unwrap();
+    std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let model = scene("meshes/punch-on-slab.toml").build().unwrap();
+    let opts = CompareOptions {
+        ccx: program,
+        work: dir.join("work"),
+        beta: 1e-2,
+        threads: 1,
+        export: ExportOptions::default(),
+    };
+    let c = compare(&model, "punch", &opts).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(c.ccx_rerun_failures[1].is_none());
+    let f = c.ccx_rerun_failures[0].as_deref().unwrap();
+    assert!(f.contains("t = 1.375") && f.contains("diverge"), "{f}");
+    for k in 0..10 {
+        // Fx: the stand-in prints 1 N in every run
+        assert_eq!(c.ccx[k][0], 1.0);
+        if k < 5 {
+            assert_eq!(c.fd[k][0], 0.0, "increment {}", k + 1);
+        } else {
+            assert!(c.fd[k][0].is_nan(), "increment {}", k + 1);
+        }
+    }
+    let md = c.markdown();
+    assert!(
+        md.contains("The rerun at mu (1 + beta) did not reach the end"),
+        "{md}"
+    );
+    assert!(
+        md.contains("over the 5 unflagged increments with both reruns"),
+        "{md}"
+    );
 }
