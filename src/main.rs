@@ -664,6 +664,7 @@ fn ccx(
         beta,
         threads: rayon::current_num_threads(),
         export: ExportOptions::default(),
+        time_limit: None,
     };
     // the report's name for the scene is what regenerates it: a built-in name or the file
     let result = compare(&model, scene_name, &opts);

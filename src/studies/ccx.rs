@@ -978,6 +978,7 @@ impl Quantity {
 /// # Errors
 /// [`CcxError::Io`] for files, [`CcxError::Run`] if ccx cannot start, or (without `partial`)
 /// fails or stops before the last increment, [`CcxError::Parse`] for its output.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn run_ccx(
     ccx: &Path,
     deck: &Deck,
@@ -986,13 +987,20 @@ pub(crate) fn run_ccx(
     quantities: &[Quantity],
     threads: usize,
     partial: bool,
+    limit: std::time::Duration,
 ) -> Result<CcxRun, CcxError> {
     std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     let inp = dir.join(format!("{job}.inp"));
     std::fs::write(&inp, &deck.text).map_err(io_err(&inp))?;
     let n = threads.max(1).to_string();
     let start = Instant::now();
-    let out = std::process::Command::new(ccx)
+    // the output goes to files, so that the run can be waited for with a time limit
+    let (log, err) = (
+        dir.join(format!("{job}.log")),
+        dir.join(format!("{job}.err")),
+    );
+    let file = |p: &Path| std::fs::File::create(p).map_err(io_err(p));
+    let mut child = std::process::Command::new(ccx)
         .arg("-i")
         .arg(job)
         .current_dir(dir)
@@ -1000,17 +1008,50 @@ pub(crate) fn run_ccx(
         .env("CCX_NPROC_EQUATION_SOLVER", &n)
         .env("CCX_NPROC_STIFFNESS", &n)
         .env("CCX_NPROC_RESULTS", &n)
-        .output()
+        .stdout(file(&log)?)
+        .stderr(file(&err)?)
+        .spawn()
         .map_err(|e| CcxError::Run {
             job: job.into(),
             what: format!("cannot start {}: {e}", ccx.display()),
         })?;
-    let seconds = start.elapsed().as_secs_f64();
-    let stdout = String::from_utf8_lossy(&out.stdout);
     let tail = |s: &str| {
         let lines: Vec<&str> = s.lines().collect();
         lines[lines.len().saturating_sub(15)..].join("\n")
     };
+    let read =
+        |p: &Path| String::from_utf8_lossy(&std::fs::read(p).unwrap_or_default()).into_owned();
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(status)) => break status,
+            Ok(None) if start.elapsed() > limit => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(CcxError::Run {
+                    job: job.into(),
+                    what: format!(
+                        "stopped after the time limit of {:.0} s; output ends:\n{}",
+                        limit.as_secs_f64(),
+                        tail(&read(&log))
+                    ),
+                });
+            }
+            Ok(None) => std::thread::sleep(std::time::Duration::from_millis(20)),
+            Err(e) => {
+                return Err(CcxError::Run {
+                    job: job.into(),
+                    what: format!("waiting for {}: {e}", ccx.display()),
+                })
+            }
+        }
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    let out = std::process::Output {
+        status,
+        stdout: read(&log).into_bytes(),
+        stderr: read(&err).into_bytes(),
+    };
+    let stdout = String::from_utf8_lossy(&out.stdout);
     let failed = !out.status.success() || stdout.contains("*ERROR");
     if failed && !partial {
         return Err(CcxError::Run {
@@ -1135,6 +1176,11 @@ pub struct CompareOptions {
     pub threads: usize,
     /// The translation of the model.
     pub export: ExportOptions,
+    /// Wall-time limit of one CalculiX run, seconds; `None`: the larger of ten minutes and 100
+    /// times fricsens' primal run (CalculiX took 8 to 10 times as long on the scenes compared
+    /// so far). A run past it is stopped and reported: CalculiX can iterate on without end
+    /// past its own iteration limit.
+    pub time_limit: Option<f64>,
 }
 
 /// The comparison's data, per increment and in all.
@@ -1529,6 +1575,10 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
     }
     // CalculiX: nominal and the two reruns
     let deck = export(model, &opts.export)?;
+    let limit = std::time::Duration::from_secs_f64(
+        opts.time_limit
+            .unwrap_or_else(|| (100.0 * sens.primal_seconds).max(600.0)),
+    );
     let nominal = run_ccx(
         &opts.ccx,
         &deck,
@@ -1537,6 +1587,7 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
         quantities,
         opts.threads,
         false,
+        limit,
     )?;
     let (plus, minus) = if plan.symbol == "mu" {
         ("mu-plus", "mu-minus")
@@ -1558,6 +1609,7 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
             // a rerun that stops early leaves the difference quotient undefined from there
             // on (the rigid case keeps its error)
             plan.rigid.is_none(),
+            limit,
         )?);
     }
     let at = |run: &CcxRun, t: f64| -> Result<Vec<f64>, CcxError> {

@@ -287,6 +287,7 @@ fn reduced_indentation_against_calculix() {
         beta: 1e-2,
         threads: 1,
         export: ExportOptions::default(),
+        time_limit: None,
     };
     let c = compare(&model, "indentation-reduced", &opts);
     let _ = std::fs::remove_dir_all(&work);
@@ -567,6 +568,7 @@ fn punch_on_slab_against_calculix() {
         beta: 1e-2,
         threads: 2,
         export: ExportOptions::default(),
+        time_limit: None,
     };
     let c = compare(&model, "meshes/punch-on-slab.toml", &opts);
     let _ = std::fs::remove_dir_all(&work);
@@ -641,6 +643,7 @@ echo ' iteration 1'
         beta: 1e-2,
         threads: 1,
         export: ExportOptions::default(),
+        time_limit: None,
     };
     let c = compare(&model, "punch", &opts).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
@@ -664,5 +667,43 @@ echo ' iteration 1'
     assert!(
         md.contains("over the 5 unflagged increments with both reruns"),
         "{md}"
+    );
+}
+
+/// A CalculiX run that never ends (a stand-in that sleeps) is stopped at the time limit and
+/// reported as such, instead of the comparison waiting for ever. Needs no CalculiX.
+#[cfg(unix)]
+#[test]
+fn a_calculix_run_past_its_time_limit_is_stopped_and_reported() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch_path("ccx-sleeper");
+    std::fs::create_dir_all(&dir).unwrap();
+    let program = dir.join("ccx");
+    std::fs::write(
+        &program,
+        "#!/bin/sh\nif [ \"$1\" = \"-v\" ]; then echo ' This is Version 0.0'; exit 0; fi\necho ' iteration 1'\nexec sleep 60\n",
+    )
+    .unwrap();
+    std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let model = scene("meshes/lame-octant.toml").build().unwrap();
+    let opts = CompareOptions {
+        ccx: program,
+        work: dir.join("work"),
+        beta: 1e-2,
+        threads: 1,
+        export: ExportOptions::default(),
+        time_limit: Some(0.5),
+    };
+    let t = std::time::Instant::now();
+    let e = compare(&model, "lame", &opts).unwrap_err().to_string();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(t.elapsed().as_secs_f64() < 30.0, "waited for the sleeper");
+    assert!(
+        e.contains("time limit of 0 s") || e.contains("time limit"),
+        "{e}"
+    );
+    assert!(
+        e.contains("iteration 1"),
+        "the output's tail is not shown: {e}"
     );
 }
