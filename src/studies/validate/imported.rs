@@ -52,16 +52,13 @@ pub enum ImportedError {
 }
 
 fn row(scene: &str, quantity: &str, expected: f64, got: f64, tolerance: f64) -> OracleRow {
-    let rel_error = ((got - expected) / expected).abs();
-    OracleRow {
-        scene: scene.to_string(),
+    let check = crate::scene::builtin::OracleCheck {
         quantity: quantity.to_string(),
         expected,
         got,
-        rel_error,
         tolerance,
-        pass: rel_error <= tolerance,
-    }
+    };
+    OracleRow::new(scene, check)
 }
 
 fn sensitivities(

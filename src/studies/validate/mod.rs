@@ -602,19 +602,26 @@ pub(super) fn write(path: &Path, text: &str) -> Result<(), ValidateError> {
     std::fs::write(path, text).map_err(io(path))
 }
 
-/// Closed-form checks on the DDM results of the oracle scenes.
-pub(super) fn oracles(v: &SceneValidation) -> Vec<OracleRow> {
-    crate::scene::builtin::oracles(&v.scene, &v.ddm)
-        .into_iter()
-        .map(|c| OracleRow {
-            scene: v.scene.clone(),
+impl OracleRow {
+    /// A check of `scene` as a report row (its relative error and verdict computed).
+    pub fn new(scene: &str, c: crate::scene::builtin::OracleCheck) -> Self {
+        OracleRow {
+            scene: scene.to_string(),
             rel_error: c.rel_error(),
             pass: c.pass(),
             quantity: c.quantity,
             expected: c.expected,
             got: c.got,
             tolerance: c.tolerance,
-        })
+        }
+    }
+}
+
+/// Closed-form checks on the DDM results of the oracle scenes.
+pub(super) fn oracles(v: &SceneValidation) -> Vec<OracleRow> {
+    crate::scene::builtin::oracles(&v.scene, &v.ddm)
+        .into_iter()
+        .map(|c| OracleRow::new(&v.scene, c))
         .collect()
 }
 
