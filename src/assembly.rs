@@ -188,7 +188,12 @@ impl Assembler {
             .filter(|d| !d.is_empty())
             .map(|d| d.to_vec())
             .collect();
-        let mut contact = ContactLayout::new(model, dofs.first_lambda, dofs.first_contact_history);
+        let mut contact = ContactLayout::new(
+            model,
+            dofs.first_lambda,
+            dofs.first_target,
+            dofs.first_contact_history,
+        );
         for pair_blocks in contact.blocks.iter_mut() {
             for nb in pair_blocks.iter_mut() {
                 nb.pattern_block = blocks.len();
@@ -198,7 +203,8 @@ impl Assembler {
         let refs: Vec<&[usize]> = blocks.iter().map(|b| b.as_slice()).collect();
         let pattern = std::sync::Arc::new(
             SparsePattern::new(dofs.n_total, &refs, extra)?
-                .with_multipliers_from(dofs.first_lambda),
+                .with_multipliers_from(dofs.first_lambda)
+                .with_last_from(dofs.first_target),
         );
         let mut elem_block = vec![usize::MAX; ne];
         let mut k = 0;

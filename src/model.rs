@@ -134,7 +134,8 @@ pub use crate::element::{node_dof, node_dofs, NODE_DOFS};
 /// Where each unknown and each history scalar lives, computed from the element families.
 ///
 /// Nodal unknowns come first (three per node), then each body's element-internal unknowns
-/// (body after body, element after element), then the contact multipliers. History: each
+/// (body after body, element after element), then the contact multipliers, then the
+/// translations of rigid targets pushed by a force. History: each
 /// assembled element's `n_gauss * history_len` scalars (body after body), then the contact
 /// history. Gauss points are numbered flat in element order (`gauss(e)`), the layout of every
 /// per-point array (branches, yield ratios).
@@ -159,6 +160,9 @@ pub struct DofMap {
     pub n_history: usize,
     /// First contact multiplier (all pairs follow, one per hitting node).
     pub first_lambda: usize,
+    /// First translation of a rigid target pushed by a force (one per force-controlled motion
+    /// entry, pair after pair, up to `n_total`; [`crate::contact::MotionControl::Force`]).
+    pub first_target: usize,
     /// First contact history scalar.
     pub first_contact_history: usize,
     /// History scalars of each element.
@@ -434,6 +438,10 @@ impl Model {
             next += c.hitting.len();
             hist += c.history_len() * c.hitting.len();
         }
+        let first_target = next;
+        for c in &self.contacts {
+            crate::contact::assembly::target_unknowns(c, &mut next);
+        }
         let mut dof_offset = Vec::with_capacity(ne + 1);
         let mut gauss_offset = Vec::with_capacity(ne + 1);
         let mut dofs = Vec::new();
@@ -461,6 +469,7 @@ impl Model {
             history_offset,
             n_history: hist,
             first_lambda,
+            first_target,
             first_contact_history,
             history_len,
             dof_offset,

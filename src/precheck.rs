@@ -33,6 +33,16 @@ pub enum PrecheckError {
         /// Element size at the deepest node (square root of its tributary area).
         element_size: f64,
     },
+    /// A rigid target pushed by a force does not touch the hitting nodes at the start.
+    #[error("pre-check: contact pair '{pair}': its rigid target is pushed by a force but touches no hitting node at t = 0 (the closest, node {node}, is {closest:.3e} away): nothing holds the target before contact; translate it by {closest:.3e} towards the hitting nodes so that it touches, or drive the approach by a prescribed translation")]
+    PushedTargetApart {
+        /// The pair.
+        pair: String,
+        /// The closest hitting node (mesh node number).
+        node: usize,
+        /// Its gap at t = 0.
+        closest: f64,
+    },
     /// A body can move as a rigid body and nothing holds it.
     #[error("pre-check: body '{body}' is free to move as a rigid body ({}) and is in no contact pair: the tangent is singular; prescribe those components on some of its nodes (or tie it with springs)", modes.join("; "))]
     RigidBody {
@@ -86,6 +96,8 @@ pub enum PrecheckWarning {
 /// Overlap of a model's contact pairs at the start (`eval`: the contact evaluated at the
 /// reference state and `t = 0`). A node counts when it is deeper than 1e-6 of its element size
 /// (the square root of its tributary area; round-off of touching surfaces is far below).
+/// A rigid target pushed by a force must touch some hitting node (within the gap that counts
+/// as touching, [`crate::contact::KernelParams::touch`]).
 pub fn overlap(
     model: &Model,
     assembler: &Assembler,
@@ -93,6 +105,20 @@ pub fn overlap(
 ) -> Result<(), PrecheckError> {
     for (p, pair) in model.contacts.iter().enumerate() {
         let first = assembler.contact.flat[p];
+        if assembler.contact.target[p].iter().any(Option::is_some) {
+            let closest = (0..pair.hitting.len())
+                .map(|i| (pair.hitting[i], eval.contact.gap[first + i]))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((node, closest)) = closest {
+                if closest > assembler.contact.touch[p] {
+                    return Err(PrecheckError::PushedTargetApart {
+                        pair: pair.name.clone(),
+                        node,
+                        closest,
+                    });
+                }
+            }
+        }
         let mut nodes: Vec<(usize, f64, f64)> = Vec::new();
         for (i, &s) in pair.hitting.iter().enumerate() {
             let g = eval.contact.gap[first + i];
@@ -257,7 +283,15 @@ pub fn never_touching(model: &Model, lifted: &Lifted<f64>) -> Vec<PrecheckWarnin
         let size = (hi - lo).norm();
         let mut closest = f64::INFINITY;
         for &t in &times {
-            let d = crate::contact::assembly::rigid_translation(pair, &lifted.rigid_motion[p], t);
+            // a pushed target where it starts (its motion is not known before the run)
+            let pushed = crate::contact::assembly::target_unknowns(pair, &mut 0);
+            let d = crate::contact::assembly::rigid_translation(
+                pair,
+                &lifted.rigid_motion[p],
+                t,
+                &pushed,
+                None,
+            );
             for xi in &x {
                 if let Ok(pr) = surface.project(xi, &d) {
                     closest = closest.min(pr.gap);

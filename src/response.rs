@@ -122,6 +122,15 @@ pub enum ResponseKind {
         /// 0, 1, 2 for x, y, z.
         component: usize,
     },
+    /// Translation of the rigid target of contact pair `pair` in `component`: prescribed, or
+    /// the unknown of a target pushed by a force ([`crate::contact::MotionControl::Force`]),
+    /// e.g. the indentation of a force-driven indenter.
+    TargetDisplacement {
+        /// Contact pair index in the model.
+        pair: usize,
+        /// 0, 1, 2 for x, y, z.
+        component: usize,
+    },
     /// Normal contact force over tributary area at hitting node `node` of pair `pair`: the
     /// node's share of the hitting faces in the reference configuration at the evaluated
     /// design (a shape parameter moves it: [`Lifted::area`](crate::model::Lifted::area)), or
@@ -179,7 +188,9 @@ impl ResponseKind {
                 state: true,
                 ..Reads::default()
             },
-            ResponseKind::TargetForce { .. } | ResponseKind::ContactPressure { .. } => Reads {
+            ResponseKind::TargetForce { .. }
+            | ResponseKind::TargetDisplacement { .. }
+            | ResponseKind::ContactPressure { .. } => Reads {
                 contact: true,
                 ..Reads::default()
             },
@@ -251,6 +262,10 @@ impl Response {
                 .map_or(S::zero(), |sigma| measure.of(sigma)),
             ResponseKind::TargetForce { pair, component } => match at.contact {
                 Some(c) => -c.pair_force[*pair][*component],
+                None => S::zero(),
+            },
+            ResponseKind::TargetDisplacement { pair, component } => match at.contact {
+                Some(c) => c.translation[*pair][*component],
                 None => S::zero(),
             },
             ResponseKind::ContactPressure {

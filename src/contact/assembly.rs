@@ -12,7 +12,7 @@ use super::geometry::{closest_on_quads, closest_on_quads_keeping};
 use super::quad_nodes;
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
-    KernelParams, StoredAnchor, Target, TargetGeom,
+    KernelParams, MotionControl, StoredAnchor, Target, TargetGeom,
 };
 use crate::mesh::FaceSet;
 use crate::model::{node_dof, node_dofs, Lifted, Model};
@@ -44,19 +44,44 @@ pub(crate) struct ContactLayout {
     pub flat: Vec<usize>,
     /// Hitting nodes over all pairs (the length of the per-node result arrays).
     pub n_hitting: usize,
+    /// `target[pair][k]`: the global unknown of motion entry `k` of a rigid target pushed by
+    /// a force (its translation in that component), `None` for a prescribed translation.
+    pub target: Vec<Vec<Option<usize>>>,
+    /// Gap counted as touching in the active-set rule ([`super::KernelParams::touch`]): zero,
+    /// or on a pair with a force-controlled target the round-off of its gaps, 1e-12 times the
+    /// largest reference coordinate of its hitting nodes (measured against the round-off of a
+    /// cylinder's `|x - c| - R`, a few 1e-16 of the coordinates).
+    pub touch: Vec<f64>,
 }
 
 impl ContactLayout {
-    /// Lay out the multipliers after `first_lambda` and the histories after `first_history`.
-    pub fn new(model: &Model, first_lambda: usize, first_history: usize) -> Self {
+    /// Lay out the multipliers after `first_lambda`, the translations of force-controlled
+    /// rigid targets after `first_target` and the histories after `first_history` (the
+    /// numbering of [`Model::dof_map`]).
+    pub fn new(
+        model: &Model,
+        first_lambda: usize,
+        first_target: usize,
+        first_history: usize,
+    ) -> Self {
         let mut l = ContactLayout::default();
         let mut next_l = first_lambda;
+        let mut next_t = first_target;
         let mut next_h = first_history;
         let mut flat = 0;
         for pair in &model.contacts {
             l.lambda.push(next_l);
             l.history.push(next_h);
             l.flat.push(flat);
+            let target = target_unknowns(pair, &mut next_t);
+            let touch = if target.iter().any(Option::is_some) {
+                let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+                let size = (pair.hitting.iter()).fold(0.0f64, |m, &n| m.max(x[n].amax()));
+                1e-12 * size
+            } else {
+                0.0
+            };
+            l.touch.push(touch);
             let mut blocks = Vec::new();
             for (i, &s) in pair.hitting.iter().enumerate() {
                 let mut target_nodes = Vec::new();
@@ -73,6 +98,8 @@ impl ContactLayout {
                 for &n in &target_nodes {
                     dofs.extend(node_dofs(n));
                 }
+                // a pushed rigid target's translations (it has no target nodes)
+                dofs.extend(target.iter().flatten());
                 dofs.push(next_l + i);
                 blocks.push(NodeBlock {
                     dofs,
@@ -84,9 +111,26 @@ impl ContactLayout {
             next_h += pair.history_len() * pair.hitting.len();
             flat += pair.hitting.len();
             l.blocks.push(blocks);
+            l.target.push(target);
         }
         l.n_hitting = flat;
         l
+    }
+}
+
+/// Number the unknowns of a pair's force-controlled motion entries from `*next` on: one per
+/// force entry, `None` for a prescribed translation.
+pub(crate) fn target_unknowns(pair: &ContactPair, next: &mut usize) -> Vec<Option<usize>> {
+    match &pair.target {
+        Target::Rigid { motion, .. } => (motion.iter())
+            .map(|m| {
+                (m.control == MotionControl::Force).then(|| {
+                    *next += 1;
+                    *next - 1
+                })
+            })
+            .collect(),
+        Target::Faces { .. } => Vec::new(),
     }
 }
 
@@ -131,12 +175,24 @@ fn closest_face<S: Scalar>(
     Ok((candidates[k], [pr.xi[0], pr.xi[1]]))
 }
 
-/// Rigid translation of a pair's target at time `t`.
-pub(crate) fn rigid_translation<S: Scalar>(pair: &ContactPair, values: &[S], t: f64) -> Vector3<S> {
+/// Rigid translation of a pair's target at time `t`: the prescribed components from the
+/// motion magnitudes `values`, the force-controlled ones from their unknowns (`target`, the
+/// pair's [`ContactLayout::target`]) in `z`, or zero without `z` (the reference position).
+pub(crate) fn rigid_translation<S: Scalar>(
+    pair: &ContactPair,
+    values: &[S],
+    t: f64,
+    target: &[Option<usize>],
+    z: Option<&[S]>,
+) -> Vector3<S> {
     let mut d = Vector3::zeros();
     if let Target::Rigid { motion, .. } = &pair.target {
-        for (m, v) in motion.iter().zip(values) {
-            d[m.component] += *v * m.amplitude.at(t);
+        for (k, (m, v)) in motion.iter().zip(values).enumerate() {
+            match (target.get(k).copied().flatten(), z) {
+                (Some(dof), Some(z)) => d[m.component] += z[dof],
+                (Some(_), None) => {}
+                (None, _) => d[m.component] += *v * m.amplitude.at(t),
+            }
         }
     }
     d
@@ -175,7 +231,19 @@ pub(crate) fn evaluate<S: Scalar>(
     tangents.clear();
     for (p, pair) in model.contacts.iter().enumerate() {
         out.pair_force[p] = Vector3::zeros();
-        let d: Vector3<S> = rigid_translation(pair, &lifted.rigid_motion[p], time);
+        let target_dofs = &layout.target[p];
+        let d: Vector3<S> =
+            rigid_translation(pair, &lifted.rigid_motion[p], time, target_dofs, Some(z));
+        out.translation[p] = d;
+        // a pushed target's equilibrium rows: the applied force (the contact forces are added
+        // node by node below)
+        if let Target::Rigid { motion, .. } = &pair.target {
+            for (k, dof) in target_dofs.iter().enumerate() {
+                if let Some(dof) = dof {
+                    residual[*dof] -= lifted.rigid_motion[p][k] * motion[k].amplitude.at(time);
+                }
+            }
+        }
         let nh = pair.history_len();
         let fparams = &lifted.friction[p];
         let eps_t = lifted.tangential[p];
@@ -187,6 +255,7 @@ pub(crate) fn evaluate<S: Scalar>(
             k: pair.constraint_scale,
             activation: pair.activation,
             area: S::one(),
+            touch: layout.touch[p],
             elastic_stick: false,
         };
         if let Some(faces) = &pair.hitting_faces {
@@ -295,6 +364,13 @@ pub(crate) fn evaluate<S: Scalar>(
                 for (a, &n) in quad_nodes(faces, face).iter().enumerate() {
                     for c in 0..3 {
                         residual[node_dof(n, c)] += ko.weights[a] * ko.force[c];
+                    }
+                }
+            }
+            if let Target::Rigid { motion, .. } = &pair.target {
+                for (k, dof) in target_dofs.iter().enumerate() {
+                    if let Some(dof) = dof {
+                        residual[*dof] += ko.force[motion[k].component];
                     }
                 }
             }
@@ -436,13 +512,16 @@ fn local_tangent<S: Scalar>(
             };
             4 + 3 * (4 + off_face)
         }
-        Target::Rigid { .. } => 4,
+        // the node, its multiplier, and the translations of a pushed target
+        Target::Rigid { .. } => 4 + layout.target[p].iter().flatten().count(),
     };
     let args = (
         model, layout, lifted, z, hist_old, time, p, i, face, fz, forced,
     );
     if seeds <= 4 {
         local_tangent_n::<S, 4>(args)
+    } else if seeds <= 8 {
+        local_tangent_n::<S, 8>(args)
     } else if seeds <= 16 {
         local_tangent_n::<S, 16>(args)
     } else {
@@ -526,7 +605,20 @@ fn local_tangent_n<S: Scalar, const N: usize>(
         .iter()
         .map(|v| Ad::<N>::from_re(v.value()))
         .collect();
-    let d: Vector3<Ad<N>> = rigid_translation(pair, &rv, time);
+    // the prescribed translation, and a pushed target's translations seeded (block columns
+    // 3.. after the hitting node: a rigid target has no target nodes)
+    let mut d: Vector3<Ad<N>> = rigid_translation(pair, &rv, time, &layout.target[p], None);
+    let mut target_cols: Vec<(usize, usize)> = Vec::new();
+    if let Target::Rigid { motion, .. } = &pair.target {
+        for (k, dof) in layout.target[p].iter().enumerate() {
+            if let Some(dof) = dof {
+                let col = 3 + target_cols.len();
+                let c = motion[k].component;
+                d[c] += seed(z[*dof].value(), col, &mut slots);
+                target_cols.push((col, c));
+            }
+        }
+    }
     let (target, contact_nodes) = match &pair.target {
         Target::Faces { faces } => {
             let mut nodes = [Vector3::zeros(); 4];
@@ -579,6 +671,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
         k: pair.constraint_scale,
         activation: pair.activation,
         area: Ad::<N>::from_re(lifted.area[p][i].value()),
+        touch: layout.touch[p],
         elastic_stick: forced,
     };
     let ko = node_kernel(
@@ -616,6 +709,9 @@ fn local_tangent_n<S: Scalar, const N: usize>(
             }
         }
     }
+    for &(col, c) in &target_cols {
+        add_row(col, &ko.force[c]);
+    }
     add_row(lam_col, &ko.r_lambda);
     Ok(LocalTangent {
         index: slots,
@@ -637,7 +733,9 @@ pub(crate) fn initial_history<S: Scalar>(
         if pair.anchor_len() == 0 {
             continue;
         }
-        let d: Vector3<S> = rigid_translation(pair, &lifted.rigid_motion[p], 0.0);
+        // at t = 0 a pushed target is where the scene put it
+        let d: Vector3<S> =
+            rigid_translation(pair, &lifted.rigid_motion[p], 0.0, &layout.target[p], None);
         let nh = pair.history_len();
         for (i, &s) in pair.hitting.iter().enumerate() {
             let h0 = layout.history[p] + nh * i;

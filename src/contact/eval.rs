@@ -21,6 +21,9 @@ pub struct ContactEval<S: Scalar> {
     /// Total contact force on each pair's target (minus the sum of the forces on its
     /// hitting nodes): the reaction of a rigid target.
     pub pair_force: Vec<Vector3<S>>,
+    /// Translation of each pair's rigid target (zero for a deformable target): prescribed, or
+    /// the unknowns of a target pushed by a force.
+    pub translation: Vec<Vector3<S>>,
     /// Contact force per hitting node (real parts), for output.
     pub force: Vec<Vector3<f64>>,
     /// Tangential (friction) force per hitting node (real parts): the slip direction.
@@ -41,6 +44,7 @@ impl<S: Scalar> ContactEval<S> {
             area: vec![S::one(); n_hitting],
             current_area: vec![S::one(); n_hitting],
             pair_force: vec![Vector3::zeros(); n_pairs],
+            translation: vec![Vector3::zeros(); n_pairs],
             force: vec![Vector3::zeros(); n_hitting],
             traction: vec![Vector3::zeros(); n_hitting],
             distance: vec![(f64::INFINITY, f64::INFINITY); n_hitting],

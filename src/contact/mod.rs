@@ -111,15 +111,33 @@ impl From<NormalLawToml> for NormalLaw {
     }
 }
 
-/// One component of a rigid target's prescribed translation: `value * amplitude(t)`.
+/// What a rigid target's motion component prescribes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MotionControl {
+    /// The translation `d_c(t) = value * amplitude(t)` (a length).
+    #[default]
+    Displacement,
+    /// The force `F_c(t) = value * amplitude(t)` applied to the target: its translation `d_c`
+    /// becomes an unknown of the global system, with the target's equilibrium
+    /// `sum_i f_i,c - F_c(t) = 0` (`f_i` the contact force on hitting node `i`) as its row.
+    /// The target must touch the hitting nodes at t = 0 (else nothing holds it: the pre-check
+    /// says so), and a component along which no contact resists (a frictionless slide) has
+    /// no equilibrium.
+    Force,
+}
+
+/// One component of a rigid target's prescribed motion: a translation or a force,
+/// `value * amplitude(t)`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RigidMotion {
     /// Translated direction (0 = x, 1 = y, 2 = z).
     pub component: usize,
-    /// Magnitude of the translation (a length), scaled by `amplitude`.
+    /// Magnitude of the translation (a length) or of the force, scaled by `amplitude`.
     pub value: f64,
-    /// Time history of the translation.
+    /// Time history of the translation or force.
     pub amplitude: Amplitude,
+    /// Whether `value` is a translation or a force.
+    pub control: MotionControl,
 }
 
 /// What the hitting nodes touch.
@@ -131,11 +149,12 @@ pub enum Target {
         /// The target faces.
         faces: FaceSet,
     },
-    /// An analytic rigid surface and its prescribed translation.
+    /// An analytic rigid surface, translated or pushed.
     Rigid {
         /// The surface in its reference position.
         surface: RigidSurface,
-        /// Prescribed translation, one entry per moving component.
+        /// Prescribed translations and forces, one entry per moving component (at most one
+        /// force per component, and no translation beside it).
         motion: Vec<RigidMotion>,
     },
 }
@@ -447,6 +466,12 @@ pub struct KernelParams<'a, S: Scalar> {
     /// Tributary area of the hitting node (scales the penalty laws), at the evaluation's
     /// design.
     pub area: S,
+    /// A gap up to this (a length) counts as touching in the active-set rule: zero, except
+    /// on a pair whose rigid target is pushed by a force ([`MotionControl::Force`]), where it
+    /// is the round-off of the gap (`ContactLayout::touch`) so that the node a target is
+    /// placed on at t = 0 holds it from the first iteration (a gap of `+1e-16` would leave
+    /// the target's equilibrium row empty).
+    pub touch: f64,
     /// The stick branch imposed by `frozen` is the elastic predictor, the friction force the
     /// trial force `t_trial` whatever the law: the primal solver's forced stick (slip
     /// reversal). Coulomb-type laws stick so anyway; a smooth law (regularised Coulomb) keeps
@@ -527,12 +552,14 @@ pub fn node_kernel<S: Scalar>(
     let active = match frozen {
         Some(s) => s != ContactState::Open,
         None => match par.normal {
-            NormalLaw::Lagrange => lambda.value() - par.activation * k * g.value() >= 0.0,
+            NormalLaw::Lagrange => {
+                lambda.value() - par.activation * k * (g.value() - par.touch) >= 0.0
+            }
             // touching (g = 0) counts as closed, so a body held only by contact is supported
             // from the first iteration
-            NormalLaw::Penalty { .. } => g.value() <= 0.0,
+            NormalLaw::Penalty { .. } => g.value() <= par.touch,
             NormalLaw::Augmented { stiffness, .. } => {
-                lambda_bar.value() - stiffness * par.area.value() * g.value() >= 0.0
+                lambda_bar.value() - stiffness * par.area.value() * (g.value() - par.touch) >= 0.0
             }
         },
     };

@@ -144,7 +144,8 @@ impl LinearSolver {
         let symbolic = match options.kind {
             FactorKind::Lu => SymbolicFactor::SymLu(
                 Box::new(
-                    SymbolicSymLu::new(a, pattern.multipliers_from).map_err(LinalgError::Faer)?,
+                    SymbolicSymLu::new(a, pattern.multipliers_from, pattern.last_from)
+                        .map_err(LinalgError::Faer)?,
                 ),
                 None,
             ),

@@ -26,6 +26,10 @@ pub struct SparsePattern {
     /// Unknowns from here on are Lagrange multipliers: their diagonal can be zero, so
     /// [`FactorKind::Lu`] eliminates each after the other unknowns it couples to.
     pub(super) multipliers_from: usize,
+    /// Unknowns from here on (after the multipliers) are eliminated last: a few unknowns that
+    /// couple to many others through multipliers (the translation of a rigid target pushed by
+    /// a force), whose pivot is the stiffness of everything before them.
+    pub(super) last_from: usize,
 }
 
 impl SparsePattern {
@@ -185,6 +189,7 @@ impl SparsePattern {
             diag,
             chunk_ptr,
             multipliers_from: n,
+            last_from: n,
         })
     }
 
@@ -194,6 +199,16 @@ impl SparsePattern {
     /// its zero diagonal.
     pub fn with_multipliers_from(mut self, first: usize) -> Self {
         self.multipliers_from = first.min(self.n);
+        self
+    }
+
+    /// Marks the unknowns `first..n` to be eliminated after all others by [`FactorKind::Lu`]
+    /// (they may lie among the multipliers: those from `first` on are not multipliers). Their
+    /// pivot is then the Schur complement of the whole rest: for the translation of a rigid
+    /// target pushed by a force, the stiffness of the contact that holds it, where eliminated
+    /// among the multipliers it would meet a zero diagonal.
+    pub fn with_last_from(mut self, first: usize) -> Self {
+        self.last_from = first.min(self.n);
         self
     }
 

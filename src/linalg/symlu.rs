@@ -124,7 +124,8 @@ fn mat_mut(values: &mut [f64], nrows: usize, ncols: usize, stride: usize) -> Mat
 }
 
 /// The fill-reducing order `order` (`order[new] = old`) with each Lagrange multiplier
-/// (unknowns `first..n`) moved to just after the last of the other unknowns it couples to.
+/// (unknowns `first..last`) moved to just after the last of the other unknowns it couples to,
+/// and the unknowns `last..n` at the end.
 /// A multiplier's diagonal is zero in a saddle-point system; eliminated after its
 /// neighbours, its pivot is the Schur complement `-b^T K_E^-1 b` of the unknowns `E`
 /// eliminated before it, nonzero when `K_E` is definite. The multipliers stay local, so the
@@ -133,6 +134,7 @@ pub(crate) fn multiplier_order(
     a: SymbolicSparseColMatRef<'_, usize>,
     order: &[usize],
     first: usize,
+    last: usize,
 ) -> Vec<usize> {
     let n = order.len();
     let pos = inverse(order);
@@ -140,6 +142,8 @@ pub(crate) fn multiplier_order(
         .map(|old| {
             if old < first {
                 (pos[old], 0, 0)
+            } else if old >= last {
+                (n, 2, pos[old])
             } else {
                 let last = a
                     .row_idx_of_col(old)
@@ -167,10 +171,12 @@ fn inverse(perm: &[usize]) -> Vec<usize> {
 
 impl SymbolicSymLu {
     /// Analysis of a structurally symmetric pattern with a full diagonal whose unknowns
-    /// `multipliers_from..n` are Lagrange multipliers (see [`multiplier_order`]).
+    /// `multipliers_from..last_from` are Lagrange multipliers and `last_from..n` go last (see
+    /// [`multiplier_order`]).
     pub fn new(
         a: SymbolicSparseColMatRef<'_, usize>,
         multipliers_from: usize,
+        last_from: usize,
     ) -> Result<Self, String> {
         let n = a.nrows();
         let params = CholeskySymbolicParams {
@@ -184,7 +190,12 @@ impl SymbolicSymLu {
             None => (0..n).collect(),
         };
         let (chol, perm) = if multipliers_from < n {
-            let perm = multiplier_order(a, &amd_perm, multipliers_from);
+            let perm = multiplier_order(
+                a,
+                &amd_perm,
+                multipliers_from,
+                last_from.max(multipliers_from),
+            );
             let inv = inverse(&perm);
             let custom = faer::perm::PermRef::new_checked(&perm, &inv, n);
             let chol = factorize_symbolic_cholesky(

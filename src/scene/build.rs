@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::contact::geometry::RigidSurface;
-use crate::contact::{setup, ContactPair, NormalLaw, RigidMotion, Target};
+use crate::contact::{setup, ContactPair, MotionControl, NormalLaw, RigidMotion, Target};
 use crate::element::{Shape, SpringSet};
 use crate::mesh::{Axis, Mesh};
 use crate::model::{Amplitude, Body, Model, NodalLoad, Prescribed};
@@ -558,6 +558,22 @@ impl Scene {
                     pair: contact_index(&contacts, pair, &format!("responses[{i}].pair"))?,
                     component: component.index(),
                 },
+                ResponseSpec::TargetDisplacement {
+                    pair, component, ..
+                } => {
+                    let at = format!("responses[{i}].pair");
+                    let p = contact_index(&contacts, pair, &at)?;
+                    if !matches!(contacts[p].target, Target::Rigid { .. }) {
+                        return Err(invalid(
+                            &at,
+                            format!("pair '{pair}' has no rigid target to follow"),
+                        ));
+                    }
+                    ResponseKind::TargetDisplacement {
+                        pair: p,
+                        component: component.index(),
+                    }
+                }
                 ResponseSpec::PressureProfile {
                     name,
                     pair,
@@ -1020,14 +1036,47 @@ impl Scene {
                             }
                         }
                     };
-                    let mut m = Vec::new();
+                    let mut m: Vec<RigidMotion> = Vec::new();
                     for (k, ms) in motion.iter().enumerate() {
                         let f = format!("{at}.target.motion[{k}]");
-                        finite(ms.value, &format!("{f}.value"))?;
+                        let (value, control) = match (ms.value, ms.force) {
+                            (Some(v), None) => (v, MotionControl::Displacement),
+                            (None, Some(v)) => (v, MotionControl::Force),
+                            _ => {
+                                return Err(invalid(
+                                    &f,
+                                    "give exactly one of `value` (a translation) and `force`",
+                                ))
+                            }
+                        };
+                        let field = match control {
+                            MotionControl::Displacement => "value",
+                            MotionControl::Force => "force",
+                        };
+                        finite(value, &format!("{f}.{field}"))?;
+                        let component = ms.component.index();
+                        // a pushed component is one unknown: no second force, and no
+                        // translation beside it
+                        if let Some(j) = m.iter().position(|o| {
+                            o.component == component
+                                && (o.control == MotionControl::Force
+                                    || control == MotionControl::Force)
+                        }) {
+                            return Err(invalid(
+                                &format!("{f}.component"),
+                                format!(
+                                    "motion[{j}] already moves component {} and one of them is \
+                                     a force: a pushed component takes one force and no \
+                                     prescribed translation",
+                                    ["x", "y", "z"][component]
+                                ),
+                            ));
+                        }
                         m.push(RigidMotion {
-                            component: ms.component.index(),
-                            value: ms.value,
+                            component,
+                            value,
                             amplitude: amplitude(&ms.amplitude, &format!("{f}.amplitude"))?,
+                            control,
                         });
                     }
                     (

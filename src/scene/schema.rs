@@ -433,14 +433,21 @@ pub enum RigidSpec {
     },
 }
 
-/// One component of a rigid target's translation, `value * amplitude(t)`.
+/// One component of a rigid target's motion: a translation `value * amplitude(t)`, or a force
+/// `force * amplitude(t)` pushing the target (its translation then follows from its
+/// equilibrium with the contact forces). Exactly one of `value` and `force`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MotionSpec {
-    /// Translated component.
+    /// Component.
     pub component: Component,
-    /// Magnitude of the translation (a length).
-    pub value: f64,
+    /// Magnitude of the prescribed translation (a length).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value: Option<f64>,
+    /// Magnitude of the force applied to the target instead (its translation in `component`
+    /// becomes an unknown; the target must touch the hitting nodes at t = 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force: Option<f64>,
     /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
     #[serde(default = "ramp")]
     pub amplitude: Vec<(f64, f64)>,
@@ -534,6 +541,16 @@ pub enum ResponseSpec {
         /// Force component.
         component: Component,
     },
+    /// Translation of a contact pair's rigid target (e.g. the indentation of an indenter
+    /// pushed by a force).
+    TargetDisplacement {
+        /// Response name.
+        name: String,
+        /// Contact pair name (a rigid target).
+        pair: String,
+        /// Translation component.
+        component: Component,
+    },
     /// Contact pressure (normal force / tributary area) at every hitting node of a pair: one
     /// response per node, named `NAME[i]`, ordered along `along`. `area = "nominal"` (the
     /// default) divides by the reference tributary area, `area = "current"` by the deformed one
@@ -585,6 +602,7 @@ impl ResponseSpec {
             ResponseSpec::Reaction { name, .. }
             | ResponseSpec::Displacement { name, .. }
             | ResponseSpec::TargetForce { name, .. }
+            | ResponseSpec::TargetDisplacement { name, .. }
             | ResponseSpec::PressureProfile { name, .. }
             | ResponseSpec::History { name, .. }
             | ResponseSpec::Stress { name, .. } => name,

@@ -432,6 +432,16 @@ impl Solver<'_> {
             let p = self.lifted.pressures[l] * load.amplitude.at(t);
             f_ext += (p * self.unit_pressure_norms[l]).powi(2);
         }
+        for (p, pair) in self.model.contacts.iter().enumerate() {
+            if let crate::contact::Target::Rigid { motion, .. } = &pair.target {
+                for (k, dof) in self.assembler.contact.target[p].iter().enumerate() {
+                    if dof.is_some() {
+                        let f = self.lifted.rigid_motion[p][k] * motion[k].amplitude.at(t);
+                        f_ext += f * f;
+                    }
+                }
+            }
+        }
         let f_ref = r_fixed.sqrt().max(f_ext.sqrt());
         (r_free, f_ref)
     }
@@ -524,10 +534,26 @@ impl Solver<'_> {
         // unloaded body's incompatible modes are zero, and their corrections were measured
         // against nothing: the fuzzer found Newton at the round-off floor of a lifted-off
         // body for 30 iterations)
+        // (a pushed rigid target's translations, after the multipliers, are displacements too)
         let first_lambda = self.assembler.dofs.first_lambda.min(dz.len());
+        let first_target = self
+            .assembler
+            .dofs
+            .first_target
+            .clamp(first_lambda, dz.len());
         let norm = |v: &[f64]| v.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let (dz_nodal, dz_other) = (norm(&dz[..first_lambda]), norm(&dz[first_lambda..]));
-        let (z_nodal, z_other) = (norm(&z[..first_lambda]), norm(&z[first_lambda..]));
+        let both = |v: &[f64]| {
+            let targets = norm(&v[first_target..]);
+            let nodal = norm(&v[..first_lambda]);
+            let nodal = if targets == 0.0 {
+                nodal
+            } else {
+                nodal.hypot(targets)
+            };
+            (nodal, norm(&v[first_lambda..first_target]))
+        };
+        let (dz_nodal, dz_other) = both(dz);
+        let (z_nodal, z_other) = both(z);
         let x_norm = (0..n_nodal)
             .map(|d| (self.lifted.coords[d / 3][d % 3] + z[d]).powi(2))
             .sum::<f64>()

@@ -31,8 +31,9 @@
 //!     sliding). A [`RigidSurface::RoundedBox`] is meshed: its side facing the hitting nodes
 //!     (the flat face, its two rounded edges and one radius of the adjacent faces), extruded
 //!     along z over the hitting nodes' extent, one layer of `C3D8` elements made a
-//!     `*RIGID BODY` whose reference node carries the prescribed motion and whose `RF` is the
-//!     force on the block. Other rigid surfaces are refused.
+//!     `*RIGID BODY` whose reference node carries the prescribed motion (a `*BOUNDARY`, or a
+//!     `*CLOAD` for a target pushed by a force) and whose `RF` is the force on the block.
+//!     Other rigid surfaces are refused.
 //!   - Faces of a deformable body ([`Target::Faces`]) are surface-to-surface penalty contact
 //!     (`TYPE=SURFACE TO SURFACE`). Node to surface would be the closer image of fricsens'
 //!     node-to-segment contact (a hitting node against the target facets), but it does not
@@ -553,6 +554,17 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
                 let _ = writeln!(step_bc, "*BOUNDARY\nROT{ci},1,3,0.");
                 for comp in 0..3 {
                     match motion.iter().find(|m| m.component == comp) {
+                        Some(m) if m.control == crate::contact::MotionControl::Force => {
+                            // a pushed target: the force on its reference node
+                            let amp = format!("AM{ci}_{comp}");
+                            write_amplitude(&mut rigid_text, &amp, &m.amplitude);
+                            let _ = writeln!(
+                                step_bc,
+                                "*CLOAD,AMPLITUDE={amp}\nREF{ci},{c},{:.12e}",
+                                m.value,
+                                c = comp + 1
+                            );
+                        }
                         Some(m) => {
                             let amp = format!("AM{ci}_{comp}");
                             write_amplitude(&mut rigid_text, &amp, &m.amplitude);
@@ -1512,6 +1524,7 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
             motion
                 .iter()
                 .filter(|m| m.component == 1)
+                .filter(|m| m.control == crate::contact::MotionControl::Displacement)
                 .map(|m| peak(&m.amplitude, m.value))
                 .fold(0.0, f64::max),
             "the rigid target's motion along y".to_string(),

@@ -549,7 +549,8 @@ pub fn generate(seed: u64) -> Scene {
             }
             motion.push(MotionSpec {
                 component: [Component::X, Component::Y, Component::Z][c],
-                value: 1.0,
+                value: Some(1.0),
+                force: None,
                 amplitude: amp,
             });
         }

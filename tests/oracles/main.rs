@@ -22,5 +22,6 @@ mod materials;
 mod mesh_in_code;
 mod plasticity;
 mod pressure_measures;
+mod pushed_target;
 mod shape_maps;
 mod springs;

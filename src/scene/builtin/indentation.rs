@@ -123,12 +123,14 @@ pub(crate) fn indentation_mesh(
                 motion: vec![
                     MotionSpec {
                         component: Component::Y,
-                        value: -0.01,
+                        value: Some(-0.01),
+                        force: None,
                         amplitude: vec![(0.0, 0.0), (1.0, 1.0), (2.0, 1.0)],
                     },
                     MotionSpec {
                         component: Component::X,
-                        value: 3.33,
+                        value: Some(3.33),
+                        force: None,
                         amplitude: vec![(0.0, 0.0), (1.0, 0.0), (2.0, 1.0)],
                     },
                 ],

@@ -228,7 +228,8 @@ pub fn leaf_spring(s: &LeafSpringSpec) -> Scene {
                     },
                     motion: vec![MotionSpec {
                         component: Component::Y,
-                        value: -s.stroke,
+                        value: Some(-s.stroke),
+                        force: None,
                         amplitude: s.path(),
                     }],
                 },

@@ -211,7 +211,7 @@ pub(super) fn write_figures(
                         let a = crate::load::Amplitude {
                             points: m.amplitude.clone(),
                         };
-                        -m.value * a.at(t)
+                        -m.value.unwrap_or(0.0) * a.at(t)
                     }),
                     _ => None,
                 })
