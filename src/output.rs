@@ -4,6 +4,7 @@
 
 use crate::model::Model;
 use crate::solver::Results;
+use nalgebra::Vector3;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use vtkio::model::{
@@ -117,6 +118,55 @@ pub fn write_contact_csv(path: &Path, model: &Model, res: &Results) -> Result<()
                     fr[2]
                 );
             }
+        }
+    }
+    std::fs::write(path, s).map_err(io(path))
+}
+
+/// Write `profile.csv`, long format: one row per contact-pressure response (a station of a
+/// pressure profile, or a node) at every stored increment, with the response's name, its pair,
+/// its measure (`nominal` or `current`), how many hitting nodes it spans, the mean reference
+/// (`X`, `Y`, `Z`) and current (`x`, `y`, `z`) coordinates of those nodes, and the pressure.
+/// A plotting script reads a profile from it directly, by coordinate.
+pub fn write_profile_csv(path: &Path, model: &Model, res: &Results) -> Result<(), OutputError> {
+    let mut s = String::from("increment,time,response,pair,measure,nodes,X,Y,Z,x,y,z,pressure\n");
+    let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+    for (k, t) in res.times.iter().enumerate() {
+        let Some(z) = res.states.get(k) else { continue };
+        for (r, resp) in model.responses.iter().enumerate() {
+            let crate::response::ResponseKind::ContactPressure {
+                pair,
+                nodes,
+                measure,
+            } = &resp.kind
+            else {
+                continue;
+            };
+            let hitting = &model.contacts[*pair].hitting;
+            let n = nodes.len().max(1) as f64;
+            let (mut reference, mut current) = (Vector3::zeros(), Vector3::zeros());
+            for i in nodes {
+                let node = hitting[*i];
+                let u = &z[crate::model::node_dofs(node)];
+                reference += x[node];
+                current += x[node] + Vector3::new(u[0], u[1], u[2]);
+            }
+            let (a, b) = (reference / n, current / n);
+            let _ = writeln!(
+                s,
+                "{k},{t:.10e},{},{},{},{},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e},{:.12e}",
+                resp.name,
+                model.contacts[*pair].name,
+                measure.name(),
+                nodes.len(),
+                a[0],
+                a[1],
+                a[2],
+                b[0],
+                b[1],
+                b[2],
+                res.response_value(model, r, k)
+            );
         }
     }
     std::fs::write(path, s).map_err(io(path))
@@ -305,7 +355,8 @@ impl VtkOutput {
     }
 }
 
-/// Write the whole run: `history.csv`, `contact.csv` (with contact pairs), `newton.json`, and,
+/// Write the whole run: `history.csv`, `contact.csv` (with contact pairs), `profile.csv` (with
+/// contact-pressure responses), `newton.json`, and,
 /// as `vtk` says, `vtk/` with one
 /// `.vtu` per written increment and the `.pvd` collection of them.
 pub fn write_run(
@@ -318,6 +369,15 @@ pub fn write_run(
     write_history_csv(&dir.join("history.csv"), model, res)?;
     if !model.contacts.is_empty() {
         write_contact_csv(&dir.join("contact.csv"), model, res)?;
+    }
+    let profiles = (model.responses.iter()).any(|r| {
+        matches!(
+            r.kind,
+            crate::response::ResponseKind::ContactPressure { .. }
+        )
+    });
+    if profiles {
+        write_profile_csv(&dir.join("profile.csv"), model, res)?;
     }
     let p = dir.join("newton.json");
     let json = serde_json::to_string_pretty(&res.records).expect("records serialise");

@@ -131,15 +131,17 @@ pub enum ResponseKind {
         /// 0, 1, 2 for x, y, z.
         component: usize,
     },
-    /// Normal contact force over tributary area at hitting node `node` of pair `pair`: the
+    /// Normal contact force over tributary area at hitting nodes `nodes` of pair `pair`: each
     /// node's share of the hitting faces in the reference configuration at the evaluated
     /// design (a shape parameter moves it: [`Lifted::area`](crate::model::Lifted::area)), or
     /// in the current configuration ([`PressureMeasure`]).
     ContactPressure {
         /// Contact pair index in the model.
         pair: usize,
-        /// Hitting node, counted within the pair.
-        node: usize,
+        /// Hitting nodes, counted within the pair: one node, or the nodes of one station of a
+        /// profile (e.g. the two node rows of a one-element-thick plane-strain slab), whose
+        /// pressure is their total normal force over their total area.
+        nodes: Vec<usize>,
         /// Over which area.
         measure: PressureMeasure,
     },
@@ -270,16 +272,24 @@ impl Response {
             },
             ResponseKind::ContactPressure {
                 pair,
-                node,
+                nodes,
                 measure,
-            } => match (at.contact, at.flat) {
-                (Some(c), Some(flat)) => {
-                    let k = flat[*pair] + node;
-                    c.normal_force[k]
-                        / match measure {
-                            PressureMeasure::Nominal => c.area[k],
-                            PressureMeasure::Current => c.current_area[k],
-                        }
+            } => match (at.contact, at.flat, nodes.split_first()) {
+                (Some(c), Some(flat), Some((first, rest))) => {
+                    let area = |k: usize| match measure {
+                        PressureMeasure::Nominal => c.area[k],
+                        PressureMeasure::Current => c.current_area[k],
+                    };
+                    // the sums start from the first node (one node: its force over its area,
+                    // bit for bit)
+                    let k0 = flat[*pair] + first;
+                    let (force, total) =
+                        rest.iter()
+                            .fold((c.normal_force[k0], area(k0)), |(f, a), node| {
+                                let k = flat[*pair] + node;
+                                (f + c.normal_force[k], a + area(k))
+                            });
+                    force / total
                 }
                 _ => S::zero(),
             },

@@ -579,20 +579,42 @@ impl Scene {
                     pair,
                     along,
                     area,
+                    per,
                 } => {
                     let p = contact_index(&contacts, pair, &format!("responses[{i}].pair"))?;
                     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
                     let c = &contacts[p];
+                    let at = |i: usize| x[c.hitting[i]][along.index()];
                     let mut order: Vec<usize> = (0..c.hitting.len()).collect();
-                    order.sort_by(|a, b| {
-                        x[c.hitting[*a]][along.index()].total_cmp(&x[c.hitting[*b]][along.index()])
-                    });
-                    for (k, node) in order.iter().enumerate() {
+                    order.sort_by(|a, b| at(*a).total_cmp(&at(*b)));
+                    let stations: Vec<Vec<usize>> = match per {
+                        ProfilePoints::Node => order.iter().map(|i| vec![*i]).collect(),
+                        ProfilePoints::Station => {
+                            let extent = match (order.first(), order.last()) {
+                                (Some(a), Some(b)) => at(*b) - at(*a),
+                                _ => 0.0,
+                            };
+                            let mut stations: Vec<Vec<usize>> = Vec::new();
+                            for &i in &order {
+                                match stations.last_mut() {
+                                    Some(s) if at(i) - at(s[0]) <= 1e-9 * extent => s.push(i),
+                                    _ => stations.push(vec![i]),
+                                }
+                            }
+                            stations
+                        }
+                    };
+                    let prefix = match per {
+                        ProfilePoints::Node => name.clone(),
+                        ProfilePoints::Station if name.ends_with(area.name()) => name.clone(),
+                        ProfilePoints::Station => format!("{name}_{}", area.name()),
+                    };
+                    for (k, nodes) in stations.into_iter().enumerate() {
                         responses.push(Response {
-                            name: format!("{name}[{k}]"),
+                            name: format!("{prefix}[{k}]"),
                             kind: ResponseKind::ContactPressure {
                                 pair: p,
-                                node: *node,
+                                nodes,
                                 measure: *area,
                             },
                         });

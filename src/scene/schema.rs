@@ -551,10 +551,16 @@ pub enum ResponseSpec {
         /// Translation component.
         component: Component,
     },
-    /// Contact pressure (normal force / tributary area) at every hitting node of a pair: one
-    /// response per node, named `NAME[i]`, ordered along `along`. `area = "nominal"` (the
-    /// default) divides by the reference tributary area, `area = "current"` by the deformed one
-    /// (the Cauchy pressure that CalculiX and Abaqus report).
+    /// Contact pressure (normal force / tributary area) along a pair's hitting surface,
+    /// ordered along `along`. `area = "nominal"` (the default) divides by the reference
+    /// tributary area, `area = "current"` by the deformed one (the Cauchy pressure that
+    /// CalculiX and Abaqus report). With `per = "station"` (the default) the hitting nodes at
+    /// one reference coordinate along `along` make one station (the node rows of a plane-strain
+    /// slab, or a row across a 3D surface), its pressure their total normal force over their
+    /// total area, one response per station named `NAME_MEASURE[k]` (`p_current[3]`; the
+    /// measure is not repeated when `NAME` already ends with it); `profile.csv` gives each
+    /// station's coordinates. `per = "node"` gives one response per node, `NAME[i]`, as the
+    /// built-in scenes (and their regression data) have it.
     PressureProfile {
         /// Response name prefix.
         name: String,
@@ -565,6 +571,9 @@ pub enum ResponseSpec {
         /// Over which area: `nominal` (reference) or `current` (deformed).
         #[serde(default)]
         area: crate::response::PressureMeasure,
+        /// One response per station (default) or per hitting node.
+        #[serde(default)]
+        per: ProfilePoints,
     },
     /// A history variable of one Gauss point: `element` counts within the body, `point` is
     /// the Gauss point (0-7), `variable` names a history entry of the body's material
@@ -608,6 +617,18 @@ impl ResponseSpec {
             | ResponseSpec::Stress { name, .. } => name,
         }
     }
+}
+
+/// What a pressure profile gives a value for ([`ResponseSpec::PressureProfile`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ProfilePoints {
+    /// One value per station: the hitting nodes at one reference coordinate along the profile
+    /// (to 1e-9 of the profile's extent), their total normal force over their total area.
+    #[default]
+    Station,
+    /// One value per hitting node.
+    Node,
 }
 
 /// A complete analysis.

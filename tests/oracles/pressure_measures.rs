@@ -21,6 +21,7 @@ fn the_current_pressure_integrates_to_the_normal_force_and_ddm_equals_central_fd
             pair: "block".into(),
             along: Component::X,
             area,
+            per: fricsens::scene::ProfilePoints::Node,
         });
     }
     let model = s.build().unwrap();
@@ -33,7 +34,9 @@ fn the_current_pressure_integrates_to_the_normal_force_and_ddm_equals_central_fd
     let faces = pair.hitting_faces.as_ref().expect("a face-set pair");
     let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
     let kind = |r: usize| match model.responses[r].kind {
-        ResponseKind::ContactPressure { node, measure, .. } => Some((node, measure)),
+        ResponseKind::ContactPressure {
+            ref nodes, measure, ..
+        } => Some((nodes[0], measure)),
         _ => None,
     };
     let mut closed = 0;
@@ -235,4 +238,85 @@ fn the_current_pressure_of_a_large_deformation_contact_ddm_equals_central_fdm() 
         // unit, but Newton's last step leaves far less: 3e-8 measured; 1e-7 leaves a margin of 3
         assert!(worst < 1e-7, "{}: {worst:.2e}", param.name);
     }
+}
+
+#[test]
+fn a_profile_of_a_plane_strain_slab_gives_one_pressure_per_station_with_its_coordinates() {
+    // the Gmsh punch on the one-element-thick slab: each x holds two hitting nodes (its two
+    // faces in z), which carry the same pressure by the plane-strain symmetry; the default profile
+    // gives one value per x, named after its measure, and profile.csv its coordinates
+    use fricsens::output::{write_run, VtkOutput};
+    let s = Scene::from_file(std::path::Path::new("meshes/punch-on-slab.toml")).unwrap();
+    let model = s.build().unwrap();
+    let pair = &model.contacts[0];
+    let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+    let mut xs: Vec<f64> = pair.hitting.iter().map(|n| x[*n][0]).collect();
+    xs.sort_by(f64::total_cmp);
+    xs.dedup();
+    assert_eq!(2 * xs.len(), pair.hitting.len(), "two node rows");
+    let zs = pair.hitting.iter().map(|n| x[*n][2]);
+    let z_mid =
+        0.5 * (zs.clone().fold(f64::INFINITY, f64::min) + zs.fold(f64::NEG_INFINITY, f64::max));
+    let stations: Vec<usize> = (0..model.responses.len())
+        .filter(|r| model.responses[*r].name.starts_with("p_nominal["))
+        .collect();
+    assert_eq!(stations.len(), xs.len(), "one response per station");
+    let res = Solver::new(&model)
+        .unwrap()
+        .run(&Default::default(), &mut fricsens::solver::NoObserver)
+        .unwrap();
+    let dir = common::scratch_path("profile-csv");
+    write_run(&dir, &model, &res, VtkOutput::None).unwrap();
+    let profile = std::fs::read_to_string(dir.join("profile.csv")).unwrap();
+    let contact = std::fs::read_to_string(dir.join("contact.csv")).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let last = res.times.len() - 1;
+    let rows = |text: &str| -> Vec<Vec<String>> {
+        let mut lines = text.lines();
+        let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+        let mut out = vec![header];
+        out.extend(lines.map(|l| l.split(',').map(String::from).collect()));
+        out
+    };
+    let (p, c) = (rows(&profile), rows(&contact));
+    let col = |t: &[Vec<String>], name: &str| t[0].iter().position(|h| h == name).unwrap();
+    let num = |r: &[String], i: usize| r[i].parse::<f64>().unwrap();
+    let at_last = |t: &[Vec<String>]| -> Vec<Vec<String>> {
+        let i = col(t, "increment");
+        (t[1..].iter())
+            .filter(|r| r[i].parse::<usize>().unwrap() == last)
+            .cloned()
+            .collect()
+    };
+    let (pl, cl) = (at_last(&p), at_last(&c));
+    assert_eq!(pl.len(), xs.len());
+    let mut pressed = 0;
+    for (k, row) in pl.iter().enumerate() {
+        assert_eq!(row[col(&p, "response")], format!("p_nominal[{k}]"));
+        assert_eq!(row[col(&p, "measure")], "nominal");
+        assert_eq!(row[col(&p, "nodes")], "2");
+        let (sx, sz) = (num(row, col(&p, "X")), num(row, col(&p, "Z")));
+        // (the CSV's 13 digits)
+        assert!(
+            (sx - xs[k]).abs() <= 1e-12 * xs[k].abs(),
+            "station {k}: its x"
+        );
+        // the mean of the two rows' z
+        assert!((sz - z_mid).abs() <= 1e-12, "station {k}: Z = {sz}");
+        let pressure = num(row, col(&p, "pressure"));
+        // the station's nodes in contact.csv: each carries the station's pressure
+        let nodes: Vec<&Vec<String>> = (cl.iter()).filter(|r| num(r, col(&c, "X")) == sx).collect();
+        assert_eq!(nodes.len(), 2);
+        for r in nodes {
+            let pn = num(r, col(&c, "p_nominal"));
+            assert!(
+                (pn - pressure).abs() <= 1e-9 * pressure.abs().max(1e-9),
+                "station {k}: node pressure {pn:e}, station {pressure:e}"
+            );
+        }
+        if pressure > 0.0 {
+            pressed += 1;
+        }
+    }
+    assert!(pressed >= 3, "{pressed} pressed stations");
 }

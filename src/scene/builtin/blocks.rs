@@ -71,6 +71,8 @@ pub fn contact_patch(friction: Option<f64>) -> Scene {
             pair: "interface".into(),
             along: Component::X,
             area: Default::default(),
+            // one response per node: the regression data's columns
+            per: ProfilePoints::Node,
         }],
         solver: SolverSettings::default(),
         study: StudySpec::default(),

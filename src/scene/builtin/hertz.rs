@@ -122,6 +122,8 @@ pub fn hertz(h: &HertzSpec) -> Scene {
                 pair: "cylinder".into(),
                 along: Component::X,
                 area: Default::default(),
+                // one response per node: the regression data's columns
+                per: ProfilePoints::Node,
             },
             ResponseSpec::TargetForce {
                 name: "cylinder-force-y".into(),

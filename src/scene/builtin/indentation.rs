@@ -168,6 +168,8 @@ pub(crate) fn indentation_mesh(
                 pair: "block".into(),
                 along: Component::X,
                 area: Default::default(),
+                // one response per node: the regression data's columns
+                per: ProfilePoints::Node,
             },
         ],
         solver: SolverSettings::default(),

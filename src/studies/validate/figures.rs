@@ -103,9 +103,9 @@ impl PressureProfile {
             .iter()
             .enumerate()
             .filter_map(|(r, resp)| match resp.kind {
-                ResponseKind::ContactPressure { pair, node, .. } => {
-                    Some((r, x[model.contacts[pair].hitting[node]][0]))
-                }
+                ResponseKind::ContactPressure {
+                    pair, ref nodes, ..
+                } => Some((r, x[model.contacts[pair].hitting[nodes[0]]][0])),
                 _ => None,
             })
             .collect();

@@ -174,12 +174,14 @@ pub fn hertz_cylinders(meshes: &Path, reverse: bool) -> Result<Vec<OracleRow>, I
         // profile is nominal; a current one would need the deformed areas)
         if let ResponseKind::ContactPressure {
             pair,
-            node,
+            ref nodes,
             measure: crate::response::PressureMeasure::Nominal,
         } = resp.kind
         {
-            let n = model.contacts[pair].hitting[node];
-            let f = last.values[r] * model.contacts[pair].area[node];
+            // a station's nodes share their x
+            let n = model.contacts[pair].hitting[nodes[0]];
+            let area = nodes.iter().map(|i| model.contacts[pair].area[*i]);
+            let f = last.values[r] * area.sum::<f64>();
             force += f;
             moment2 += f * x[n].x * x[n].x;
             if last.values[r] > peak.0 {
