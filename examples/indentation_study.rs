@@ -107,8 +107,10 @@ pub fn study(press: usize, slide: usize) -> Result<Summary, Box<dyn std::error::
         .iter()
         .enumerate()
         .filter_map(|(r, resp)| match resp.kind {
-            ResponseKind::ContactPressure { pair, node, .. } => {
-                let p = x[model.contacts[pair].hitting[node]];
+            ResponseKind::ContactPressure {
+                pair, ref nodes, ..
+            } => {
+                let p = x[model.contacts[pair].hitting[nodes[0]]];
                 (p[2] == 0.0 && last.values[r] > 0.0).then_some((p[0], r))
             }
             _ => None,

@@ -440,7 +440,7 @@ impl Model {
         }
         let first_target = next;
         for c in &self.contacts {
-            crate::contact::assembly::target_unknowns(c, &mut next);
+            c.pushed_unknowns(&mut next);
         }
         let mut dof_offset = Vec::with_capacity(ne + 1);
         let mut gauss_offset = Vec::with_capacity(ne + 1);

@@ -284,7 +284,7 @@ pub fn never_touching(model: &Model, lifted: &Lifted<f64>) -> Vec<PrecheckWarnin
         let mut closest = f64::INFINITY;
         for &t in &times {
             // a pushed target where it starts (its motion is not known before the run)
-            let pushed = crate::contact::assembly::target_unknowns(pair, &mut 0);
+            let pushed = pair.pushed_unknowns(&mut 0);
             let d = crate::contact::assembly::rigid_translation(
                 pair,
                 &lifted.rigid_motion[p],

@@ -12,7 +12,7 @@ use super::geometry::{closest_on_quads, closest_on_quads_keeping};
 use super::quad_nodes;
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
-    KernelParams, MotionControl, StoredAnchor, Target, TargetGeom,
+    KernelParams, StoredAnchor, Target, TargetGeom,
 };
 use crate::mesh::FaceSet;
 use crate::model::{node_dof, node_dofs, Lifted, Model};
@@ -73,7 +73,7 @@ impl ContactLayout {
             l.lambda.push(next_l);
             l.history.push(next_h);
             l.flat.push(flat);
-            let target = target_unknowns(pair, &mut next_t);
+            let target = pair.pushed_unknowns(&mut next_t);
             let touch = if target.iter().any(Option::is_some) {
                 let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
                 let size = (pair.hitting.iter()).fold(0.0f64, |m, &n| m.max(x[n].amax()));
@@ -115,22 +115,6 @@ impl ContactLayout {
         }
         l.n_hitting = flat;
         l
-    }
-}
-
-/// Number the unknowns of a pair's force-controlled motion entries from `*next` on: one per
-/// force entry, `None` for a prescribed translation.
-pub(crate) fn target_unknowns(pair: &ContactPair, next: &mut usize) -> Vec<Option<usize>> {
-    match &pair.target {
-        Target::Rigid { motion, .. } => (motion.iter())
-            .map(|m| {
-                (m.control == MotionControl::Force).then(|| {
-                    *next += 1;
-                    *next - 1
-                })
-            })
-            .collect(),
-        Target::Faces { .. } => Vec::new(),
     }
 }
 

@@ -227,6 +227,23 @@ impl ContactPair {
         }
     }
 
+    /// Number the unknowns of the pair's force-controlled motion entries (a rigid target pushed
+    /// by a force, [`MotionControl::Force`]) from `*next` on: one per force entry, `None` for a
+    /// prescribed translation (the layout of [`crate::model::DofMap::first_target`]).
+    pub(crate) fn pushed_unknowns(&self, next: &mut usize) -> Vec<Option<usize>> {
+        match &self.target {
+            Target::Rigid { motion, .. } => (motion.iter())
+                .map(|m| {
+                    (m.control == MotionControl::Force).then(|| {
+                        *next += 1;
+                        *next - 1
+                    })
+                })
+                .collect(),
+            Target::Faces { .. } => Vec::new(),
+        }
+    }
+
     /// Whether the normal law is the augmented Lagrangian (one multiplier estimate per node).
     pub fn augmented(&self) -> bool {
         matches!(self.normal, NormalLaw::Augmented { .. })

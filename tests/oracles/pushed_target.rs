@@ -168,14 +168,13 @@ fn the_indentation_under_a_fixed_force_has_ddm_derivatives_that_match_fdm_and_ho
         );
         // a stiffer block under the same force indents less
         assert!(d(0) > 0.0, "increment {k}: d(dy)/dE = {:e}", d(0));
-        for j in 0..2 {
+        for (j, name) in names.iter().enumerate().take(2) {
             let fd = fdm.increments[k].derivatives[dy][j];
             // central differences at beta = 1e-5 of reruns converged to 1e-9 F_ref: the
             // rerun noise (about 1e-11 of the indentation) over 2 beta is a few 1e-7
             assert!(
                 (fd - d(j)).abs() <= 1e-5 * d(j).abs(),
-                "increment {k}, {}: DDM {:e}, central FDM {fd:e}",
-                names[j],
+                "increment {k}, {name}: DDM {:e}, central FDM {fd:e}",
                 d(j)
             );
         }
@@ -225,7 +224,7 @@ fn a_tangential_force_below_the_friction_limit_is_carried_and_its_slide_differen
         "d(dx)/dmu = {:e}",
         last.derivatives[dx][0]
     );
-    for j in 0..names.len() {
+    for (j, name) in names.iter().enumerate() {
         // the scale of the slide's derivative: while pressing it is the round-off of the
         // graded mesh's asymmetry (1e-9), measured against the slide's
         let scale = (ddm.increments.iter())
@@ -237,8 +236,7 @@ fn a_tangential_force_below_the_friction_limit_is_carried_and_its_slide_differen
             // over 2 beta (measured: 2e-6 of the slide's derivative at worst)
             assert!(
                 (fd - d).abs() <= 1e-5 * scale,
-                "increment {k}, {}: DDM {d:e}, central FDM {fd:e}",
-                names[j]
+                "increment {k}, {name}: DDM {d:e}, central FDM {fd:e}"
             );
         }
     }

@@ -210,6 +210,28 @@ fn indentation_deck_has_every_keyword_block_and_the_mesh_one_for_one() {
 }
 
 #[test]
+fn a_rigid_target_pushed_by_a_force_is_a_cload_on_its_reference_node() {
+    // the indentation's block pushed down by a force instead of a prescribed translation
+    let mut s = indentation(2, 4);
+    let TargetSpec::Rigid { motion, .. } = &mut s.contacts[0].target else {
+        panic!("a rigid target")
+    };
+    motion[0].value = None;
+    motion[0].force = Some(-12.5);
+    let model = s.build().unwrap();
+    let deck = export(&model, &ExportOptions::default()).unwrap();
+    assert!(
+        deck.text
+            .contains("*CLOAD,AMPLITUDE=AM0_1\nREF0,2,-1.250000000000e1"),
+        "no force on the reference node in\n{}",
+        deck.text
+    );
+    // y is no longer prescribed on it; x (the slide) still is
+    assert!(!deck.text.contains("*BOUNDARY,AMPLITUDE=AM0_1\n"));
+    assert!(deck.text.contains("*BOUNDARY,AMPLITUDE=AM0_0\nREF0,1,1,"));
+}
+
+#[test]
 fn what_calculix_cannot_be_told_is_a_typed_error() {
     let mut scene = indentation(2, 4);
     scene.bodies[0].formulation = Hex8Formulation::FBar;
