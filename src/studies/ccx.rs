@@ -554,26 +554,21 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
                 let _ = writeln!(step_bc, "*BOUNDARY\nROT{ci},1,3,0.");
                 for comp in 0..3 {
                     match motion.iter().find(|m| m.component == comp) {
-                        Some(m) if m.control == crate::contact::MotionControl::Force => {
-                            // a pushed target: the force on its reference node
-                            let amp = format!("AM{ci}_{comp}");
-                            write_amplitude(&mut rigid_text, &amp, &m.amplitude);
-                            let _ = writeln!(
-                                step_bc,
-                                "*CLOAD,AMPLITUDE={amp}\nREF{ci},{c},{:.12e}",
-                                m.value,
-                                c = comp + 1
-                            );
-                        }
                         Some(m) => {
                             let amp = format!("AM{ci}_{comp}");
                             write_amplitude(&mut rigid_text, &amp, &m.amplitude);
-                            let _ = writeln!(
-                                step_bc,
-                                "*BOUNDARY,AMPLITUDE={amp}\nREF{ci},{c},{c},{:.12e}",
-                                m.value,
-                                c = comp + 1
-                            );
+                            let (c, v) = (comp + 1, m.value);
+                            let _ = match m.control {
+                                crate::contact::MotionControl::Displacement => writeln!(
+                                    step_bc,
+                                    "*BOUNDARY,AMPLITUDE={amp}\nREF{ci},{c},{c},{v:.12e}"
+                                ),
+                                // a pushed target: the force on its reference node
+                                crate::contact::MotionControl::Force => writeln!(
+                                    step_bc,
+                                    "*CLOAD,AMPLITUDE={amp}\nREF{ci},{c},{v:.12e}"
+                                ),
+                            };
                         }
                         None => {
                             let _ =
