@@ -16,3 +16,4 @@ mod roundoff;
 mod sensitivity_elastic;
 mod sensitivity_kinks;
 mod stress;
+mod taylor;

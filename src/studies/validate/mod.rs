@@ -28,6 +28,7 @@ use std::path::{Path, PathBuf};
 mod figures;
 pub mod imported;
 mod report;
+pub mod taylor;
 use figures::*;
 use report::*;
 
@@ -230,6 +231,8 @@ pub struct SceneValidation {
     pub ledger: Vec<(String, SensitivityCost)>,
     /// The floor of one parameter over the run ([`SensitivityCost::floor_seconds`]).
     pub floor_seconds: f64,
+    /// The Taylor test of DDM's derivative per parameter ([`taylor`]).
+    pub taylor: Vec<taylor::TaylorRow>,
     /// The reference DDM results.
     #[serde(skip)]
     pub ddm: SensitivityResults,
@@ -585,6 +588,7 @@ pub(crate) fn validate_scene(
         primal_cost: primal.cost.clone(),
         newton_iterations: primal.records.iter().map(|r| r.iterations).sum(),
         floor_seconds: ddm_last.cost.floor_seconds,
+        taylor: taylor::taylor_rows(&scene.name, &ddm, &sweeps, &params, &flagged),
         ledger,
         ddm,
         sweeps,

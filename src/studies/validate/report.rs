@@ -181,7 +181,7 @@ pub(super) fn report(
     let _ = writeln!(s, "The data: `data/SCENE-errors.csv` (every method, beta and parameter), `data/SCENE-sensitivities.csv` (every response's value and derivatives at every increment, by DDM and by the other methods at beta = {:.0e}), `data/validation.json` (the tables).\n", opts.figure_beta);
     let _ = writeln!(
         s,
-        "For every scene and design parameter: DDM (forward-mode dual numbers, the exact derivative of the discrete equations, the reference), and SDM, SDM central, FDM and FDM central at beta = {} (relative perturbation `db = beta max(|b|, 1)`). SDM and DDM run in line with one primal analysis (all betas on the same run); FDM reruns the analysis at `b +- db` (in parallel). Errors are relative to DDM with a floor of {} x the largest |sensitivity| of the response over the history; increments flagged as non-differentiable (yield, contact or stick/slip transition within tolerance at the converged state) are excluded and marked in the plots.\n",
+        "For every scene and design parameter: DDM (forward-mode dual numbers, the exact derivative of the discrete equations, the reference), and SDM, SDM central, FDM and FDM central at beta = {} (relative perturbation `db = beta b`, `beta` itself where `b = 0`). SDM and DDM run in line with one primal analysis (all betas on the same run); FDM reruns the analysis at `b +- db` (in parallel). Errors are relative to DDM with a floor of {} x the largest |sensitivity| of the response over the history; increments flagged as non-differentiable (yield, contact or stick/slip transition within tolerance at the converged state) are excluded and marked in the plots.\n",
         opts.betas.iter().map(|b| format!("{b:.0e}")).collect::<Vec<_>>().join(", "),
         val.floor
     );
@@ -241,6 +241,7 @@ pub(super) fn report(
             let _ = writeln!(s, "| {} | {} | {} |", v.scene, p, cells.join(" | "));
         }
     }
+    write_taylor(&mut s, val);
     let _ = writeln!(s, "\n## Cost\n");
     let _ = writeln!(s, "Sensitivity wall time for all of a scene's parameters over the primal analysis, at beta = {:.0e} (SDM and DDM share the primal run; FDM is reruns). DDM, SDM and SDM central solve with the tangent at the converged state (the default, `--tangent exact`), to a relative residual of {:.0e}: by GMRES preconditioned with Newton's last factorization (a few solves per increment), with a factorization of their own only where GMRES does not get there in {} steps, then refined with double-double residuals to 1e-13 of the solution, so that DDM is exact to about that and SDM's error is its own; \"last factor\" (`--tangent last`) solves with Newton's last factorization alone (the paper's choice: no solve beyond one triangular solve), and its error against the reference is the price in accuracy, its time against DDM's the price of exactness. SDM's errors include its own forward-difference error at this beta, shown beside SDM with the converged tangent; the largest error over a scene's parameters is shown. The floor is one residual evaluation and one triangular solve per parameter and increment; the updates of the history after the solve skip the elements whose Gauss points are all elastic.\n", opts.figure_beta, crate::sensitivity::KRYLOV_TOL, crate::sensitivity::KRYLOV_MAX_ITER);
     let _ = writeln!(
@@ -664,5 +665,87 @@ fn write_oracle_table(s: &mut String, rows: &[OracleRow]) {
             o.tolerance,
             if o.pass { "pass" } else { "**FAIL**" }
         );
+    }
+}
+
+/// The Taylor table ([`super::taylor`]).
+fn write_taylor(s: &mut String, val: &Validation) {
+    let _ = writeln!(s, "\n## Taylor test\n");
+    let _ = writeln!(
+        s,
+        "The remainder `R(h) = |f(b + h) - f(b) - h f'|` falls as `h^2` when `f'` is the derivative of `f` at `b`, and only as `h` when it is not: the gradient check of the adjoint literature. `f(b + h)` is the forward FDM rerun at `h = beta b` for beta = {} (where the sweep ran it), `f'` DDM's; per scene and parameter the response and increment most sensitive to the parameter (unflagged). Slopes are least-squares fits of `log R` against `log h`; the zeroth-order column (`f' = 0`) shows what a wrong derivative gives. A slope below 2 with DDM means the response is not smooth over the step: an active set, a stick/slip or a yield state changes between `b` and `b + h` (the scenes with contact and plasticity), or the rerun's Newton noise (1e-9 of the response) reaches the remainder at the smallest step.\n",
+        super::taylor::TAYLOR_BETAS
+            .iter()
+            .map(|b| format!("{b:.0e}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let rows: Vec<&super::taylor::TaylorRow> = val.scenes.iter().flat_map(|v| &v.taylor).collect();
+    let tested: Vec<_> = rows
+        .iter()
+        .filter(|t| !t.linear && t.h.len() >= 2)
+        .collect();
+    let quadratic = tested
+        .iter()
+        .filter(|t| (t.slope_exact - 2.0).abs() <= 0.05)
+        .count();
+    let last_steps = tested
+        .iter()
+        .filter(|t| {
+            let n = t.h.len();
+            (super::taylor::log_slope(&t.h[n - 2..], &t.exact[n - 2..]) - 2.0).abs() <= 0.1
+        })
+        .count();
+    let first_order = tested
+        .iter()
+        .filter(|t| (t.slope_zeroth - 1.0).abs() <= 0.1)
+        .count();
+    let _ = writeln!(
+        s,
+        "Of {} tests with at least two steps and a response not linear in its parameter, {quadratic} have a fitted slope within 0.05 of 2, and {last_steps} fall as `h^2` (slope within 0.1 of 2) over their last, smallest step; with `f' = 0`, {first_order} have a fitted slope within 0.1 of 1.\n",
+        tested.len()
+    );
+    let _ = writeln!(
+        s,
+        "| scene | parameter | response (increment) | R(h) with DDM's f', largest h first | slope per step, DDM | fitted slope, DDM | fitted slope, f' = 0 |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    for v in &val.scenes {
+        for t in &v.taylor {
+            let rs: Vec<String> = t.exact.iter().map(|r| format!("{r:.1e}")).collect();
+            let fmt = |v: f64| {
+                if v.is_finite() {
+                    format!("{v:.2}")
+                } else {
+                    "-".to_string()
+                }
+            };
+            let steps: Vec<String> = (t.h.windows(2).zip(t.exact.windows(2)))
+                .map(|(h, r)| fmt(super::taylor::log_slope(h, r)))
+                .collect();
+            let (steps, slope) = if t.linear {
+                ("-".to_string(), "linear in b: R is round-off".to_string())
+            } else if t.h.len() < 2 {
+                (
+                    "-".to_string(),
+                    format!(
+                        "{} usable step (the others took extra sub-increments or failed)",
+                        t.h.len()
+                    ),
+                )
+            } else {
+                (steps.join(", "), fmt(t.slope_exact))
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} ({}) | {} | {steps} | {slope} | {} |",
+                t.scene,
+                t.param,
+                t.response,
+                t.increment,
+                rs.join(", "),
+                fmt(t.slope_zeroth)
+            );
+        }
     }
 }
