@@ -16,7 +16,7 @@ fn rows(scene: Scene, names: &[&str]) -> Vec<fricsens::studies::validate::taylor
         .map(|b| common::sensitivities(&model, &params, Method::Fdm, *b))
         .collect();
     let flagged: Vec<bool> = ddm.increments.iter().map(|i| !i.kinks.is_empty()).collect();
-    taylor_rows(&scene.name, &ddm, &sweeps, &params, &flagged)
+    taylor_rows(&scene.name, &ddm, &sweeps, &params, &flagged, 1e-6)
 }
 
 #[test]
@@ -74,4 +74,38 @@ fn a_response_linear_in_the_parameter_is_told_apart() {
         assert!(t.linear, "{}: {:?}", t.response, t.exact);
         assert!((t.slope_zeroth - 1.0).abs() <= 1e-6);
     }
+}
+
+#[test]
+fn a_derivative_with_a_finite_difference_error_falls_only_as_h() {
+    // central FDM at beta = 0.3 on the small-strain beam in E (tip deflection ~ 1/E): its
+    // derivative is off by beta^2 / (1 - beta^2) = 9.9 %, so once h is well below 0.1 b the
+    // remainder with it falls as h (h e |f'|), not h^2
+    let scene = Scene::load("cantilever-small").unwrap();
+    let model = scene.build().unwrap();
+    let params = common::params(&model, &["E"]);
+    let ddm = common::sensitivities(&model, &params, Method::Ddm, 0.0);
+    let mut sweeps: Vec<_> = TAYLOR_BETAS
+        .iter()
+        .map(|b| common::sensitivities(&model, &params, Method::Fdm, *b))
+        .collect();
+    sweeps.push(common::sensitivities(
+        &model,
+        &params,
+        Method::FdmCentral,
+        0.3,
+    ));
+    let flagged = vec![false; ddm.increments.len()];
+    let rows = taylor_rows(&scene.name, &ddm, &sweeps, &params, &flagged, 0.3);
+    let t = &rows[0];
+    assert_eq!(t.methods.len(), 1);
+    let m = &t.methods[0];
+    assert_eq!(m.method, "fdm-central");
+    let n = t.h.len();
+    // the last step (beta 1e-3 -> 1e-4): R = h |f'| |beta_h - 0.099|, slope 1 - 0.004
+    let last = log_slope(&t.h[n - 2..], &m.remainder[n - 2..]);
+    assert!((last - 1.0).abs() <= 0.02, "last-step slope {last}");
+    // and DDM's on the same steps stays 2
+    let exact = log_slope(&t.h[n - 2..], &t.exact[n - 2..]);
+    assert!((exact - 2.0).abs() <= 0.02, "DDM's last-step slope {exact}");
 }

@@ -241,7 +241,7 @@ pub(super) fn report(
             let _ = writeln!(s, "| {} | {} | {} |", v.scene, p, cells.join(" | "));
         }
     }
-    write_taylor(&mut s, val);
+    write_taylor(&mut s, val, opts);
     let _ = writeln!(s, "\n## Cost\n");
     let _ = writeln!(s, "Sensitivity wall time for all of a scene's parameters over the primal analysis, at beta = {:.0e} (SDM and DDM share the primal run; FDM is reruns). DDM, SDM and SDM central solve with the tangent at the converged state (the default, `--tangent exact`), to a relative residual of {:.0e}: by GMRES preconditioned with Newton's last factorization (a few solves per increment), with a factorization of their own only where GMRES does not get there in {} steps, then refined with double-double residuals to 1e-13 of the solution, so that DDM is exact to about that and SDM's error is its own; \"last factor\" (`--tangent last`) solves with Newton's last factorization alone (the paper's choice: no solve beyond one triangular solve), and its error against the reference is the price in accuracy, its time against DDM's the price of exactness. SDM's errors include its own forward-difference error at this beta, shown beside SDM with the converged tangent; the largest error over a scene's parameters is shown. The floor is one residual evaluation and one triangular solve per parameter and increment; the updates of the history after the solve skip the elements whose Gauss points are all elastic.\n", opts.figure_beta, crate::sensitivity::KRYLOV_TOL, crate::sensitivity::KRYLOV_MAX_ITER);
     let _ = writeln!(
@@ -669,11 +669,11 @@ fn write_oracle_table(s: &mut String, rows: &[OracleRow]) {
 }
 
 /// The Taylor table ([`super::taylor`]).
-fn write_taylor(s: &mut String, val: &Validation) {
+fn write_taylor(s: &mut String, val: &Validation, opts: &ValidateOptions) {
     let _ = writeln!(s, "\n## Taylor test\n");
     let _ = writeln!(
         s,
-        "The remainder `R(h) = |f(b + h) - f(b) - h f'|` falls as `h^2` when `f'` is the derivative of `f` at `b`, and only as `h` when it is not: the gradient check of the adjoint literature. `f(b + h)` is the forward FDM rerun at `h = beta b` for beta = {} (where the sweep ran it), `f'` DDM's; per scene and parameter the response and increment most sensitive to the parameter (unflagged). Slopes are least-squares fits of `log R` against `log h`; the zeroth-order column (`f' = 0`) shows what a wrong derivative gives. A slope below 2 with DDM means the response is not smooth over the step: an active set, a stick/slip or a yield state changes between `b` and `b + h` (the scenes with contact and plasticity), or the rerun's Newton noise (1e-9 of the response) reaches the remainder at the smallest step.\n",
+        "The remainder `R(h) = |f(b + h) - f(b) - h f'|` falls as `h^2` when `f'` is the derivative of `f` at `b`, and only as `h` when it is not: the gradient check of the adjoint literature. `f(b + h)` is the forward FDM rerun at `h = beta b` for beta = {} (where the sweep ran it), `f'` DDM's; per scene and parameter the response and increment most sensitive to the parameter (unflagged). Slopes are least-squares fits of `log R` against `log h`; the zeroth-order column (`f' = 0`) shows what a wrong derivative gives, and the last column the slope with each other method's derivative at the figure beta (2 while the method's error `e` is below `h f''/2` at every step, falling towards 1 where `h e` takes over). A slope below 2 with DDM means the response is not smooth over the step: an active set, a stick/slip or a yield state changes between `b` and `b + h` (the scenes with contact and plasticity), or the rerun's Newton noise (1e-9 of the response) reaches the remainder at the smallest step.\n",
         super::taylor::TAYLOR_BETAS
             .iter()
             .map(|b| format!("{b:.0e}"))
@@ -707,9 +707,10 @@ fn write_taylor(s: &mut String, val: &Validation) {
     );
     let _ = writeln!(
         s,
-        "| scene | parameter | response (increment) | R(h) with DDM's f', largest h first | slope per step, DDM | fitted slope, DDM | fitted slope, f' = 0 |"
+        "| scene | parameter | response (increment) | R(h) with DDM's f', largest h first | slope per step, DDM | fitted slope, DDM | fitted slope, f' = 0 | fitted slope with f' by SDM, SDM central, FDM central at beta = {:.0e} |",
+        opts.figure_beta
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
     for v in &val.scenes {
         for t in &v.taylor {
             let rs: Vec<String> = t.exact.iter().map(|r| format!("{r:.1e}")).collect();
@@ -736,15 +737,17 @@ fn write_taylor(s: &mut String, val: &Validation) {
             } else {
                 (steps.join(", "), fmt(t.slope_exact))
             };
+            let others: Vec<String> = t.methods.iter().map(|m| fmt(m.slope)).collect();
             let _ = writeln!(
                 s,
-                "| {} | {} | {} ({}) | {} | {steps} | {slope} | {} |",
+                "| {} | {} | {} ({}) | {} | {steps} | {slope} | {} | {} |",
                 t.scene,
                 t.param,
                 t.response,
                 t.increment,
                 rs.join(", "),
-                fmt(t.slope_zeroth)
+                fmt(t.slope_zeroth),
+                others.join(", ")
             );
         }
     }

@@ -43,6 +43,21 @@ pub struct TaylorRow {
     /// The response is linear in the parameter: its remainder is round-off at every step
     /// (below 1e-10 of the zeroth-order one), so its slope says nothing.
     pub linear: bool,
+    /// The remainders with each other method's `f'` at the report's figure beta (SDM, SDM
+    /// central, FDM central): they fall as `h^2` while the method's error `e` is below the
+    /// remainder's `h f''/2`, and as `h` where `h e` takes over.
+    pub methods: Vec<MethodTaylor>,
+}
+
+/// The Taylor remainders with one method's derivative.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct MethodTaylor {
+    /// The method (`sdm`, `sdm-central`, `fdm-central`).
+    pub method: String,
+    /// `|f(b + h) - f(b) - h f'|` with its `f'`, per step of [`TaylorRow::h`].
+    pub remainder: Vec<f64>,
+    /// The least-squares slope of `log R` against `log h`.
+    pub slope: f64,
 }
 
 /// Least-squares slope of `log y` against `log x` over the points with `y > 0`.
@@ -66,14 +81,22 @@ pub fn log_slope(x: &[f64], y: &[f64]) -> f64 {
 
 /// The Taylor rows of one scene: DDM's derivatives `ddm` against the forward FDM reruns among
 /// `sweeps`, for each parameter of `params` (`flagged`: DDM's non-differentiable increments,
-/// left out).
+/// left out); the other methods' derivatives at `figure_beta` among `sweeps` are tested too.
 pub fn taylor_rows(
     scene: &str,
     ddm: &SensitivityResults,
     sweeps: &[SensitivityResults],
     params: &[Parameter],
     flagged: &[bool],
+    figure_beta: f64,
 ) -> Vec<TaylorRow> {
+    let others: Vec<&SensitivityResults> = [Method::Sdm, Method::SdmCentral, Method::FdmCentral]
+        .iter()
+        .filter_map(|m| {
+            (sweeps.iter())
+                .find(|s| s.method == Some(*m) && (s.beta / figure_beta - 1.0).abs() < 1e-9)
+        })
+        .collect();
     let mut fdm: Vec<&SensitivityResults> = (sweeps.iter())
         .filter(|s| s.method == Some(Method::Fdm))
         .filter(|s| TAYLOR_BETAS.iter().any(|b| (s.beta / b - 1.0).abs() < 1e-9))
@@ -100,6 +123,11 @@ pub fn taylor_rows(
         }
         let Some((_, r, n)) = best else { continue };
         let exact_derivative = ddm.increments[n].derivatives[r][p];
+        let derivative_of = |s: &SensitivityResults| {
+            (s.increments.get(n)).map_or(f64::NAN, |inc| inc.derivatives[r][p])
+        };
+        let other_derivatives: Vec<f64> = others.iter().map(|s| derivative_of(s)).collect();
+        let mut with_other: Vec<Vec<f64>> = vec![Vec::new(); others.len()];
         let (mut h, mut exact, mut zeroth) = (Vec::new(), Vec::new(), Vec::new());
         for s in &fdm {
             let Some(inc) = s.increments.get(n) else {
@@ -113,6 +141,9 @@ pub fn taylor_rows(
             h.push(step);
             exact.push(step * (d - exact_derivative).abs());
             zeroth.push(step * d.abs());
+            for (w, o) in with_other.iter_mut().zip(&other_derivatives) {
+                w.push(step * (d - o).abs());
+            }
         }
         let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(*x));
         let linear = largest(&exact) <= 1e-10 * largest(&zeroth);
@@ -124,6 +155,13 @@ pub fn taylor_rows(
             increment: ddm.increments[n].increment,
             slope_exact: log_slope(&h, &exact),
             slope_zeroth: log_slope(&h, &zeroth),
+            methods: (others.iter().zip(with_other))
+                .map(|(s, remainder)| MethodTaylor {
+                    method: s.method.map_or("?", |m| m.name()).to_string(),
+                    slope: log_slope(&h, &remainder),
+                    remainder,
+                })
+                .collect(),
             h,
             exact,
             zeroth,
