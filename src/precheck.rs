@@ -284,14 +284,8 @@ pub fn never_touching(model: &Model, lifted: &Lifted<f64>) -> Vec<PrecheckWarnin
         let mut closest = f64::INFINITY;
         for &t in &times {
             // a pushed target where it starts (its motion is not known before the run)
-            let pushed = pair.pushed_unknowns(&mut 0);
-            let d = crate::contact::assembly::rigid_translation(
-                pair,
-                &lifted.rigid_motion[p],
-                t,
-                &pushed,
-                None,
-            );
+            let d =
+                crate::contact::assembly::rigid_translation(pair, &lifted.rigid_motion[p], t, None);
             for xi in &x {
                 if let Ok(pr) = surface.project(xi, &d) {
                     closest = closest.min(pr.gap);

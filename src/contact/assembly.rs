@@ -12,7 +12,7 @@ use super::geometry::{closest_on_quads, closest_on_quads_keeping};
 use super::quad_nodes;
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
-    KernelParams, StoredAnchor, Target, TargetGeom,
+    KernelParams, MotionControl, StoredAnchor, Target, TargetGeom,
 };
 use crate::mesh::FaceSet;
 use crate::model::{node_dof, node_dofs, Lifted, Model};
@@ -160,23 +160,26 @@ fn closest_face<S: Scalar>(
 }
 
 /// Rigid translation of a pair's target at time `t`: the prescribed components from the
-/// motion magnitudes `values`, the force-controlled ones from their unknowns (`target`, the
-/// pair's [`ContactLayout::target`]) in `z`, or zero without `z` (the reference position).
+/// motion magnitudes `values`; a pushed target's ([`MotionControl::Force`]) from their
+/// unknowns in `z` (`target`: the pair's [`ContactLayout::target`]), zero without them (where
+/// the scene put it: at t = 0, or before the run).
 pub(crate) fn rigid_translation<S: Scalar>(
     pair: &ContactPair,
     values: &[S],
     t: f64,
-    target: &[Option<usize>],
-    z: Option<&[S]>,
+    pushed: Option<(&[Option<usize>], &[S])>,
 ) -> Vector3<S> {
     let mut d = Vector3::zeros();
     if let Target::Rigid { motion, .. } = &pair.target {
-        for (k, (m, v)) in motion.iter().zip(values).enumerate() {
-            match (target.get(k).copied().flatten(), z) {
-                (Some(dof), Some(z)) => d[m.component] += z[dof],
-                (Some(_), None) => {}
-                (None, _) => d[m.component] += *v * m.amplitude.at(t),
+        for (m, v) in motion.iter().zip(values) {
+            if m.control == MotionControl::Displacement {
+                d[m.component] += *v * m.amplitude.at(t);
             }
+        }
+    }
+    if let Some((target, z)) = pushed {
+        for (_, dof, m) in pair.pushed(target) {
+            d[m.component] += z[dof];
         }
     }
     d
@@ -217,17 +220,8 @@ pub(crate) fn evaluate<S: Scalar>(
         out.pair_force[p] = Vector3::zeros();
         let target_dofs = &layout.target[p];
         let d: Vector3<S> =
-            rigid_translation(pair, &lifted.rigid_motion[p], time, target_dofs, Some(z));
+            rigid_translation(pair, &lifted.rigid_motion[p], time, Some((target_dofs, z)));
         out.translation[p] = d;
-        // a pushed target's equilibrium rows: the applied force (the contact forces are added
-        // node by node below)
-        if let Target::Rigid { motion, .. } = &pair.target {
-            for (k, dof) in target_dofs.iter().enumerate() {
-                if let Some(dof) = dof {
-                    residual[*dof] -= lifted.rigid_motion[p][k] * motion[k].amplitude.at(time);
-                }
-            }
-        }
         let nh = pair.history_len();
         let fparams = &lifted.friction[p];
         let eps_t = lifted.tangential[p];
@@ -351,13 +345,6 @@ pub(crate) fn evaluate<S: Scalar>(
                     }
                 }
             }
-            if let Target::Rigid { motion, .. } = &pair.target {
-                for (k, dof) in target_dofs.iter().enumerate() {
-                    if let Some(dof) = dof {
-                        residual[*dof] += ko.force[motion[k].component];
-                    }
-                }
-            }
             residual[lam_dof] += ko.r_lambda;
             out.pair_force[p] += ko.force;
             out.normal_force[flat] = ko.p_n;
@@ -445,6 +432,12 @@ pub(crate) fn evaluate<S: Scalar>(
                 .map_err(err)?;
                 tangents.push((block.pattern_block, kt));
             }
+        }
+        // a pushed target's equilibrium rows: the contact forces on the hitting nodes less
+        // the applied force
+        for (k, dof, m) in pair.pushed(target_dofs) {
+            let applied = lifted.rigid_motion[p][k] * m.amplitude.at(time);
+            residual[dof] += out.pair_force[p][m.component] - applied;
         }
     }
     Ok(())
@@ -591,17 +584,12 @@ fn local_tangent_n<S: Scalar, const N: usize>(
         .collect();
     // the prescribed translation, and a pushed target's translations seeded (block columns
     // 3.. after the hitting node: a rigid target has no target nodes)
-    let mut d: Vector3<Ad<N>> = rigid_translation(pair, &rv, time, &layout.target[p], None);
+    let mut d: Vector3<Ad<N>> = rigid_translation(pair, &rv, time, None);
     let mut target_cols: Vec<(usize, usize)> = Vec::new();
-    if let Target::Rigid { motion, .. } = &pair.target {
-        for (k, dof) in layout.target[p].iter().enumerate() {
-            if let Some(dof) = dof {
-                let col = 3 + target_cols.len();
-                let c = motion[k].component;
-                d[c] += seed(z[*dof].value(), col, &mut slots);
-                target_cols.push((col, c));
-            }
-        }
+    for (_, dof, m) in pair.pushed(&layout.target[p]) {
+        let col = 3 + target_cols.len();
+        d[m.component] += seed(z[dof].value(), col, &mut slots);
+        target_cols.push((col, m.component));
     }
     let (target, contact_nodes) = match &pair.target {
         Target::Faces { faces } => {
@@ -718,8 +706,7 @@ pub(crate) fn initial_history<S: Scalar>(
             continue;
         }
         // at t = 0 a pushed target is where the scene put it
-        let d: Vector3<S> =
-            rigid_translation(pair, &lifted.rigid_motion[p], 0.0, &layout.target[p], None);
+        let d: Vector3<S> = rigid_translation(pair, &lifted.rigid_motion[p], 0.0, None);
         let nh = pair.history_len();
         for (i, &s) in pair.hitting.iter().enumerate() {
             let h0 = layout.history[p] + nh * i;

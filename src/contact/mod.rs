@@ -244,6 +244,21 @@ impl ContactPair {
         }
     }
 
+    /// The pushed motion entries of the pair: `(entry index, its unknown, the entry)` for each
+    /// entry of its rigid target's motion that is a force, its unknown from `target` (the
+    /// pair's numbering by [`ContactPair::pushed_unknowns`]).
+    pub(crate) fn pushed<'a>(
+        &'a self,
+        target: &'a [Option<usize>],
+    ) -> impl Iterator<Item = (usize, usize, &'a RigidMotion)> + 'a {
+        let motion: &[RigidMotion] = match &self.target {
+            Target::Rigid { motion, .. } => motion,
+            Target::Faces { .. } => &[],
+        };
+        (motion.iter().zip(target).enumerate())
+            .filter_map(|(k, (m, dof))| dof.map(|dof| (k, dof, m)))
+    }
+
     /// Whether the normal law is the augmented Lagrangian (one multiplier estimate per node).
     pub fn augmented(&self) -> bool {
         matches!(self.normal, NormalLaw::Augmented { .. })

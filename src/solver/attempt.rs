@@ -432,14 +432,10 @@ impl Solver<'_> {
             let p = self.lifted.pressures[l] * load.amplitude.at(t);
             f_ext += (p * self.unit_pressure_norms[l]).powi(2);
         }
+        // the forces pushing rigid targets
         for (p, pair) in self.model.contacts.iter().enumerate() {
-            if let crate::contact::Target::Rigid { motion, .. } = &pair.target {
-                for (k, dof) in self.assembler.contact.target[p].iter().enumerate() {
-                    if dof.is_some() {
-                        let f = self.lifted.rigid_motion[p][k] * motion[k].amplitude.at(t);
-                        f_ext += f * f;
-                    }
-                }
+            for (k, _, m) in pair.pushed(&self.assembler.contact.target[p]) {
+                f_ext += (self.lifted.rigid_motion[p][k] * m.amplitude.at(t)).powi(2);
             }
         }
         let f_ref = r_fixed.sqrt().max(f_ext.sqrt());

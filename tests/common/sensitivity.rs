@@ -67,3 +67,24 @@ pub fn ddm_and_central_fdm(
     let fdm = sensitivities(model, &params, Method::FdmCentral, 1e-6);
     (params, ddm, fdm)
 }
+
+/// The largest difference between `other`'s and `reference`'s derivatives in parameter `p`
+/// over the responses `compared` and every increment, relative to the largest `|derivative|`
+/// of `reference` over the responses `scaled_by`; and that scale.
+pub fn worst_difference(
+    reference: &SensitivityResults,
+    other: &SensitivityResults,
+    compared: &[usize],
+    scaled_by: &[usize],
+    p: usize,
+) -> (f64, f64) {
+    let scale = (reference.increments.iter())
+        .flat_map(|i| scaled_by.iter().map(move |r| i.derivatives[*r][p].abs()))
+        .fold(0.0f64, f64::max);
+    let worst = (reference.increments.iter().zip(&other.increments))
+        .flat_map(|(a, b)| {
+            (compared.iter()).map(move |r| (a.derivatives[*r][p] - b.derivatives[*r][p]).abs())
+        })
+        .fold(0.0f64, f64::max);
+    (worst / scale, scale)
+}

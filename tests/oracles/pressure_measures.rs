@@ -93,16 +93,13 @@ fn the_current_pressure_integrates_to_the_normal_force_and_ddm_equals_central_fd
     }
     assert!(closed > 0);
     // DDM against central FDM for every pressure, both measures
+    let pressures: Vec<usize> = (0..model.responses.len())
+        .filter(|r| kind(*r).is_some())
+        .collect();
+    // relative to the largest derivative of any response (the forces')
+    let every: Vec<usize> = (0..model.responses.len()).collect();
     for (p, param) in ps.iter().enumerate() {
-        let scale = (ddm.increments.iter())
-            .flat_map(|i| i.derivatives.iter().map(move |d| d[p].abs()))
-            .fold(0.0f64, f64::max);
-        let mut worst: f64 = 0.0;
-        for (a, b) in ddm.increments.iter().zip(&fdm.increments) {
-            for r in (0..model.responses.len()).filter(|r| kind(*r).is_some()) {
-                worst = worst.max((a.derivatives[r][p] - b.derivatives[r][p]).abs() / scale);
-            }
-        }
+        let (worst, scale) = common::worst_difference(&ddm, &fdm, &pressures, &every, p);
         println!(
             "{}: DDM vs central FDM {worst:.2e} of {scale:.4e}",
             param.name
@@ -220,15 +217,7 @@ fn the_current_pressure_of_a_large_deformation_contact_ddm_equals_central_fdm() 
         })
         .collect();
     for (p, param) in ps.iter().enumerate() {
-        let scale = (ddm.increments.iter())
-            .flat_map(|i| pressures.iter().map(move |r| i.derivatives[*r][p].abs()))
-            .fold(0.0f64, f64::max);
-        let mut worst: f64 = 0.0;
-        for (a, b) in ddm.increments.iter().zip(&fdm.increments) {
-            for &r in &pressures {
-                worst = worst.max((a.derivatives[r][p] - b.derivatives[r][p]).abs() / scale);
-            }
-        }
+        let (worst, scale) = common::worst_difference(&ddm, &fdm, &pressures, &pressures, p);
         println!(
             "{}: DDM vs central FDM {worst:.2e} of {scale:.4e}",
             param.name

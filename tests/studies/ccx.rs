@@ -21,6 +21,39 @@ fn scene(file: &str) -> Scene {
     Scene::from_file(Path::new(file)).unwrap()
 }
 
+/// The comparison options of a test: `ccx` run in the scratch directory `work` (beta = 1e-2,
+/// `threads` threads, no time limit).
+fn options(ccx: std::path::PathBuf, work: std::path::PathBuf, threads: usize) -> CompareOptions {
+    CompareOptions {
+        ccx,
+        work,
+        beta: 1e-2,
+        threads,
+        export: ExportOptions::default(),
+        time_limit: None,
+    }
+}
+
+/// `model` compared with CalculiX in a scratch directory named `work` (removed afterwards);
+/// `None`, with a message, where `ccx` is not installed.
+fn against_calculix(
+    model: &fricsens::model::Model,
+    name: &str,
+    work: &str,
+    threads: usize,
+) -> Option<fricsens::studies::ccx::Comparison> {
+    let Some(ccx) = find_ccx() else {
+        println!(
+            "ccx not found: skipping the CalculiX comparison (install Debian package calculix-ccx)"
+        );
+        return None;
+    };
+    let work = scratch_path(work);
+    let c = compare(model, name, &options(ccx, work.clone(), threads));
+    let _ = std::fs::remove_dir_all(&work);
+    Some(c.unwrap())
+}
+
 /// The deck's nodes (1-based id to coordinates), elements (id to nodes and element set) and
 /// element surfaces (name to (element, side)), read back from its text.
 struct ParsedDeck {
@@ -295,25 +328,10 @@ fn the_cli_skips_cleanly_without_ccx() {
 #[test]
 #[ignore = "runs CalculiX three times (about a minute); skips without ccx"]
 fn reduced_indentation_against_calculix() {
-    let Some(ccx) = find_ccx() else {
-        println!(
-            "ccx not found: skipping the CalculiX comparison (install Debian package calculix-ccx)"
-        );
+    let model = indentation(2, 4).build().unwrap();
+    let Some(c) = against_calculix(&model, "indentation-reduced", "ccx-test", 1) else {
         return;
     };
-    let model = indentation(2, 4).build().unwrap();
-    let work = scratch_path("ccx-test");
-    let opts = CompareOptions {
-        ccx,
-        work: work.clone(),
-        beta: 1e-2,
-        threads: 1,
-        export: ExportOptions::default(),
-        time_limit: None,
-    };
-    let c = compare(&model, "indentation-reduced", &opts);
-    let _ = std::fs::remove_dir_all(&work);
-    let c = c.unwrap();
     assert_eq!(c.times.len(), 6);
     assert!(c.rigid);
     let labels: Vec<&str> = c.quantities.iter().map(|q| q.label.as_str()).collect();
@@ -576,25 +594,10 @@ fn dat_totals_and_displacements_are_read() {
 #[test]
 #[ignore = "runs CalculiX three times (about two minutes); skips without ccx"]
 fn punch_on_slab_against_calculix() {
-    let Some(ccx) = find_ccx() else {
-        println!(
-            "ccx not found: skipping the CalculiX comparison (install Debian package calculix-ccx)"
-        );
+    let model = scene("meshes/punch-on-slab.toml").build().unwrap();
+    let Some(c) = against_calculix(&model, "meshes/punch-on-slab.toml", "ccx-punch-test", 2) else {
         return;
     };
-    let model = scene("meshes/punch-on-slab.toml").build().unwrap();
-    let work = scratch_path("ccx-punch-test");
-    let opts = CompareOptions {
-        ccx,
-        work: work.clone(),
-        beta: 1e-2,
-        threads: 2,
-        export: ExportOptions::default(),
-        time_limit: None,
-    };
-    let c = compare(&model, "meshes/punch-on-slab.toml", &opts);
-    let _ = std::fs::remove_dir_all(&work);
-    let c = c.unwrap();
     assert!(!c.rigid);
     assert_eq!(c.symbol, "mu");
     assert_eq!(c.times.len(), 10);
@@ -659,15 +662,7 @@ echo ' iteration 1'
     .unwrap();
     std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
     let model = scene("meshes/punch-on-slab.toml").build().unwrap();
-    let opts = CompareOptions {
-        ccx: program,
-        work: dir.join("work"),
-        beta: 1e-2,
-        threads: 1,
-        export: ExportOptions::default(),
-        time_limit: None,
-    };
-    let c = compare(&model, "punch", &opts).unwrap();
+    let c = compare(&model, "punch", &options(program, dir.join("work"), 1)).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
     assert!(c.ccx_rerun_failures[1].is_none());
     let f = c.ccx_rerun_failures[0].as_deref().unwrap();
@@ -709,21 +704,14 @@ fn a_calculix_run_past_its_time_limit_is_stopped_and_reported() {
     std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
     let model = scene("meshes/lame-octant.toml").build().unwrap();
     let opts = CompareOptions {
-        ccx: program,
-        work: dir.join("work"),
-        beta: 1e-2,
-        threads: 1,
-        export: ExportOptions::default(),
         time_limit: Some(0.5),
+        ..options(program, dir.join("work"), 1)
     };
     let t = std::time::Instant::now();
     let e = compare(&model, "lame", &opts).unwrap_err().to_string();
     let _ = std::fs::remove_dir_all(&dir);
     assert!(t.elapsed().as_secs_f64() < 30.0, "waited for the sleeper");
-    assert!(
-        e.contains("time limit of 0 s") || e.contains("time limit"),
-        "{e}"
-    );
+    assert!(e.contains("time limit"), "{e}");
     assert!(
         e.contains("iteration 1"),
         "the output's tail is not shown: {e}"
