@@ -73,6 +73,51 @@ pub struct Frozen<'a> {
     /// an element the design perturbation does not reach contributes the same residual to
     /// both evaluations of SDM's unbalance, so both may leave it out.
     pub skip: Option<&'a [bool]>,
+    /// The terms of the residual the evaluation adds (all by default). SDM's error anatomy
+    /// ([`crate::sensitivity::anatomy`]) evaluates them one at a time.
+    pub terms: Terms,
+}
+
+/// The terms of the residual, each added by its own kernel: an evaluation may leave any of
+/// them out ([`Frozen::terms`]). The history, the contact results and the branches are
+/// computed whatever the terms; only the residual is partial.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Terms {
+    /// The internal forces of the solid elements (with their material's return map).
+    pub solids: bool,
+    /// The forces of the discrete springs.
+    pub springs: bool,
+    /// The normal contact forces and the multipliers' constraint rows.
+    pub contact_normal: bool,
+    /// The friction forces.
+    pub friction: bool,
+    /// The external loads: point loads, pressures, and the force on a pushed rigid target.
+    pub loads: bool,
+}
+
+impl Terms {
+    /// Every term: the whole residual.
+    pub const ALL: Terms = Terms {
+        solids: true,
+        springs: true,
+        contact_normal: true,
+        friction: true,
+        loads: true,
+    };
+    /// No term.
+    pub const NONE: Terms = Terms {
+        solids: false,
+        springs: false,
+        contact_normal: false,
+        friction: false,
+        loads: false,
+    };
+}
+
+impl Default for Terms {
+    fn default() -> Self {
+        Terms::ALL
+    }
 }
 
 /// What failed during assembly, and where.
@@ -361,7 +406,15 @@ impl Assembler {
         // elements left out of this evaluation. The masks are drawn from Gauss points and
         // histories: an element without Gauss points (a spring) is always evaluated.
         let skip = frozen.and_then(|f| f.skip);
-        let skipped = |e: usize| skip.is_some_and(|s| s[e]) && !self.dofs.gauss(e).is_empty();
+        let terms = frozen.map_or(Terms::ALL, |f| f.terms);
+        let skipped = |e: usize| {
+            let spring = self.dofs.gauss(e).is_empty();
+            if spring {
+                !terms.springs
+            } else {
+                !terms.solids || skip.is_some_and(|s| s[e])
+            }
+        };
         let ne = model.mesh.n_elements();
         let mut locals: Vec<Local<S>> = Vec::new();
         // element tangents of one chunk, allocated once per evaluation (not per element)
@@ -462,6 +515,7 @@ impl Assembler {
                 frozen.map(|f| f.contact).filter(|c| !c.is_empty()),
                 frozen.and_then(|f| f.keep_faces),
                 frozen.and_then(|f| f.stick),
+                terms,
                 want_k,
                 &mut out.residual,
                 &mut out.hist_new,
@@ -477,6 +531,9 @@ impl Assembler {
             }
         }
         // external loads
+        if !terms.loads {
+            return Ok(());
+        }
         for (l, load) in model.loads.iter().enumerate() {
             let f = lifted.loads[l] * load.amplitude.at(time);
             for (&n, w) in load.nodes.iter().zip(&load.weights) {

@@ -81,6 +81,14 @@ enum Command {
         /// with the factor at hand.
         #[arg(long)]
         no_krylov: bool,
+        /// SDM and SDM central: split SDM's error against DDM at every increment into the
+        /// terms of the residual (elastic and plastic elements, springs, contact normal,
+        /// friction, loads; each into truncation and round-off from the same term at 10
+        /// times the step), the response's own difference and the error the history carries
+        /// in; print, per parameter, what dominates the largest error and why, and write
+        /// anatomy.csv.
+        #[arg(long)]
+        explain: bool,
         /// Output directory (default: out/SCENE).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -255,15 +263,26 @@ enum TangentArg {
     Exact,
 }
 
+/// The in-line methods' options of `fricsens sensitivity`.
+struct InlineArgs {
+    tangent: TangentArg,
+    krylov: bool,
+    explain: bool,
+}
+
 fn sensitivity(
     scene_name: &str,
     names: &[String],
     method: MethodArg,
     beta: Option<f64>,
-    tangent: TangentArg,
-    krylov: bool,
+    inline: InlineArgs,
     out: Option<PathBuf>,
 ) -> Result<(), String> {
+    let InlineArgs {
+        tangent,
+        krylov,
+        explain,
+    } = inline;
     use fricsens::sensitivity::{
         run_sensitivity_watched, Method, Parameter, Settings, TangentChoice,
     };
@@ -307,8 +326,15 @@ fn sensitivity(
         },
         probe_floor: true,
         krylov,
+        explain,
         ..Settings::default()
     };
+    if explain && !matches!(settings.method, Method::Sdm | Method::SdmCentral) {
+        return Err(format!(
+            "--explain splits SDM's error: use it with --method sdm or sdm-central, not {}",
+            settings.method.name()
+        ));
+    }
     let bar = progress(model.times.len());
     if settings.method.is_inline() {
         bar.set_prefix(settings.method.name());
@@ -409,8 +435,85 @@ fn sensitivity(
         }
     }
     let _ = res;
+    if explain {
+        let path = dir.join("anatomy.csv");
+        std::fs::write(&path, fricsens::sensitivity::anatomy::anatomy_csv(&sens))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let values: Vec<f64> = params.iter().map(|p| p.value).collect();
+        print_explanations(&sens, &values, settings.method == Method::SdmCentral);
+    }
     out!("written to {}", dir.display());
     Ok(())
+}
+
+/// The verification report's error floor: `--explain` measures errors as the report does.
+const EXPLAIN_FLOOR: f64 = 1e-3;
+
+/// `--explain`: per parameter, SDM's largest error and what it is made of.
+fn print_explanations(
+    sens: &fricsens::sensitivity::SensitivityResults,
+    values: &[f64],
+    central: bool,
+) {
+    use fricsens::sensitivity::anatomy::{explain, Term};
+    let beta = sens.beta;
+    out!(
+        "why SDM errs (beta {beta:e}; against DDM, relative to the derivative or {EXPLAIN_FLOOR:e} of its largest value, as the verification report; anatomy {:.2} s, not in the cost above):",
+        sens.cost.anatomy_seconds
+    );
+    for x in explain(sens, values, EXPLAIN_FLOOR) {
+        let p = &x.parts;
+        out!(
+            "  {}: largest error in d({})/d({}) at increment {} (t = {}): {:.2e} of {:.3e}",
+            x.parameter,
+            x.response,
+            x.parameter,
+            x.increment,
+            x.time,
+            x.relative_error,
+            x.scale
+        );
+        let mut parts: Vec<(String, f64)> = Term::ALL
+            .iter()
+            .zip(&p.terms)
+            .map(|(t, e)| (t.name().to_string(), *e))
+            .collect();
+        parts.push(("the response's own difference".into(), p.response));
+        parts.push(("carried in through the history".into(), p.propagated));
+        parts.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+        let sum: f64 = parts.iter().map(|(_, e)| e.abs()).sum();
+        let shown: Vec<String> = parts
+            .iter()
+            .filter(|(_, e)| *e != 0.0 && e.abs() >= 1e-3 * sum)
+            .map(|(n, e)| format!("{n} {:+.2e} ({:.0} %)", e / x.scale, 100.0 * e.abs() / sum))
+            .collect();
+        out!("    parts (over the scale): {}", shown.join(", "));
+        if let Some(i) = x.dominant_term() {
+            let order = p.order(i).map_or("-".to_string(), |o| format!("{o:.2}"));
+            let c = x.truncation_coefficient(i, beta, central);
+            out!(
+                "    {}: truncation {:+.2e}, round-off {:+.2e} (over the scale); local order {order} (the method's order: {}; -1: round-off){}",
+                Term::ALL[i].name(),
+                p.truncation[i] / x.scale,
+                p.roundoff(i) / x.scale,
+                if central { 2 } else { 1 },
+                if central {
+                    format!(", b^2 d3/db3 over d/db = {:.2e}", 6.0 * c)
+                } else {
+                    format!(
+                        ", relative curvature b d2/db2 over d/db = {:.2e}: its error reaches the derivative at beta = {:.1e}",
+                        2.0 * c,
+                        1.0 / c
+                    )
+                }
+            );
+        }
+        out!(
+            "    sum of the parts {:+.6e} against SDM - DDM {:+.6e}",
+            p.sum() / x.scale,
+            p.total / x.scale
+        );
+    }
 }
 
 /// `fricsens scaling --merge`: read the measurements and merge them into the study in `out`.
@@ -1005,8 +1108,20 @@ fn main() -> ExitCode {
             beta,
             tangent,
             no_krylov,
+            explain,
             out,
-        } => sensitivity(&scene, &params, method, beta, tangent, !no_krylov, out),
+        } => sensitivity(
+            &scene,
+            &params,
+            method,
+            beta,
+            InlineArgs {
+                tangent,
+                krylov: !no_krylov,
+                explain,
+            },
+            out,
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -209,6 +209,7 @@ pub(crate) fn evaluate<S: Scalar>(
     frozen: Option<&[ContactChoice]>,
     keep_faces: Option<&[ContactChoice]>,
     force_stick: Option<&[bool]>,
+    terms: crate::assembly::Terms,
     want_tangent: bool,
     residual: &mut [S],
     hist_new: &mut [S],
@@ -218,6 +219,9 @@ pub(crate) fn evaluate<S: Scalar>(
     tangents.clear();
     for (p, pair) in model.contacts.iter().enumerate() {
         out.pair_force[p] = Vector3::zeros();
+        // the contact forces of the terms the residual takes (`terms`), for a pushed
+        // target's rows
+        let mut pair_terms = Vector3::<S>::zeros();
         let target_dofs = &layout.target[p];
         let d: Vector3<S> =
             rigid_translation(pair, &lifted.rigid_motion[p], time, Some((target_dofs, z)));
@@ -335,21 +339,37 @@ pub(crate) fn evaluate<S: Scalar>(
                 });
             }
             // ---- residual ----
+            let normal_part = ko.projection.normal * ko.p_n;
+            let force = if terms.contact_normal && terms.friction {
+                ko.force
+            } else {
+                let mut f = Vector3::zeros();
+                if terms.contact_normal {
+                    f += normal_part;
+                }
+                if terms.friction {
+                    f += ko.force - normal_part;
+                }
+                f
+            };
+            pair_terms += force;
             for c in 0..3 {
-                residual[node_dof(s, c)] -= ko.force[c];
+                residual[node_dof(s, c)] -= force[c];
             }
             if let Target::Faces { faces } = &pair.target {
                 for (a, &n) in quad_nodes(faces, face).iter().enumerate() {
                     for c in 0..3 {
-                        residual[node_dof(n, c)] += ko.weights[a] * ko.force[c];
+                        residual[node_dof(n, c)] += ko.weights[a] * force[c];
                     }
                 }
             }
-            residual[lam_dof] += ko.r_lambda;
+            if terms.contact_normal {
+                residual[lam_dof] += ko.r_lambda;
+            }
             out.pair_force[p] += ko.force;
             out.normal_force[flat] = ko.p_n;
             out.force[flat] = ko.force.map(|v| v.value());
-            out.traction[flat] = (ko.force - ko.projection.normal * ko.p_n).map(|v| v.value());
+            out.traction[flat] = (ko.force - normal_part).map(|v| v.value());
             out.distance[flat] = (ko.normal_distance, ko.slip_ratio);
             out.gap[flat] = ko.projection.gap.value();
             let h_new = &mut hist_new[h0..h0 + nh];
@@ -437,7 +457,11 @@ pub(crate) fn evaluate<S: Scalar>(
         // the applied force
         for (k, dof, m) in pair.pushed(target_dofs) {
             let applied = lifted.rigid_motion[p][k] * m.amplitude.at(time);
-            residual[dof] += out.pair_force[p][m.component] - applied;
+            residual[dof] += match (terms == crate::assembly::Terms::ALL, terms.loads) {
+                (true, _) => out.pair_force[p][m.component] - applied,
+                (false, true) => pair_terms[m.component] - applied,
+                (false, false) => pair_terms[m.component],
+            };
         }
     }
     Ok(())

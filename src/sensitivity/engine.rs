@@ -160,6 +160,8 @@ pub struct Engine<'a> {
     pub(super) keep_state_derivative: bool,
     /// `dh/db`, parameter-major: `dhist[p * n_history + i]`.
     pub(super) dhist: Vec<f64>,
+    /// DDM's own `dh/db` beside SDM's (`Settings::explain`: the error anatomy's reference).
+    pub(super) exact_dhist: Vec<f64>,
     pub(super) exact: Option<LinearSolver>,
     /// Increment whose converged tangent `exact` holds factored (`None`: a forced tangent,
     /// or nothing yet).
@@ -180,6 +182,7 @@ impl<'a> Engine<'a> {
             params,
             keep_state_derivative: false,
             dhist: vec![0.0; nh * params.len()],
+            exact_dhist: vec![0.0; nh * params.len()],
             exact: None,
             exact_holds: None,
             forced_tangent: None,
@@ -396,8 +399,10 @@ impl Observer for Engine<'_> {
             self.probe_floor(c)?;
         }
         let t0 = Instant::now();
+        let mut explain_seconds = 0.0;
         if self.results.increments.is_empty() && !c.model.contacts.is_empty() {
             self.initial_history_derivative(c)?;
+            self.exact_dhist.clone_from(&self.dhist);
         }
         let kinks = self.kinks(c);
         // DDM's pseudo-loads on the converged branches, which the one-sided derivatives move
@@ -415,8 +420,22 @@ impl Observer for Engine<'_> {
                 pseudo = Some(p);
                 step
             }
-            Method::Sdm => self.sdm(c, false)?,
-            Method::SdmCentral => self.sdm(c, true)?,
+            Method::Sdm | Method::SdmCentral => {
+                let central = self.settings.method == Method::SdmCentral;
+                let step = self.sdm(c, central)?;
+                if self.settings.explain {
+                    // the anatomy's work is kept out of the method's cost
+                    let t = Instant::now();
+                    let cost = self.results.cost.clone();
+                    let anatomy = self.anatomy(c, central, &step);
+                    self.results.cost = cost;
+                    let spent = t.elapsed().as_secs_f64();
+                    self.results.cost.anatomy_seconds += spent;
+                    explain_seconds += spent;
+                    self.results.anatomy.push(anatomy?);
+                }
+                step
+            }
             Method::Fdm | Method::FdmCentral => {
                 return Err(SensitivityError::NotInline {
                     method: self.settings.method.name(),
@@ -506,7 +525,7 @@ impl Observer for Engine<'_> {
                 None
             },
         });
-        self.results.cost.wall_seconds += t0.elapsed().as_secs_f64();
+        self.results.cost.wall_seconds += t0.elapsed().as_secs_f64() - explain_seconds;
         Ok(())
     }
 }

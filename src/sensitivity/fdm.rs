@@ -275,6 +275,7 @@ pub(super) fn fdm_sweep(
                 },
                 primal_seconds,
                 failure: (!failures.is_empty()).then(|| failures.join("; ")),
+                anatomy: Vec::new(),
             });
         }
     }

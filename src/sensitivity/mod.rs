@@ -53,6 +53,7 @@
 use crate::model::Model;
 use crate::solver::{AnalysisError, Results};
 
+pub mod anatomy;
 mod ddm;
 mod engine;
 mod fdm;
@@ -167,6 +168,11 @@ pub struct Settings {
     /// [`KRYLOV_MAX_ITER`] steps, and the only way
     /// when this is off.
     pub krylov: bool,
+    /// SDM and SDM central: split the error against DDM at every increment into the terms
+    /// of the residual, the response's own difference and what the history carries in
+    /// ([`anatomy`]; `SensitivityResults::anatomy`). Its work is timed apart
+    /// (`SensitivityCost::anatomy_seconds`) and kept out of the method's cost.
+    pub explain: bool,
 }
 
 /// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
@@ -191,6 +197,7 @@ impl Default for Settings {
             restrict: true,
             probe_floor: false,
             krylov: true,
+            explain: false,
         }
     }
 }
@@ -264,6 +271,9 @@ pub struct SensitivityCost {
     /// Newton did not factor), timed together. The in-line sweep takes it out of the primal
     /// run's time as well.
     pub floor_seconds: f64,
+    /// The error anatomy's work (`Settings::explain`), not part of the wall time or the
+    /// counts above.
+    pub anatomy_seconds: f64,
 }
 
 impl SensitivityCost {
@@ -294,6 +304,8 @@ pub struct SensitivityResults {
     /// Why this method stopped before the end of the run (a sweep keeps the other methods
     /// going): `increments` holds what it computed before.
     pub failure: Option<String>,
+    /// SDM's error anatomy per increment (`Settings::explain`; empty otherwise).
+    pub anatomy: Vec<anatomy::IncrementAnatomy>,
 }
 
 impl SensitivityResults {

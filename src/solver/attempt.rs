@@ -390,6 +390,7 @@ impl Solver<'_> {
                 skip: None,
                 keep_faces: Some(&st.keep_faces),
                 stick: (!st.forced.is_empty()).then_some(&st.forced[..]),
+                ..Frozen::default()
             };
             self.assemble(
                 (z, hist, t),

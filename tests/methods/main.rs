@@ -9,6 +9,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod anatomy;
 mod examples;
 mod methods;
 mod plastic_cantilever;
