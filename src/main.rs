@@ -455,7 +455,7 @@ fn print_explanations(
     values: &[f64],
     central: bool,
 ) {
-    use fricsens::sensitivity::anatomy::{explain, Term};
+    use fricsens::sensitivity::anatomy::explain;
     let beta = sens.beta;
     out!(
         "why SDM errs (beta {beta:e}; against DDM, relative to the derivative or {EXPLAIN_FLOOR:e} of its largest value, as the verification report; anatomy {:.2} s, not in the cost above):",
@@ -473,35 +473,36 @@ fn print_explanations(
             x.relative_error,
             x.scale
         );
-        let mut parts: Vec<(String, f64)> = Term::ALL
+        let named = p.named();
+        let sum: f64 = named.iter().map(|(_, e, _)| e.abs()).sum();
+        let shown: Vec<String> = named
             .iter()
-            .zip(&p.terms)
-            .map(|(t, e)| (t.name().to_string(), *e))
+            .filter(|(_, e, _)| *e != 0.0 && e.abs() >= 1e-3 * sum)
+            .map(|(part, e, _)| {
+                format!(
+                    "{} {:+.2e} ({:.0} %)",
+                    part.name(),
+                    e / x.scale,
+                    100.0 * e.abs() / sum
+                )
+            })
             .collect();
-        parts.push(("the response's own difference".into(), p.response));
-        parts.push(("carried in through the history".into(), p.propagated));
-        parts.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-        let sum: f64 = parts.iter().map(|(_, e)| e.abs()).sum();
-        let shown: Vec<String> = parts
-            .iter()
-            .filter(|(_, e)| *e != 0.0 && e.abs() >= 1e-3 * sum)
-            .map(|(n, e)| format!("{n} {:+.2e} ({:.0} %)", e / x.scale, 100.0 * e.abs() / sum))
-            .collect();
-        out!("    parts (over the scale): {}", shown.join(", "));
-        if let Some(i) = x.dominant_term() {
-            let order = p.order(i).map_or("-".to_string(), |o| format!("{o:.2}"));
-            let c = x.truncation_coefficient(i, beta, central);
+        out!("    parts (over that): {}", shown.join(", "));
+        let (part, _, split) = x.dominant();
+        if let Some(split) = split {
+            let order = split.order().map_or("-".to_string(), |o| format!("{o:.2}"));
+            let c = x.truncation_coefficient(&split, beta, central);
             out!(
-                "    {}: truncation {:+.2e}, round-off {:+.2e} (over the scale); local order {order} (the method's order: {}; -1: round-off){}",
-                Term::ALL[i].name(),
-                p.truncation[i] / x.scale,
-                p.roundoff(i) / x.scale,
+                "    {}: truncation {:+.2e}, round-off {:+.2e} (over that); local order {order} between beta and 10 beta (the method's order: {}; -1: round-off){}",
+                part.name(),
+                split.truncation / x.scale,
+                split.roundoff() / x.scale,
                 if central { 2 } else { 1 },
                 if central {
                     format!(", b^2 d3/db3 over d/db = {:.2e}", 6.0 * c)
                 } else {
                     format!(
-                        ", relative curvature b d2/db2 over d/db = {:.2e}: its error reaches the derivative at beta = {:.1e}",
+                        ", relative curvature b d2/db2 over d/db = {:.2e}: its truncation reaches the derivative at beta = {:.1e}",
                         2.0 * c,
                         1.0 / c
                     )

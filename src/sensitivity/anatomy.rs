@@ -107,20 +107,71 @@ impl Term {
     }
 }
 
+/// One part of SDM's error that the beta scaling splits: its value at the step, at
+/// [`TRUNCATION_SCALE`] times the step, and the truncation inferred from that.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct Split {
+    /// The part's error at SDM's step.
+    pub value: f64,
+    /// The same at [`TRUNCATION_SCALE`] times the step.
+    pub at_larger_step: f64,
+    /// Of `value`, the truncation: `at_larger_step` scaled back by the method's order.
+    pub truncation: f64,
+}
+
+impl Split {
+    fn new(value: f64, at_larger_step: f64, order: i32) -> Self {
+        Split {
+            value,
+            at_larger_step,
+            truncation: at_larger_step / TRUNCATION_SCALE.powi(order),
+        }
+    }
+
+    /// The round-off (and whatever the truncation's higher orders add).
+    pub fn roundoff(&self) -> f64 {
+        self.value - self.truncation
+    }
+
+    /// The local order between the step and [`TRUNCATION_SCALE`] times it: near the method's
+    /// order where truncation dominates, near -1 where round-off does (`None`: no error).
+    pub fn order(&self) -> Option<f64> {
+        let (a, b) = (self.value.abs(), self.at_larger_step.abs());
+        (a > 0.0 && b > 0.0).then(|| (b / a).log10() / TRUNCATION_SCALE.log10())
+    }
+}
+
+/// A part of SDM's error, as [`ErrorParts::named`] lists them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Part {
+    /// A term of the residual.
+    Term(Term),
+    /// The response's own difference.
+    Response,
+    /// Carried in through the history derivative.
+    CarriedIn,
+}
+
+impl Part {
+    /// How the report and `--explain` name it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Part::Term(t) => t.name(),
+            Part::Response => "the response's own difference",
+            Part::CarriedIn => "carried in through the history",
+        }
+    }
+}
+
 /// SDM's error in one derivative at one increment, split (module docs).
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ErrorParts {
     /// SDM less DDM.
     pub total: f64,
     /// Per [`Term::ALL`]: the error its finite-difference unbalance makes, through the solve.
-    pub terms: [f64; 6],
-    /// Per [`Term::ALL`]: of that, the truncation (from the term at [`TRUNCATION_SCALE`] times
-    /// the step, scaled back by the method's order).
-    pub truncation: [f64; 6],
-    /// Per [`Term::ALL`]: the term's error at [`TRUNCATION_SCALE`] times the step.
-    pub at_larger_step: [f64; 6],
+    pub terms: [Split; 6],
     /// The response's own difference.
-    pub response: f64,
+    pub response: Split,
     /// Carried in from earlier increments through the history derivative.
     pub propagated: f64,
 }
@@ -128,49 +179,30 @@ pub struct ErrorParts {
 impl ErrorParts {
     /// The parts added up: equal to [`ErrorParts::total`] to round-off.
     pub fn sum(&self) -> f64 {
-        self.terms.iter().sum::<f64>() + self.response + self.propagated
+        self.terms.iter().map(|t| t.value).sum::<f64>() + self.response.value + self.propagated
     }
 
-    /// Term `i`'s round-off part (and its truncation's higher orders).
-    pub fn roundoff(&self, i: usize) -> f64 {
-        self.terms[i] - self.truncation[i]
-    }
-
-    /// The local order of term `i` between the step and [`TRUNCATION_SCALE`] times it
-    /// (`None` where its error is zero).
-    pub fn order(&self, i: usize) -> Option<f64> {
-        let (a, b) = (self.terms[i].abs(), self.at_larger_step[i].abs());
-        (a > 0.0 && b > 0.0).then(|| (b / a).log10() / TRUNCATION_SCALE.log10())
-    }
-
-    /// The largest part: a term (`Some(i)`), or `None` for the response's own difference or
-    /// the carried-in error, named by [`ErrorParts::dominant_name`].
-    pub fn dominant_name(&self) -> &'static str {
-        let (mut name, mut v) = ("response's own difference", self.response.abs());
-        if self.propagated.abs() > v {
-            (name, v) = ("carried in (history)", self.propagated.abs());
-        }
-        for (t, e) in Term::ALL.iter().zip(&self.terms) {
-            if e.abs() > v {
-                (name, v) = (t.name(), e.abs());
-            }
-        }
-        name
+    /// Every part with its value, largest first, and its split where it has one.
+    pub fn named(&self) -> Vec<(Part, f64, Option<Split>)> {
+        let mut v: Vec<(Part, f64, Option<Split>)> = Term::ALL
+            .iter()
+            .zip(&self.terms)
+            .map(|(t, s)| (Part::Term(*t), s.value, Some(*s)))
+            .collect();
+        v.push((Part::Response, self.response.value, Some(self.response)));
+        v.push((Part::CarriedIn, self.propagated, None));
+        v.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+        v
     }
 
     /// Share of the largest part in the sum of the parts' magnitudes.
     pub fn dominant_share(&self) -> f64 {
-        let all: Vec<f64> = self
-            .terms
-            .iter()
-            .chain([&self.response, &self.propagated])
-            .map(|v| v.abs())
-            .collect();
-        let sum: f64 = all.iter().sum();
+        let named = self.named();
+        let sum: f64 = named.iter().map(|p| p.1.abs()).sum();
         if sum == 0.0 {
             return 0.0;
         }
-        all.iter().cloned().fold(0.0, f64::max) / sum
+        named[0].1.abs() / sum
     }
 }
 
@@ -316,14 +348,43 @@ impl Engine<'_> {
                 along[r][j] = resp.value(&ev_d.response_input(&z, c.assembler)).eps;
             }
         }
-        // the exact derivative along SDM's own dz
+        // the exact derivative along SDM's own dz, and SDM's difference of the responses
+        // along it at the larger step
         let mut exact_along_sdm = vec![vec![0.0; np]; nr];
+        let mut larger_step = vec![vec![0.0; np]; nr];
+        let values: Vec<f64> = c
+            .model
+            .responses
+            .iter()
+            .map(|r| r.value(&c.eval.response_input(c.z, c.assembler)))
+            .collect();
         for (k, dz) in sdm.dz.iter().enumerate() {
             let z = super::ddm::duals(c.z, dz);
             let (lifted, hist) = (&p_sdm.designs[k], &p_sdm.hists[k]);
             self.evaluate(c, lifted, &z, hist, Some(&converged), None, &mut ev_d)?;
             for (r, resp) in c.model.responses.iter().enumerate() {
                 exact_along_sdm[r][k] = resp.value(&ev_d.response_input(&z, c.assembler)).eps;
+            }
+            let db = self.params[k].step(self.settings.beta) * TRUNCATION_SCALE;
+            let moved = |sign: f64| -> Vec<f64> {
+                c.z.iter().zip(dz).map(|(z, d)| z + sign * db * d).collect()
+            };
+            let lifted = self.lifted_at(c, k, db);
+            self.perturbed(c, k, db, &lifted, dz, Some(&converged), &mut ev_p)?;
+            let zp = moved(1.0);
+            if central {
+                let lifted = self.lifted_at(c, k, -db);
+                self.perturbed(c, k, -db, &lifted, dz, Some(&converged), &mut ev_m)?;
+            }
+            let zm = moved(-1.0);
+            for (r, resp) in c.model.responses.iter().enumerate() {
+                let vp = resp.value(&ev_p.response_input(&zp, c.assembler));
+                let d = if central {
+                    (vp - resp.value(&ev_m.response_input(&zm, c.assembler))) / (2.0 * db)
+                } else {
+                    (vp - values[r]) / db
+                };
+                larger_step[r][k] = d - exact_along_sdm[r][k];
             }
         }
         let order = if central { 2 } else { 1 };
@@ -333,14 +394,17 @@ impl Engine<'_> {
                     .map(|k| {
                         let mut e = ErrorParts {
                             total: sdm.dresp[r][k] - exact.dresp[r][k],
-                            response: sdm.dresp[r][k] - exact_along_sdm[r][k],
+                            response: Split::new(
+                                sdm.dresp[r][k] - exact_along_sdm[r][k],
+                                larger_step[r][k],
+                                order,
+                            ),
                             propagated: on_sdm.dresp[r][k] - exact.dresp[r][k],
                             ..ErrorParts::default()
                         };
                         for (ti, &(i, _)) in terms.iter().enumerate() {
-                            e.terms[i] = along[r][col(ti, 0, k)];
-                            e.at_larger_step[i] = along[r][col(ti, 1, k)];
-                            e.truncation[i] = e.at_larger_step[i] / TRUNCATION_SCALE.powi(order);
+                            let (a, b) = (along[r][col(ti, 0, k)], along[r][col(ti, 1, k)]);
+                            e.terms[i] = Split::new(a, b, order);
                         }
                         e
                     })
@@ -379,25 +443,18 @@ pub struct Explanation {
 }
 
 impl Explanation {
-    /// The dominant term's index in [`Term::ALL`], if a term dominates (not the response's
-    /// own difference or the carried-in error).
-    pub fn dominant_term(&self) -> Option<usize> {
-        let p = &self.parts;
-        let (i, e) = p
-            .terms
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))?;
-        (e.abs() > p.response.abs() && e.abs() > p.propagated.abs()).then_some(i)
+    /// The largest part, its value and its split (none for the carried-in error).
+    pub fn dominant(&self) -> (Part, f64, Option<Split>) {
+        self.parts.named()[0]
     }
 
-    /// Term `i`'s truncation over the derivative's scale and over `beta^order` (`order` 1
-    /// forward, 2 central): the term's error is about this times `beta^order`. For forward
-    /// SDM it is half the term's relative curvature `b d2/db2 / (d/db)`; for central a sixth
-    /// of `b^2 d3/db3 / (d/db)`.
-    pub fn truncation_coefficient(&self, i: usize, beta: f64, central: bool) -> f64 {
+    /// A split's truncation over `scale` and over `beta^order` (`order` 1 forward, 2
+    /// central): its error is about this times `beta^order`. For forward SDM it is half the
+    /// part's relative curvature `b d2/db2 / (d/db)`; for central a sixth of `b^2 d3/db3 /
+    /// (d/db)`.
+    pub fn truncation_coefficient(&self, split: &Split, beta: f64, central: bool) -> f64 {
         let order = if central { 2 } else { 1 };
-        self.parts.truncation[i].abs() / (self.scale * beta.powi(order))
+        split.truncation.abs() / (self.scale * beta.powi(order))
     }
 }
 
@@ -458,7 +515,7 @@ pub fn anatomy_csv(s: &SensitivityResults) -> String {
     for t in Term::ALL {
         csv.push_str(&format!(",{0},{0}_truncation", t.key()));
     }
-    csv.push_str(",response_own_difference,carried_in\n");
+    csv.push_str(",response_own_difference,response_own_difference_truncation,carried_in\n");
     for a in &s.anatomy {
         for (r, name) in s.responses.iter().enumerate() {
             for (k, param) in s.parameters.iter().enumerate() {
@@ -471,10 +528,10 @@ pub fn anatomy_csv(s: &SensitivityResults) -> String {
                     p.total,
                     p.sum()
                 ));
-                for i in 0..Term::ALL.len() {
-                    csv.push_str(&format!(",{:.6e},{:.6e}", p.terms[i], p.truncation[i]));
+                for t in p.terms.iter().chain([&p.response]) {
+                    csv.push_str(&format!(",{:.6e},{:.6e}", t.value, t.truncation));
                 }
-                csv.push_str(&format!(",{:.6e},{:.6e}\n", p.response, p.propagated));
+                csv.push_str(&format!(",{:.6e}\n", p.propagated));
             }
         }
     }
