@@ -438,6 +438,10 @@ pub struct Explanation {
     pub scale: f64,
     /// SDM's error there over `scale`.
     pub relative_error: f64,
+    /// The derivative's largest magnitude over the run (DDM's).
+    pub largest: f64,
+    /// DDM's derivative there.
+    pub reference: f64,
     /// The split.
     pub parts: ErrorParts,
 }
@@ -498,6 +502,8 @@ pub fn explain(s: &SensitivityResults, values: &[f64], floor: f64) -> Vec<Explan
                         time: a.time,
                         scale: d.abs().max(floor * scale),
                         relative_error: rel,
+                        largest: scale,
+                        reference: d,
                         parts: a.parts[r][k].clone(),
                     });
                 }

@@ -98,7 +98,10 @@ pub(super) fn inline_sweep(
     let inline: f64 = engines
         .engines
         .iter()
-        .map(|e| e.results.cost.wall_seconds + e.results.cost.floor_seconds)
+        .map(|e| {
+            let c = &e.results.cost;
+            c.wall_seconds + c.floor_seconds + c.anatomy_seconds
+        })
         .sum();
     let out = engines
         .engines

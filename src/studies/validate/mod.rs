@@ -25,6 +25,7 @@ use crate::solver::{AnalysisError, PrimalCost};
 use crate::studies::plot::PlotError;
 use std::path::{Path, PathBuf};
 
+pub mod anatomy;
 mod figures;
 pub mod imported;
 mod report;
@@ -233,6 +234,8 @@ pub struct SceneValidation {
     pub floor_seconds: f64,
     /// The Taylor test of DDM's derivative per parameter ([`taylor`]).
     pub taylor: Vec<taylor::TaylorRow>,
+    /// SDM's error anatomy per parameter and variant at the figure beta ([`anatomy`]).
+    pub anatomy: Vec<anatomy::AnatomyRow>,
     /// The reference DDM results.
     #[serde(skip)]
     pub ddm: SensitivityResults,
@@ -483,7 +486,18 @@ pub(crate) fn validate_scene(
             });
         }
     }
+    // SDM and SDM central at the figure beta, explained (their anatomy timed apart)
+    for m in [Method::Sdm, Method::SdmCentral] {
+        settings.push(Settings {
+            method: m,
+            beta: opts.figure_beta,
+            explain: true,
+            ..exact.clone()
+        });
+    }
     let (primal, mut inline) = run_inline_sweep(&model, &params, &settings).map_err(wrap)?;
+    let explained = inline.split_off(inline.len() - 2);
+    let anatomy = anatomy::anatomy_rows(&scene.name, &explained, &params, opts.floor);
     let ddm = inline.remove(0);
     let ddm_last = inline.remove(0);
     let sdm_last = inline.remove(0);
@@ -597,6 +611,7 @@ pub(crate) fn validate_scene(
             opts.figure_beta,
         ),
         ledger,
+        anatomy,
         ddm,
         sweeps,
     })
