@@ -360,6 +360,9 @@ impl Solver<'_> {
                 .abs();
             record.energies.push(energy);
             let corrections = self.corrections(z, &dz);
+            record
+                .corrections
+                .push(dz.iter().map(|d| d * d).sum::<f64>().sqrt());
             st.take_step(z, dz, eval, energy, corrections)?;
         }
     }

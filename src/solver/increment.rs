@@ -134,6 +134,7 @@ impl Solver<'_> {
             iterations: 0,
             residuals: Vec::new(),
             energies: Vec::new(),
+            corrections: Vec::new(),
             reference_force: 0.0,
             cutbacks,
             augmentations: 0,
@@ -231,6 +232,7 @@ impl Solver<'_> {
             augmentations += 1;
             let mut again = trial.record.clone();
             again.residuals.clear();
+            again.corrections.clear();
             attempt = self
                 .attempt(
                     &mut trial.z,

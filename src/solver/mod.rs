@@ -57,6 +57,11 @@ pub struct IncrementRecord {
     pub residuals: Vec<f64>,
     /// `|dz . R|` at each iteration.
     pub energies: Vec<f64>,
+    /// Each Newton correction's Euclidean norm over all unknowns, before any line search
+    /// (of the last augmented-Lagrangian pass, if any): the last is about the step between
+    /// the iterate of Newton's last factorization and the converged state, which a
+    /// sensitivity solved with that factorization is off by.
+    pub corrections: Vec<f64>,
     /// Reference force of the force criterion.
     pub reference_force: f64,
     /// Cutbacks taken before this increment converged.

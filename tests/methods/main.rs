@@ -17,4 +17,5 @@ mod roundoff;
 mod sensitivity_elastic;
 mod sensitivity_kinks;
 mod stress;
+mod tangent_choice;
 mod taylor;

@@ -170,6 +170,16 @@ pub(super) fn write_figures(
         }
         write_svg(&f, &dir.join(format!("{}-cost.svg", v.scene)))?;
     }
+    if let Some(v) = val
+        .scenes
+        .iter()
+        .find(|v| v.scene == super::report::TANGENT_SCENE)
+    {
+        write_svg(
+            &super::tangent::tangent_figure(&v.scene, &v.tangent),
+            &dir.join(super::report::TANGENT_FIGURE),
+        )?;
+    }
     let beta = opts.figure_beta;
     if let Some((v, prof)) = val
         .scenes

@@ -29,6 +29,7 @@ pub mod anatomy;
 mod figures;
 pub mod imported;
 mod report;
+pub mod tangent;
 pub mod taylor;
 use figures::*;
 use report::*;
@@ -236,6 +237,8 @@ pub struct SceneValidation {
     pub taylor: Vec<taylor::TaylorRow>,
     /// SDM's error anatomy per parameter and variant at the figure beta ([`anatomy`]).
     pub anatomy: Vec<anatomy::AnatomyRow>,
+    /// The last factorization's error against Newton's last correction ([`tangent`]).
+    pub tangent: tangent::TangentStudy,
     /// The reference DDM results.
     #[serde(skip)]
     pub ddm: SensitivityResults,
@@ -370,7 +373,8 @@ pub(crate) fn batched_cost(scene: &Scene, beta: f64) -> Result<BatchedCost, Vali
     })
 }
 
-/// Relative error of `other` against `reference` for parameter `p` (see the module docs).
+/// Relative error of `other` against `reference` for parameter `p` (see the module docs): the
+/// largest of [`increment_errors`].
 ///
 /// Responses insensitive to the parameter — `|b| max|dR/db| < 1e-9 max|R|` over the history,
 /// e.g. a reaction fixed by equilibrium — are left out: their reference derivative is
@@ -383,9 +387,39 @@ pub(crate) fn relative_error(
     floor: f64,
     flagged: &[bool],
 ) -> f64 {
-    let nr = reference.responses.len();
+    let Some(errors) = increment_errors(reference, other, p, b, floor, flagged) else {
+        return 0.0; // no response sensitive to the parameter
+    };
     let mut worst: f64 = 0.0;
     let mut compared = 0;
+    for e in errors.into_iter().flatten() {
+        if e.is_nan() {
+            return f64::NAN; // the method gave no value (a failed rerun)
+        }
+        compared += 1;
+        worst = worst.max(e);
+    }
+    if compared == 0 {
+        return f64::NAN; // nothing left to compare
+    }
+    worst
+}
+
+/// Per increment, the relative error of `other` against `reference` for parameter `p`, the
+/// largest over the responses sensitive to it ([`relative_error`]); `None` at increments left
+/// out (flagged, or after a rerun's extra sub-increments). `None` altogether where no response
+/// is sensitive to the parameter.
+pub(crate) fn increment_errors(
+    reference: &SensitivityResults,
+    other: &SensitivityResults,
+    p: usize,
+    b: f64,
+    floor: f64,
+    flagged: &[bool],
+) -> Option<Vec<Option<f64>>> {
+    let nr = reference.responses.len();
+    let mut out: Vec<Option<f64>> =
+        vec![None; reference.increments.len().min(other.increments.len())];
     let mut considered = false;
     for r in 0..nr {
         let max = |f: &dyn Fn(&crate::sensitivity::IncrementSensitivity) -> f64| {
@@ -408,19 +442,17 @@ pub(crate) fn relative_error(
             {
                 continue;
             }
-            compared += 1;
             let d = a.derivatives[r][p];
             let e = (b.derivatives[r][p] - d).abs() / d.abs().max(floor * scale);
-            if e.is_nan() {
-                return f64::NAN; // the method gave no value (a failed rerun)
-            }
-            worst = worst.max(e);
+            // a NaN (a method that gave no value) sticks
+            out[n] = Some(match out[n] {
+                None => e,
+                Some(w) if w.is_nan() || e.is_nan() => f64::NAN,
+                Some(w) => w.max(e),
+            });
         }
     }
-    if considered && compared == 0 {
-        return f64::NAN; // nothing left to compare
-    }
-    worst
+    considered.then_some(out)
 }
 
 /// Resolve design parameter names on a scene's model ([`Parameter::by_name`]).
@@ -495,7 +527,16 @@ pub(crate) fn validate_scene(
             ..exact.clone()
         });
     }
+    // DDM with Newton's last factorization and one refinement step against the converged
+    // tangent (the cheap fix of the last factorization's error)
+    settings.push(Settings {
+        method: Method::Ddm,
+        tangent: TangentChoice::Refined,
+        refine_steps: 1,
+        ..exact.clone()
+    });
     let (primal, mut inline) = run_inline_sweep(&model, &params, &settings).map_err(wrap)?;
+    let ddm_refined = inline.pop().expect("pushed last");
     let explained = inline.split_off(inline.len() - 2);
     let anatomy = anatomy::anatomy_rows(&scene.name, &explained, &params, opts.floor);
     let ddm = inline.remove(0);
@@ -612,6 +653,16 @@ pub(crate) fn validate_scene(
         ),
         ledger,
         anatomy,
+        tangent: tangent::tangent_study(
+            &ddm,
+            &ddm_last,
+            &ddm_refined,
+            &primal,
+            &params,
+            opts.floor,
+            &flagged,
+            primal_seconds,
+        ),
         ddm,
         sweeps,
     })

@@ -163,6 +163,11 @@ pub(super) fn best(v: &SceneValidation, m: Method, param: &str) -> Option<(f64, 
         .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
+/// The scene whose tangent study is drawn, and its figure's file.
+pub(super) const TANGENT_SCENE: &str = "leaf-spring";
+/// The tangent study's figure.
+pub(super) const TANGENT_FIGURE: &str = "leaf-spring-tangent.svg";
+
 pub(super) fn report(
     val: &Validation,
     indentation: Option<&PressureProfile>,
@@ -245,6 +250,13 @@ pub(super) fn report(
     let rows: Vec<&super::anatomy::AnatomyRow> =
         val.scenes.iter().flat_map(|v| &v.anatomy).collect();
     super::anatomy::write_anatomy(&mut s, &rows, opts.figure_beta);
+    let tangents: Vec<(&str, &super::tangent::TangentStudy)> = val
+        .scenes
+        .iter()
+        .map(|v| (v.scene.as_str(), &v.tangent))
+        .collect();
+    let drawn = tangents.iter().any(|(n, _)| *n == TANGENT_SCENE);
+    super::tangent::write_tangent(&mut s, &tangents, drawn.then_some(TANGENT_FIGURE));
     let _ = writeln!(s, "\n## Cost\n");
     let _ = writeln!(s, "Sensitivity wall time for all of a scene's parameters over the primal analysis, at beta = {:.0e} (SDM and DDM share the primal run; FDM is reruns). DDM, SDM and SDM central solve with the tangent at the converged state (the default, `--tangent exact`), to a relative residual of {:.0e}: by GMRES preconditioned with Newton's last factorization (a few solves per increment), with a factorization of their own only where GMRES does not get there in {} steps, then refined with double-double residuals to 1e-13 of the solution, so that DDM is exact to about that and SDM's error is its own; \"last factor\" (`--tangent last`) solves with Newton's last factorization alone (the paper's choice: no solve beyond one triangular solve), and its error against the reference is the price in accuracy, its time against DDM's the price of exactness. SDM's errors include its own forward-difference error at this beta, shown beside SDM with the converged tangent; the largest error over a scene's parameters is shown. The floor is one residual evaluation and one triangular solve per parameter and increment; the updates of the history after the solve skip the elements whose Gauss points are all elastic.\n", opts.figure_beta, crate::sensitivity::KRYLOV_TOL, crate::sensitivity::KRYLOV_MAX_ITER);
     let _ = writeln!(
