@@ -52,3 +52,4 @@ pub mod sensitivity;
 pub mod solver;
 #[cfg(feature = "studies")]
 pub mod studies;
+pub mod terms;

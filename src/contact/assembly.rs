@@ -209,7 +209,7 @@ pub(crate) fn evaluate<S: Scalar>(
     frozen: Option<&[ContactChoice]>,
     keep_faces: Option<&[ContactChoice]>,
     force_stick: Option<&[bool]>,
-    terms: crate::assembly::Terms,
+    terms: crate::terms::Terms,
     want_tangent: bool,
     residual: &mut [S],
     hist_new: &mut [S],
@@ -457,7 +457,7 @@ pub(crate) fn evaluate<S: Scalar>(
         // the applied force
         for (k, dof, m) in pair.pushed(target_dofs) {
             let applied = lifted.rigid_motion[p][k] * m.amplitude.at(time);
-            residual[dof] += match (terms == crate::assembly::Terms::ALL, terms.loads) {
+            residual[dof] += match (terms == crate::terms::Terms::ALL, terms.loads) {
                 (true, _) => out.pair_force[p][m.component] - applied,
                 (false, true) => pair_terms[m.component] - applied,
                 (false, false) => pair_terms[m.component],
