@@ -62,9 +62,12 @@ enum Command {
         #[arg(long, default_value = "ddm")]
         method: MethodArg,
         /// Relative perturbation beta (b = b0 (1 + beta)) for SDM and FDM. Default: the
-        /// scene's `[study] beta`, else 1e-6.
+        /// scene's `[study] beta`, else 1e-6. `auto` (SDM, SDM central): each parameter's step
+        /// chosen at every increment from a ladder of probes at the fixed state, and every
+        /// derivative given an error bar (twice the difference from a shadow run at a tenth of the
+        /// step, plus the round-off expected).
         #[arg(long)]
-        beta: Option<f64>,
+        beta: Option<String>,
         /// Tangent of the sensitivity solve (SDM, DDM). `exact`: the tangent at the converged
         /// state, solved to a relative residual of 1e-13 (GMRES preconditioned with Newton's
         /// last factorization, a factorization of its own where GMRES does not converge in
@@ -274,7 +277,7 @@ fn sensitivity(
     scene_name: &str,
     names: &[String],
     method: MethodArg,
-    beta: Option<f64>,
+    beta: Option<String>,
     inline: InlineArgs,
     out: Option<PathBuf>,
 ) -> Result<(), String> {
@@ -287,7 +290,13 @@ fn sensitivity(
         run_sensitivity_watched, Method, Parameter, Settings, TangentChoice,
     };
     let scene = Scene::load(scene_name).map_err(|e| e.to_string())?;
-    let beta = beta.unwrap_or_else(|| scene.study.beta());
+    let beta_auto = beta.as_deref() == Some("auto");
+    let beta = match beta.as_deref() {
+        None | Some("auto") => scene.study.beta(),
+        Some(b) => b
+            .parse::<f64>()
+            .map_err(|_| format!("--beta takes a number or `auto`, got `{b}`"))?,
+    };
     if !(beta > 0.0 && beta < 1.0) {
         return Err(format!("--beta must lie in (0, 1), got {beta}"));
     }
@@ -327,8 +336,18 @@ fn sensitivity(
         probe_floor: true,
         krylov,
         explain,
+        beta_auto,
         ..Settings::default()
     };
+    if beta_auto && !matches!(settings.method, Method::Sdm | Method::SdmCentral) {
+        return Err(format!(
+            "--beta auto chooses SDM's steps by probes at the fixed state: use it with --method sdm or sdm-central, not {} (not built for the finite-difference reruns yet)",
+            settings.method.name()
+        ));
+    }
+    if beta_auto && explain {
+        return Err("--explain splits the error at one fixed beta: give --beta B, not auto".into());
+    }
     if explain && !matches!(settings.method, Method::Sdm | Method::SdmCentral) {
         return Err(format!(
             "--explain splits SDM's error: use it with --method sdm or sdm-central, not {}",
@@ -352,6 +371,14 @@ fn sensitivity(
         csv.push_str(&format!(",{r}"));
         for p in &sens.parameters {
             csv.push_str(&format!(",d({r})/d({p})"));
+            if beta_auto {
+                csv.push_str(&format!(",error bar of d({r})/d({p})"));
+            }
+        }
+    }
+    if beta_auto {
+        for p in &sens.parameters {
+            csv.push_str(&format!(",beta({p})"));
         }
     }
     csv.push('\n');
@@ -364,9 +391,15 @@ fn sensitivity(
         ));
         for (r, v) in inc.values.iter().enumerate() {
             csv.push_str(&format!(",{v:.12e}"));
-            for d in &inc.derivatives[r] {
+            for (k, d) in inc.derivatives[r].iter().enumerate() {
                 csv.push_str(&format!(",{d:.12e}"));
+                if let Some(e) = inc.error_bars.get(r).and_then(|row| row.get(k)) {
+                    csv.push_str(&format!(",{e:.3e}"));
+                }
             }
+        }
+        for b in &inc.betas {
+            csv.push_str(&format!(",{b:.0e}"));
         }
         csv.push('\n');
     }
@@ -426,10 +459,25 @@ fn sensitivity(
         );
     }
     if let Some(last) = sens.increments.last() {
+        if !last.betas.is_empty() {
+            let steps: Vec<String> = sens
+                .parameters
+                .iter()
+                .zip(&last.betas)
+                .map(|(p, b)| format!("{p} {b:.0e}"))
+                .collect();
+            out!(
+                "  steps chosen at the last increment: {} (error bars: twice the difference from a run at a tenth of each step, plus the round-off expected)",
+                steps.join(", ")
+            );
+        }
         for (r, name) in sens.responses.iter().enumerate().take(8) {
             outp!("  {name:<24} {:>14.6e}", last.values[r]);
-            for d in &last.derivatives[r] {
-                outp!("  {d:>14.6e}");
+            for (k, d) in last.derivatives[r].iter().enumerate() {
+                match last.error_bars.get(r).and_then(|row| row.get(k)) {
+                    Some(e) => outp!("  {d:>14.6e} +- {e:.1e}"),
+                    None => outp!("  {d:>14.6e}"),
+                }
             }
             out!();
         }

@@ -144,6 +144,7 @@ impl Engine<'_> {
             dhist,
             dz: dz_all,
             roundoff: Vec::new(),
+            noise: Vec::new(),
         })
     }
 }

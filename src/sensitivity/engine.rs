@@ -23,6 +23,10 @@ pub(super) struct Step {
     pub(super) dz: Vec<Vec<f64>>,
     /// Round-off dominated, `[r][p]` (SDM; empty for DDM).
     pub(super) roundoff: Vec<Vec<bool>>,
+    /// SDM, `[r][p]`: the round-off to expect in each derivative, machine precision times
+    /// the forces that cancel in the unbalance (carried through the solve) and in the
+    /// response's own difference, over the step (empty for DDM).
+    pub(super) noise: Vec<Vec<f64>>,
 }
 
 /// DDM's pseudo-loads at one increment, with what the update after the solve reuses.
@@ -162,6 +166,9 @@ pub struct Engine<'a> {
     pub(super) dhist: Vec<f64>,
     /// DDM's own `dh/db` beside SDM's (`Settings::explain`: the error anatomy's reference).
     pub(super) exact_dhist: Vec<f64>,
+    /// `--beta auto`: the history derivative of the shadow SDM run at a tenth of the chosen
+    /// steps, whose difference from the chosen one gives the error bars.
+    pub(super) shadow_dhist: Vec<f64>,
     pub(super) exact: Option<LinearSolver>,
     /// Increment whose converged tangent `exact` holds factored (`None`: a forced tangent,
     /// or nothing yet).
@@ -183,6 +190,7 @@ impl<'a> Engine<'a> {
             keep_state_derivative: false,
             dhist: vec![0.0; nh * params.len()],
             exact_dhist: vec![0.0; nh * params.len()],
+            shadow_dhist: vec![0.0; nh * params.len()],
             exact: None,
             exact_holds: None,
             forced_tangent: None,
@@ -400,9 +408,12 @@ impl Observer for Engine<'_> {
         }
         let t0 = Instant::now();
         let mut explain_seconds = 0.0;
+        // --beta auto: the steps chosen and the error bars
+        let mut auto = None;
         if self.results.increments.is_empty() && !c.model.contacts.is_empty() {
             self.initial_history_derivative(c)?;
             self.exact_dhist.clone_from(&self.dhist);
+            self.shadow_dhist.clone_from(&self.dhist);
         }
         let kinks = self.kinks(c);
         // DDM's pseudo-loads on the converged branches, which the one-sided derivatives move
@@ -412,6 +423,7 @@ impl Observer for Engine<'_> {
             dhist,
             dz,
             roundoff,
+            ..
         } = match self.settings.method {
             Method::Ddm => {
                 let frozen = converged_frozen(c);
@@ -422,7 +434,14 @@ impl Observer for Engine<'_> {
             }
             Method::Sdm | Method::SdmCentral => {
                 let central = self.settings.method == Method::SdmCentral;
-                let step = self.sdm(c, central)?;
+                let step = if self.settings.beta_auto {
+                    let (step, betas, bars) = self.sdm_auto(c, central)?;
+                    auto = Some((betas, bars));
+                    step
+                } else {
+                    let betas = vec![self.settings.beta; self.params.len()];
+                    self.sdm(c, central, &betas)?
+                };
                 if self.settings.explain {
                     // the anatomy's work is kept out of the method's cost
                     let t = Instant::now();
@@ -519,6 +538,8 @@ impl Observer for Engine<'_> {
             one_sided,
             rerun_substeps: Vec::new(),
             roundoff,
+            betas: auto.as_ref().map(|a| a.0.clone()).unwrap_or_default(),
+            error_bars: auto.map(|a| a.1).unwrap_or_default(),
             state_derivative: if self.keep_state_derivative {
                 Some(dz)
             } else {

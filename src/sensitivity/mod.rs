@@ -54,6 +54,7 @@ use crate::model::Model;
 use crate::solver::{AnalysisError, Results};
 
 pub mod anatomy;
+mod auto;
 mod ddm;
 mod engine;
 mod fdm;
@@ -173,6 +174,10 @@ pub struct Settings {
     /// ([`anatomy`]; `SensitivityResults::anatomy`). Its work is timed apart
     /// (`SensitivityCost::anatomy_seconds`) and kept out of the method's cost.
     pub explain: bool,
+    /// SDM and SDM central: choose each parameter's step at every increment from a ladder of
+    /// probes at the fixed state instead of `beta`, and give every derivative an error bar
+    /// (`auto` module docs; `IncrementSensitivity::betas`, `error_bars`).
+    pub beta_auto: bool,
 }
 
 /// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
@@ -198,6 +203,7 @@ impl Default for Settings {
             probe_floor: false,
             krylov: true,
             explain: false,
+            beta_auto: false,
         }
     }
 }
@@ -228,6 +234,10 @@ pub struct IncrementSensitivity {
     /// size of the cancelling terms for SDM, the Newton tolerance for FDM's reruns): the
     /// value is round-off dominated and a larger beta should be used.
     pub roundoff: Vec<Vec<bool>>,
+    /// `--beta auto` (SDM, SDM central): the relative step chosen per parameter.
+    pub betas: Vec<f64>,
+    /// `--beta auto`, `[r][p]` like `derivatives`: the error bar of each derivative.
+    pub error_bars: Vec<Vec<f64>>,
     /// `dz/db` for every parameter (only when requested).
     #[serde(skip)]
     pub state_derivative: Option<Vec<Vec<f64>>>,

@@ -185,8 +185,14 @@ impl Engine<'_> {
         Ok(k)
     }
 
-    /// SDM (forward or central) for all parameters.
-    pub(super) fn sdm(&mut self, c: &Converged<'_>, central: bool) -> Result<Step, AnalysisError> {
+    /// SDM (forward or central) for all parameters, parameter `k` perturbed by `betas[k]`
+    /// (relative, [`crate::design::Parameter::step`]).
+    pub(super) fn sdm(
+        &mut self,
+        c: &Converged<'_>,
+        central: bool,
+        betas: &[f64],
+    ) -> Result<Step, AnalysisError> {
         let np = self.params.len();
         let n = c.z.len();
         let nh = c.hist_prev.len();
@@ -217,7 +223,7 @@ impl Engine<'_> {
         let mut designs: Vec<(Lifted<f64>, Option<Lifted<f64>>)> = Vec::with_capacity(np);
         for k in 0..np {
             self.prescribed_derivative(c, k, &mut dzc[k]);
-            let db = self.params[k].step(self.settings.beta);
+            let db = self.params[k].step(betas[k]);
             designs.push((
                 self.lifted_at(c, k, db),
                 central.then(|| self.lifted_at(c, k, -db)),
@@ -304,7 +310,7 @@ impl Engine<'_> {
         let frozen = update.as_ref();
         for k in 0..np {
             let dz = total_dz(c, &rhs, &dzc[k], k);
-            let db = self.params[k].step(self.settings.beta);
+            let db = self.params[k].step(betas[k]);
             let (lifted_p, lifted_m) = &designs[k];
             self.perturbed(c, k, db, lifted_p, &dz, frozen, &mut ev_p)?;
             let zp: Vec<f64> = (0..n).map(|i| c.z[i] + db * dz[i]).collect();
@@ -335,12 +341,24 @@ impl Engine<'_> {
         }
         // the unbalance's noise carried through dz into each response: flag where it exceeds
         // 10^-ROUNDOFF_DIGITS of the derivative
+        let mut noise = vec![vec![0.0; np]; nr];
         for r in 0..nr {
+            // the size of what cancels in the response's own difference: a force read from
+            // the residual or the contact sums forces of the size of the reference force
+            let reads = c.model.responses[r].kind.reads();
+            let value = c.model.responses[r].value(&c.eval.response_input(c.z, c.assembler));
+            let cancelling = if !reads.residual_nodes.is_empty() || reads.contact {
+                value.abs().max(c.record.reference_force)
+            } else {
+                value.abs()
+            };
             for k in 0..np {
                 let implicit = dresp[r][k] - explicit[r][k];
                 roundoff[r][k] |= dresp[r][k] != 0.0
                     && implicit.abs() * unbalance_noise[k]
                         > 10f64.powf(-ROUNDOFF_DIGITS) * dresp[r][k].abs();
+                let db = self.params[k].step(betas[k]);
+                noise[r][k] = implicit.abs() * unbalance_noise[k] + f64::EPSILON * cancelling / db;
             }
         }
         Ok(Step {
@@ -348,6 +366,7 @@ impl Engine<'_> {
             dhist,
             dz: dz_all,
             roundoff,
+            noise,
         })
     }
 }

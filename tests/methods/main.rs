@@ -10,6 +10,7 @@
 mod common;
 
 mod anatomy;
+mod beta_auto;
 mod examples;
 mod methods;
 mod plastic_cantilever;

@@ -26,6 +26,7 @@ use crate::studies::plot::PlotError;
 use std::path::{Path, PathBuf};
 
 pub mod anatomy;
+pub mod auto_step;
 mod figures;
 pub mod imported;
 mod report;
@@ -239,6 +240,8 @@ pub struct SceneValidation {
     pub anatomy: Vec<anatomy::AnatomyRow>,
     /// The last factorization's error against Newton's last correction ([`tangent`]).
     pub tangent: tangent::TangentStudy,
+    /// `--beta auto` against DDM ([`auto_step`]).
+    pub auto: Vec<auto_step::AutoRow>,
     /// The reference DDM results.
     #[serde(skip)]
     pub ddm: SensitivityResults,
@@ -535,7 +538,16 @@ pub(crate) fn validate_scene(
         refine_steps: 1,
         ..exact.clone()
     });
+    // SDM and SDM central with --beta auto
+    for m in [Method::Sdm, Method::SdmCentral] {
+        settings.push(Settings {
+            method: m,
+            beta_auto: true,
+            ..exact.clone()
+        });
+    }
     let (primal, mut inline) = run_inline_sweep(&model, &params, &settings).map_err(wrap)?;
+    let auto_runs = inline.split_off(inline.len() - 2);
     let ddm_refined = inline.pop().expect("pushed last");
     let explained = inline.split_off(inline.len() - 2);
     let anatomy = anatomy::anatomy_rows(&scene.name, &explained, &params, opts.floor);
@@ -653,6 +665,7 @@ pub(crate) fn validate_scene(
         ),
         ledger,
         anatomy,
+        auto: auto_step::auto_rows(&ddm, &auto_runs, &params, opts.floor, &flagged),
         tangent: tangent::tangent_study(
             &ddm,
             &ddm_last,

@@ -255,6 +255,21 @@ pub(super) fn report(
         .iter()
         .map(|v| (v.scene.as_str(), &v.tangent))
         .collect();
+    let autos: Vec<super::auto_step::SceneRow<'_>> = val
+        .scenes
+        .iter()
+        .flat_map(|v| {
+            v.auto.iter().map(move |r| {
+                let m = if r.method == Method::SdmCentral.name() {
+                    Method::SdmCentral
+                } else {
+                    Method::Sdm
+                };
+                (v.scene.as_str(), r, best(v, m, &r.param))
+            })
+        })
+        .collect();
+    super::auto_step::write_auto(&mut s, &autos);
     let drawn = tangents.iter().any(|(n, _)| *n == TANGENT_SCENE);
     super::tangent::write_tangent(&mut s, &tangents, drawn.then_some(TANGENT_FIGURE));
     let _ = writeln!(s, "\n## Cost\n");
