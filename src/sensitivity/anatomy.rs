@@ -352,12 +352,7 @@ impl Engine<'_> {
         // along it at the larger step
         let mut exact_along_sdm = vec![vec![0.0; np]; nr];
         let mut larger_step = vec![vec![0.0; np]; nr];
-        let values: Vec<f64> = c
-            .model
-            .responses
-            .iter()
-            .map(|r| r.value(&c.eval.response_input(c.z, c.assembler)))
-            .collect();
+        let values = response_values(c);
         for (k, dz) in sdm.dz.iter().enumerate() {
             let z = super::ddm::duals(c.z, dz);
             let (lifted, hist) = (&p_sdm.designs[k], &p_sdm.hists[k]);

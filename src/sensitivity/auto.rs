@@ -66,12 +66,7 @@ impl Engine<'_> {
         for beta in ladder {
             probes.push(self.sdm(c, central, &vec![*beta; np])?);
         }
-        let values: Vec<f64> = c
-            .model
-            .responses
-            .iter()
-            .map(|r| r.value(&c.eval.response_input(c.z, c.assembler)))
-            .collect();
+        let values = response_values(c);
         let chosen: Vec<usize> = (0..np)
             .map(|k| {
                 let b = self.params[k].value.abs().max(1.0);

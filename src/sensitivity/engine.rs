@@ -149,6 +149,15 @@ pub(super) fn refine_extended(
     Ok(())
 }
 
+/// Every response's value at the converged state.
+pub(super) fn response_values(c: &Converged<'_>) -> Vec<f64> {
+    c.model
+        .responses
+        .iter()
+        .map(|r| r.value(&c.eval.response_input(c.z, c.assembler)))
+        .collect()
+}
+
 /// Add the wall time of `f` to `slot`.
 pub(super) fn timed<T>(slot: &mut f64, f: impl FnOnce() -> T) -> T {
     let t = Instant::now();
@@ -523,12 +532,7 @@ impl Observer for Engine<'_> {
             None
         };
         self.dhist = dhist;
-        let values = c
-            .model
-            .responses
-            .iter()
-            .map(|r| r.value(&c.eval.response_input(c.z, c.assembler)))
-            .collect();
+        let values = response_values(c);
         self.results.increments.push(IncrementSensitivity {
             increment: c.index,
             time: c.time,

@@ -349,6 +349,19 @@ impl SensitivityResults {
         )
     }
 
+    /// The largest `|d response r / d parameter k|` over the increments, if the response is
+    /// sensitive to the parameter, whose value is `b`: `|b| max|dR/db| >= 1e-9 max|R|` over
+    /// the history (`|b|` at least 1). `None` for a response insensitive to it, e.g. a
+    /// reaction fixed by equilibrium, whose derivative is round-off.
+    pub fn sensitive_scale(&self, r: usize, k: usize, b: f64) -> Option<f64> {
+        let max = |f: &dyn Fn(&IncrementSensitivity) -> f64| {
+            self.increments.iter().map(f).fold(0.0f64, f64::max)
+        };
+        let scale = max(&|i| i.derivatives[r][k].abs());
+        let size = max(&|i| i.values[r].abs());
+        (scale != 0.0 && b.abs().max(1.0) * scale >= 1e-9 * size).then_some(scale)
+    }
+
     /// The increment that ends at pseudo-time `t` (to 1e-9).
     pub fn increment_at(&self, t: f64) -> Option<&IncrementSensitivity> {
         self.increments.iter().find(|i| (i.time - t).abs() < 1e-9)

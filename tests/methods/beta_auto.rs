@@ -28,19 +28,9 @@ fn bounded(
     let (mut ok, mut all, mut worst) = (0, 0, 0.0f64);
     for r in 0..s.responses.len() {
         for (k, p) in params.iter().enumerate() {
-            let scale = ddm
-                .increments
-                .iter()
-                .map(|i| i.derivatives[r][k].abs())
-                .fold(0.0, f64::max);
-            let size = ddm
-                .increments
-                .iter()
-                .map(|i| i.values[r].abs())
-                .fold(0.0, f64::max);
-            if scale == 0.0 || p.value.abs().max(1.0) * scale < 1e-9 * size {
+            let Some(scale) = ddm.sensitive_scale(r, k, p.value) else {
                 continue;
-            }
+            };
             for (a, d) in s.increments.iter().zip(&ddm.increments) {
                 if !d.kinks.is_empty() {
                     continue;

@@ -36,17 +36,7 @@ pub fn auto_rows(
         for (k, p) in params.iter().enumerate() {
             let (mut bounded, mut compared) = (0, 0);
             for r in 0..ddm.responses.len() {
-                let scale = ddm
-                    .increments
-                    .iter()
-                    .map(|i| i.derivatives[r][k].abs())
-                    .fold(0.0, f64::max);
-                let size = ddm
-                    .increments
-                    .iter()
-                    .map(|i| i.values[r].abs())
-                    .fold(0.0, f64::max);
-                if scale == 0.0 || p.value.abs().max(1.0) * scale < 1e-9 * size {
+                if ddm.sensitive_scale(r, k, p.value).is_none() {
                     continue;
                 }
                 for (n, (a, d)) in s.increments.iter().zip(&ddm.increments).enumerate() {

@@ -425,14 +425,9 @@ pub(crate) fn increment_errors(
         vec![None; reference.increments.len().min(other.increments.len())];
     let mut considered = false;
     for r in 0..nr {
-        let max = |f: &dyn Fn(&crate::sensitivity::IncrementSensitivity) -> f64| {
-            reference.increments.iter().map(f).fold(0.0f64, f64::max)
-        };
-        let scale = max(&|i| i.derivatives[r][p].abs());
-        let size = max(&|i| i.values[r].abs());
-        if scale == 0.0 || b.abs().max(1.0) * scale < 1e-9 * size {
+        let Some(scale) = reference.sensitive_scale(r, p, b) else {
             continue;
-        }
+        };
         considered = true;
         for (n, (a, b)) in reference
             .increments
