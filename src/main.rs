@@ -64,8 +64,8 @@ enum Command {
         /// Relative perturbation beta (b = b0 (1 + beta)) for SDM and FDM. Default: the
         /// scene's `[study] beta`, else 1e-6. `auto` (SDM, SDM central): each parameter's step
         /// chosen at every increment from a ladder of probes at the fixed state, and every
-        /// derivative given an error bar (twice the difference from a shadow run at a tenth of the
-        /// step, plus the round-off expected).
+        /// derivative given an error bar (twice the sum of the difference from a shadow run at a
+        /// tenth of the step and the round-off expected).
         #[arg(long)]
         beta: Option<String>,
         /// Tangent of the sensitivity solve (SDM, DDM). `exact`: the tangent at the converged
@@ -467,7 +467,7 @@ fn sensitivity(
                 .map(|(p, b)| format!("{p} {b:.0e}"))
                 .collect();
             out!(
-                "  steps chosen at the last increment: {} (error bars: twice the difference from a run at a tenth of each step, plus the round-off expected)",
+                "  steps chosen at the last increment: {} (error bars: twice the sum of the difference from a run at a tenth of each step and the round-off expected)",
                 steps.join(", ")
             );
         }

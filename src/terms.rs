@@ -1,8 +1,9 @@
 //! Which terms of the residual an evaluation adds ([`crate::assembly::Frozen::terms`]).
 
 /// The terms of the residual, each added by its own kernel: an evaluation may leave any of
-/// them out ([`crate::assembly::Frozen::terms`]). The history, the contact results and the branches are
-/// computed whatever the terms; only the residual is partial.
+/// them out ([`crate::assembly::Frozen::terms`]). Only the residual is meant to be read from
+/// such an evaluation: the contact results are computed whatever the terms, but elements left
+/// out carry their history over and have no stress, as a skipped element does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Terms {
     /// The internal forces of the solid elements (with their material's return map).

@@ -2,8 +2,10 @@
 //! departs from DDM's, term by term of the residual.
 //!
 //! SDM replaces the pseudo-load `-dR/db` by a finite difference of the residual at the fixed
-//! converged state. Its error in a response's derivative at increment `n` splits exactly into
-//! (all against DDM solved with the same tangent):
+//! converged state. Its error in a response's derivative at increment `n` splits into (all
+//! against DDM solved with the same tangent; the parts add up to the error up to the round-off
+//! of the differences, `eps |R_t| / h`, since each term is differenced from its own partial
+//! evaluation: where round-off dominates the error, the terms' shares are that round-off's):
 //!
 //! ```text
 //! SDM - DDM = sum_t g . K^-1 (D_t - F_t)           the terms of the pseudo-load

@@ -17,7 +17,7 @@
 //! a tenth (forward) or a hundredth (central) of the chosen one's, so their difference is at
 //! least 0.9 of the chosen error; where round-off dominates, the shadow's is ten times
 //! larger and the difference exceeds the chosen error ninefold. The bar is [`SAFETY`] times
-//! that difference plus the round-off the chosen run expects (machine precision times the
+//! the sum of that difference and the round-off the chosen run expects (machine precision times the
 //! forces that cancel in its unbalance, through the solve, and in the response's own
 //! difference, over the step); it includes what the history carries in from earlier
 //! increments, as both runs carry their own.
@@ -62,9 +62,21 @@ impl Engine<'_> {
         let np = self.params.len();
         let nr = c.model.responses.len();
         let nh = c.hist_prev.len();
-        let mut probes = Vec::with_capacity(ladder.len());
+        // a probe that fails (a step too large for the mesh: an inverted element, a face
+        // search that fails) is left out of the ladder; only if every one fails does SDM
+        let mut probes: Vec<Option<Step>> = Vec::with_capacity(ladder.len());
+        let mut failure = None;
         for beta in ladder {
-            probes.push(self.sdm(c, central, &vec![*beta; np])?);
+            match self.sdm(c, central, &vec![*beta; np]) {
+                Ok(p) => probes.push(Some(p)),
+                Err(e) => {
+                    probes.push(None);
+                    failure = Some(e);
+                }
+            }
+        }
+        if probes.iter().all(Option::is_none) {
+            return Err(failure.expect("a probe failed"));
         }
         let values = response_values(c);
         let chosen: Vec<usize> = (0..np)
@@ -76,19 +88,26 @@ impl Engine<'_> {
                     .map(|r| {
                         let s = probes
                             .iter()
+                            .flatten()
                             .map(|p| p.dresp[r][k].abs())
                             .filter(|v| v.is_finite())
                             .fold(0.0, f64::max);
                         (s > 0.0 && b * s >= 1e-9 * values[r].abs()).then_some(s)
                     })
                     .collect();
+                // between two neighbouring probes that both ran; a value that is not finite
+                // disagrees with everything
                 let disagreement = |j: usize| {
+                    let (Some(a), Some(b)) = (&probes[j], &probes[j + 1]) else {
+                        return f64::INFINITY;
+                    };
                     scales
                         .iter()
                         .enumerate()
                         .filter_map(|(r, s)| {
                             let s = (*s)?;
-                            Some((probes[j].dresp[r][k] - probes[j + 1].dresp[r][k]).abs() / s)
+                            let d = (a.dresp[r][k] - b.dresp[r][k]).abs() / s;
+                            Some(if d.is_nan() { f64::INFINITY } else { d })
                         })
                         .fold(0.0, f64::max)
                 };
@@ -96,7 +115,9 @@ impl Engine<'_> {
                     .map(|j| (j, disagreement(j)))
                     .filter(|(_, d)| d.is_finite())
                     .min_by(|a, b| a.1.total_cmp(&b.1))
-                    .map_or(0, |(j, _)| j)
+                    .map(|(j, _)| j)
+                    // no two neighbours agree: the largest probe that ran
+                    .unwrap_or_else(|| probes.iter().position(Option::is_some).unwrap_or(0))
             })
             .collect();
         let betas: Vec<f64> = chosen.iter().map(|j| ladder[*j]).collect();
@@ -108,7 +129,7 @@ impl Engine<'_> {
             noise: vec![vec![0.0; np]; nr],
         };
         for (k, &j) in chosen.iter().enumerate() {
-            let p = &probes[j];
+            let p = probes[j].as_ref().expect("a probe that ran");
             for r in 0..nr {
                 step.dresp[r][k] = p.dresp[r][k];
                 step.roundoff[r][k] = p.roundoff[r][k];

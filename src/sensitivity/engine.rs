@@ -451,7 +451,11 @@ impl Observer for Engine<'_> {
                     let betas = vec![self.settings.beta; self.params.len()];
                     self.sdm(c, central, &betas)?
                 };
-                if self.settings.explain {
+                // the anatomy differences at one fixed beta on the converged branches
+                if self.settings.explain
+                    && !self.settings.beta_auto
+                    && self.settings.freeze_branches
+                {
                     // the anatomy's work is kept out of the method's cost
                     let t = Instant::now();
                     let cost = self.results.cost.clone();

@@ -172,7 +172,9 @@ pub struct Settings {
     /// SDM and SDM central: split the error against DDM at every increment into the terms
     /// of the residual, the response's own difference and what the history carries in
     /// ([`anatomy`]; `SensitivityResults::anatomy`). Its work is timed apart
-    /// (`SensitivityCost::anatomy_seconds`) and kept out of the method's cost.
+    /// (`SensitivityCost::anatomy_seconds`) and kept out of the method's cost. Only at a fixed
+    /// `beta` with `freeze_branches` (what the anatomy differences against): ignored with
+    /// `beta_auto` or free branches.
     pub explain: bool,
     /// SDM and SDM central: choose each parameter's step at every increment from a ladder of
     /// probes at the fixed state instead of `beta`, and give every derivative an error bar

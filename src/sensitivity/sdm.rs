@@ -357,7 +357,8 @@ impl Engine<'_> {
                 roundoff[r][k] |= dresp[r][k] != 0.0
                     && implicit.abs() * unbalance_noise[k]
                         > 10f64.powf(-ROUNDOFF_DIGITS) * dresp[r][k].abs();
-                let db = self.params[k].step(betas[k]);
+                // (a negative parameter has a negative step)
+                let db = self.params[k].step(betas[k]).abs();
                 noise[r][k] = implicit.abs() * unbalance_noise[k] + f64::EPSILON * cancelling / db;
             }
         }
