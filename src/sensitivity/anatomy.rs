@@ -196,16 +196,6 @@ impl ErrorParts {
         v.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
         v
     }
-
-    /// Share of the largest part in the sum of the parts' magnitudes.
-    pub fn dominant_share(&self) -> f64 {
-        let named = self.named();
-        let sum: f64 = named.iter().map(|p| p.1.abs()).sum();
-        if sum == 0.0 {
-            return 0.0;
-        }
-        named[0].1.abs() / sum
-    }
 }
 
 /// The anatomy of SDM's error at one increment.
@@ -424,8 +414,6 @@ pub struct Explanation {
     pub parameter: String,
     /// The response whose derivative SDM gets most wrong, relative to its scale.
     pub response: String,
-    /// Index of the increment in `SensitivityResults::anatomy`.
-    pub at: usize,
     /// Its increment number and time.
     pub increment: usize,
     /// Pseudo-time.
@@ -494,7 +482,6 @@ pub fn explain(s: &SensitivityResults, values: &[f64], floor: f64) -> Vec<Explan
                     best = Some(Explanation {
                         parameter: parameter.clone(),
                         response: s.responses[r].clone(),
-                        at,
                         increment: a.increment,
                         time: a.time,
                         scale: d.abs().max(floor * scale),

@@ -53,7 +53,7 @@ pub struct DominantSplit {
 /// The anatomy rows of one scene from its explained SDM runs.
 pub fn anatomy_rows(
     scene: &str,
-    runs: &[SensitivityResults],
+    runs: &[&SensitivityResults],
     params: &[Parameter],
     floor: f64,
 ) -> Vec<AnatomyRow> {
