@@ -183,6 +183,22 @@ impl<S: Scalar> Local<S> {
 pub(crate) const MAX_HISTORY: usize = MAX_GAUSS * 16;
 
 impl Assembler {
+    /// The same assembler keeping the stress of every element in the evaluation's scalar
+    /// ([`Evaluation::stress`]): the stress fields' derivatives ([`crate::fields`]).
+    pub fn reading_every_stress(mut self) -> Self {
+        self.stress_elements = (0..self.stress_slot.len()).collect();
+        self.stress_slot = self.stress_elements.clone();
+        self
+    }
+
+    /// Where element `e`'s stress is kept in [`Evaluation::stress`], if it is.
+    pub fn stress_slot(&self, e: usize) -> Option<usize> {
+        self.stress_slot
+            .get(e)
+            .copied()
+            .filter(|s| *s != usize::MAX)
+    }
+
     /// Number the unknowns and build the sparsity pattern (once per model).
     pub fn new(model: &Model, extra: &[(usize, usize)]) -> Result<Self, LinalgError> {
         let dofs = model.dof_map();

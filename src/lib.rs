@@ -36,6 +36,7 @@ pub mod assembly;
 pub mod contact;
 pub mod design;
 pub mod element;
+pub mod fields;
 pub mod law;
 pub mod linalg;
 pub mod load;

@@ -92,6 +92,12 @@ enum Command {
         /// anatomy.csv.
         #[arg(long)]
         explain: bool,
+        /// Also write vtk/ for ParaView: per increment, the primal fields and, for every
+        /// parameter, the derivatives of the displacement, contact force and pressure,
+        /// friction force, stress and equivalent plastic strain fields (`d(FIELD)/d(PARAM)`),
+        /// collected in vtk/sensitivity.pvd.
+        #[arg(long)]
+        vtk: bool,
         /// Output directory (default: out/SCENE).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -271,6 +277,7 @@ struct InlineArgs {
     tangent: TangentArg,
     krylov: bool,
     explain: bool,
+    vtk: bool,
 }
 
 fn sensitivity(
@@ -285,6 +292,7 @@ fn sensitivity(
         tangent,
         krylov,
         explain,
+        vtk,
     } = inline;
     use fricsens::sensitivity::{
         run_sensitivity_watched, Method, Parameter, Settings, TangentChoice,
@@ -337,6 +345,7 @@ fn sensitivity(
         krylov,
         explain,
         beta_auto,
+        fields: vtk,
         ..Settings::default()
     };
     if beta_auto && !matches!(settings.method, Method::Sdm | Method::SdmCentral) {
@@ -408,6 +417,10 @@ fn sensitivity(
     let path = dir.join("sensitivity.json");
     let json = serde_json::to_string_pretty(&sens).map_err(|e| e.to_string())?;
     std::fs::write(&path, json).map_err(|e| format!("{}: {e}", path.display()))?;
+    if vtk {
+        fricsens::output::write_sensitivity_vtk(&dir, &model, &res, &sens)
+            .map_err(|e| e.to_string())?;
+    }
     let flagged = sens
         .increments
         .iter()
@@ -1158,6 +1171,7 @@ fn main() -> ExitCode {
             tangent,
             no_krylov,
             explain,
+            vtk,
             out,
         } => sensitivity(
             &scene,
@@ -1168,6 +1182,7 @@ fn main() -> ExitCode {
                 tangent,
                 krylov: !no_krylov,
                 explain,
+                vtk,
             },
             out,
         ),

@@ -336,6 +336,73 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
     extra
 }
 
+/// The point and cell fields of stored increment `k` beyond displacement and stress: the
+/// contact fields ([`contact_fields`]), `stick_slip` (per node: 0 not in frictional contact,
+/// 1 stick, 2 slip) and the `equivalent_plastic_strain` per element (its Gauss-point average,
+/// [`crate::fields::equivalent_plastic_strain`]).
+pub fn primal_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
+    let mut extra = contact_fields(model, res, k);
+    if let Some((_, _, state)) = extra.point.iter().find(|f| f.0 == "contact_state") {
+        let map = state
+            .iter()
+            .map(|s| match *s as i32 {
+                2 => 1.0,
+                3 => 2.0,
+                _ => 0.0,
+            })
+            .collect();
+        extra.point.push(("stick_slip".into(), 1, map));
+    }
+    let dofs = model.dof_map();
+    let eqps = match res.histories.get(k) {
+        Some(h) => (0..model.mesh.n_elements())
+            .map(|e| crate::fields::equivalent_plastic_strain(model, &dofs, h, e))
+            .collect(),
+        None => vec![0.0; model.mesh.n_elements()],
+    };
+    extra
+        .cell
+        .push(("equivalent_plastic_strain".into(), 1, eqps));
+    extra
+}
+
+/// Write `vtk/` of a sensitivity run with fields (`Settings::fields`): one `.vtu` per
+/// increment with the primal fields ([`write_vtu`], [`primal_fields`]) and, for every
+/// parameter `P` and field `F` of [`crate::fields::state_fields`], its derivative `d(F)/d(P)`;
+/// and `vtk/sensitivity.pvd`, the collection of them.
+pub fn write_sensitivity_vtk(
+    dir: &Path,
+    model: &Model,
+    res: &Results,
+    sens: &crate::sensitivity::SensitivityResults,
+) -> Result<(), OutputError> {
+    let vtk = dir.join("vtk");
+    std::fs::create_dir_all(&vtk).map_err(io(&vtk))?;
+    let mut files = Vec::new();
+    for inc in &sens.fields {
+        let k = inc.increment;
+        let Some(z) = res.states.get(k) else { break };
+        let mut extra = primal_fields(model, res, k);
+        for (p, fields) in sens.parameters.iter().zip(&inc.derivatives) {
+            for f in fields {
+                let entry = (
+                    format!("d({})/d({p})", f.name),
+                    f.components,
+                    f.values.clone(),
+                );
+                match f.location {
+                    crate::fields::Location::Point => extra.point.push(entry),
+                    crate::fields::Location::Cell => extra.cell.push(entry),
+                }
+            }
+        }
+        let name = format!("step_{k:04}.vtu");
+        write_vtu(&vtk.join(&name), model, z, &res.stresses[k], &extra)?;
+        files.push((inc.time, name));
+    }
+    write_pvd(&vtk.join("sensitivity.pvd"), &files)
+}
+
 /// Which increments [`write_run`] writes as VTK files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum VtkOutput {
@@ -399,7 +466,7 @@ pub fn write_run(
             model,
             z,
             &res.stresses[k],
-            &contact_fields(model, res, k),
+            &primal_fields(model, res, k),
         )?;
         files.push((*t, name));
     }

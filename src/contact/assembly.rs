@@ -369,7 +369,7 @@ pub(crate) fn evaluate<S: Scalar>(
             out.pair_force[p] += ko.force;
             out.normal_force[flat] = ko.p_n;
             out.force[flat] = ko.force.map(|v| v.value());
-            out.traction[flat] = (ko.force - normal_part).map(|v| v.value());
+            out.traction[flat] = ko.force - normal_part;
             out.distance[flat] = (ko.normal_distance, ko.slip_ratio);
             out.gap[flat] = ko.projection.gap.value();
             let h_new = &mut hist_new[h0..h0 + nh];

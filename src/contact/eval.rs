@@ -26,8 +26,9 @@ pub struct ContactEval<S: Scalar> {
     pub translation: Vec<Vector3<S>>,
     /// Contact force per hitting node (real parts), for output.
     pub force: Vec<Vector3<f64>>,
-    /// Tangential (friction) force per hitting node (real parts): the slip direction.
-    pub traction: Vec<Vector3<f64>>,
+    /// Tangential (friction) force per hitting node, in the evaluation's scalar (its
+    /// direction is the slip direction).
+    pub traction: Vec<Vector3<S>>,
     /// `(normal_distance, slip_ratio)` per hitting node.
     pub distance: Vec<(f64, f64)>,
     /// Gap per hitting node (real part; negative = penetration).

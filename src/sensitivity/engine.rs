@@ -185,6 +185,8 @@ pub struct Engine<'a> {
     /// Tangent to solve with instead of the Newton one (one-sided derivatives: the tangent of
     /// the forced branches).
     pub(super) forced_tangent: Option<crate::linalg::SparseMatrix>,
+    /// `Settings::fields`: the assembler that keeps every element's stress in the scalar.
+    pub(super) field_assembler: Option<crate::assembly::Assembler>,
     /// What the engine has computed so far.
     pub results: SensitivityResults,
 }
@@ -203,6 +205,7 @@ impl<'a> Engine<'a> {
             exact: None,
             exact_holds: None,
             forced_tangent: None,
+            field_assembler: None,
             results: SensitivityResults {
                 method: Some(settings.method),
                 beta: settings.beta,
@@ -535,6 +538,17 @@ impl Observer for Engine<'_> {
         } else {
             None
         };
+        if self.settings.fields {
+            let t = Instant::now();
+            let steps: Vec<f64> = (self.params.iter().enumerate())
+                .map(|(k, p)| p.step(auto.as_ref().map_or(self.settings.beta, |a| a.0[k])))
+                .collect();
+            let fields = self.field_derivatives(c, &dz, &steps)?;
+            self.results.fields.push(fields);
+            let spent = t.elapsed().as_secs_f64();
+            self.results.cost.fields_seconds += spent;
+            explain_seconds += spent;
+        }
         self.dhist = dhist;
         let values = response_values(c);
         self.results.increments.push(IncrementSensitivity {

@@ -6,14 +6,31 @@ use crate::model::Model;
 use crate::solver::{AnalysisError, Converged, NoObserver, Observer, Results, RunOptions, Solver};
 use std::time::Instant;
 
-/// Primal run of a model with parameter `k` set to `b_0 + db`.
-pub(super) fn rerun(model: &Model, p: &Parameter, db: f64) -> Result<Results, AnalysisError> {
+/// The model with parameter `p` set to `b_0 + db`.
+pub(super) fn perturbed_model(model: &Model, p: &Parameter, db: f64) -> Model {
     let mut m = model.clone();
     for t in &p.targets {
         m.set_param(*t, p.value + db);
     }
-    let mut solver = Solver::new(&m)?;
-    solver.run(&RunOptions::default(), &mut NoObserver)
+    m
+}
+
+/// The fields ([`crate::fields`]) of a run of `model` at each of the nominal `times`.
+fn fields_at_times(
+    model: &Model,
+    res: &Results,
+    times: &[f64],
+) -> Result<Vec<Vec<crate::fields::Field<f64>>>, AnalysisError> {
+    let asm = crate::assembly::Assembler::new(model, &[])?;
+    times
+        .iter()
+        .map(|t| {
+            let k = res
+                .increment_at(*t)
+                .ok_or_else(|| AnalysisError::from(SensitivityError::NoIncrementAt { time: *t }))?;
+            fields::results_fields(model, &asm, res, k)
+        })
+        .collect()
 }
 
 /// Response values at the nominal increment times of a run (cutback sub-increments skipped).
@@ -100,7 +117,7 @@ pub(super) fn inline_sweep(
         .iter()
         .map(|e| {
             let c = &e.results.cost;
-            c.wall_seconds + c.floor_seconds + c.anatomy_seconds
+            c.wall_seconds + c.floor_seconds + c.anatomy_seconds + c.fields_seconds
         })
         .sum();
     let out = engines
@@ -125,7 +142,7 @@ pub fn run_fdm_sweep(
     betas: &[f64],
     central: bool,
 ) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
-    fdm_sweep(model, params, betas, central, &mut |_| {})
+    fdm_sweep(model, params, betas, central, false, &mut |_| {})
 }
 
 /// An observer followed by a look at each converged increment (a progress display).
@@ -145,6 +162,7 @@ pub(super) fn fdm_sweep(
     params: &[Parameter],
     betas: &[f64],
     central: bool,
+    fields: bool,
     watch: &mut dyn FnMut(&Converged<'_>),
 ) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
     use rayon::prelude::*;
@@ -154,6 +172,13 @@ pub(super) fn fdm_sweep(
     let primal_seconds = t0.elapsed().as_secs_f64();
     let times: Vec<f64> = nominal.times[1..].to_vec();
     let base = responses_at(model, &nominal, &times)?;
+    let base_fields = if fields {
+        let t = Instant::now();
+        let f = fields_at_times(model, &nominal, &times)?;
+        (f, t.elapsed().as_secs_f64())
+    } else {
+        (Vec::new(), 0.0)
+    };
     // the reruns follow the nominal run's increments, cut-back ones included, so that every
     // difference is taken between states of the same load level
     let mut model = model.clone();
@@ -168,7 +193,8 @@ pub(super) fn fdm_sweep(
         .map(|&(b, k, sign)| {
             let t = Instant::now();
             let p = &params[k];
-            let r = rerun(model, p, sign * p.step(betas[b]))?;
+            let m = perturbed_model(model, p, sign * p.step(betas[b]));
+            let r = Solver::new(&m)?.run(&RunOptions::default(), &mut NoObserver)?;
             // the first time the rerun needed a sub-increment the nominal run did not take
             let substep_from = r.times[1..]
                 .iter()
@@ -180,6 +206,11 @@ pub(super) fn fdm_sweep(
                 .copied();
             Ok(Rerun {
                 values: responses_at(model, &r, &times)?,
+                fields: if fields {
+                    fields_at_times(&m, &r, &times)?
+                } else {
+                    Vec::new()
+                },
                 seconds: t.elapsed().as_secs_f64(),
                 substep_from,
             })
@@ -211,6 +242,7 @@ pub(super) fn fdm_sweep(
             let mut roundoff = vec![vec![vec![false; np]; nr]; times.len()];
             let mut substep_from = vec![f64::INFINITY; np];
             let mut failures = Vec::new();
+            let mut field_derivs = vec![vec![Vec::new(); np]; if fields { times.len() } else { 0 }];
             let mut seconds = 0.0;
             let mut count = 0;
             for (k, p) in params.iter().enumerate() {
@@ -230,6 +262,13 @@ pub(super) fn fdm_sweep(
                     seconds += r.seconds;
                     count += 1;
                     substep_from[k] = substep_from[k].min(r.substep_from.unwrap_or(f64::INFINITY));
+                }
+                for (i, f) in field_derivs.iter_mut().enumerate() {
+                    f[k] = if is_central {
+                        fields::difference(&used[0].fields[i], &used[1].fields[i], 2.0 * db)
+                    } else {
+                        fields::difference(&used[0].fields[i], &base_fields.0[i], db)
+                    };
                 }
                 for i in 0..times.len() {
                     for r in 0..nr {
@@ -274,11 +313,22 @@ pub(super) fn fdm_sweep(
                 cost: SensitivityCost {
                     wall_seconds: seconds,
                     primal_reruns: count,
+                    fields_seconds: base_fields.1,
                     ..Default::default()
                 },
                 primal_seconds,
                 failure: (!failures.is_empty()).then(|| failures.join("; ")),
                 anatomy: Vec::new(),
+                fields: field_derivs
+                    .into_iter()
+                    .zip(&times)
+                    .enumerate()
+                    .map(|(i, (derivatives, t))| fields::IncrementFields {
+                        increment: i + 1,
+                        time: *t,
+                        derivatives,
+                    })
+                    .collect(),
             });
         }
     }
@@ -288,10 +338,11 @@ pub(super) fn fdm_sweep(
 /// A rerun of the FDM sweep once run: its responses, or why it failed.
 type RerunSlot = Option<Result<Rerun, String>>;
 
-/// One finite-difference rerun: responses at the nominal times.
+/// One finite-difference rerun: responses (and fields, if asked) at the nominal times.
 #[derive(Clone)]
 pub(super) struct Rerun {
     values: Vec<Vec<f64>>,
+    fields: Vec<Vec<crate::fields::Field<f64>>>,
     seconds: f64,
     substep_from: Option<f64>,
 }

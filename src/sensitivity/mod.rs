@@ -58,6 +58,7 @@ mod auto;
 mod ddm;
 mod engine;
 mod fdm;
+pub mod fields;
 mod kinks;
 mod sdm;
 
@@ -180,6 +181,11 @@ pub struct Settings {
     /// probes at the fixed state instead of `beta`, and give every derivative an error bar
     /// (`auto` module docs; `IncrementSensitivity::betas`, `error_bars`).
     pub beta_auto: bool,
+    /// Keep the derivatives of the state's fields (displacement, contact forces and
+    /// pressures, stress, equivalent plastic strain) at every increment
+    /// (`SensitivityResults::fields`; the [`fields`] module says how each method takes them).
+    /// Their work is timed apart (`SensitivityCost::fields_seconds`).
+    pub fields: bool,
 }
 
 /// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
@@ -206,6 +212,7 @@ impl Default for Settings {
             krylov: true,
             explain: false,
             beta_auto: false,
+            fields: false,
         }
     }
 }
@@ -286,6 +293,9 @@ pub struct SensitivityCost {
     /// The error anatomy's work (`Settings::explain`), not part of the wall time or the
     /// counts above.
     pub anatomy_seconds: f64,
+    /// The field derivatives' work (`Settings::fields`), not part of the wall time or the
+    /// counts above (FDM: the reruns' field evaluations are in their rerun times).
+    pub fields_seconds: f64,
 }
 
 impl SensitivityCost {
@@ -318,6 +328,10 @@ pub struct SensitivityResults {
     pub failure: Option<String>,
     /// SDM's error anatomy per increment (`Settings::explain`; empty otherwise).
     pub anatomy: Vec<anatomy::IncrementAnatomy>,
+    /// The derivatives of the state's fields per increment (`Settings::fields`; empty
+    /// otherwise).
+    #[serde(skip)]
+    pub fields: Vec<fields::IncrementFields>,
 }
 
 impl SensitivityResults {
@@ -397,7 +411,14 @@ pub fn run_sensitivity_watched(
         (res, out)
     } else {
         let central = settings.method == Method::FdmCentral;
-        fdm_sweep(model, params, &[settings.beta], central, watch)?
+        fdm_sweep(
+            model,
+            params,
+            &[settings.beta],
+            central,
+            settings.fields,
+            watch,
+        )?
     };
     // the sweep of one beta gives [forward] or [forward, central]: the requested one is last
     let s = out.pop().expect("one result per setting");

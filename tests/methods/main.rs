@@ -12,6 +12,7 @@ mod common;
 mod anatomy;
 mod beta_auto;
 mod examples;
+mod fields;
 mod methods;
 mod plastic_cantilever;
 mod roundoff;
