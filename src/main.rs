@@ -98,7 +98,22 @@ enum Command {
         /// collected in vtk/sensitivity.pvd.
         #[arg(long)]
         vtk: bool,
+        /// FDM and FDM central: run share K of N of the reruns (with the nominal run, which
+        /// every share runs) and write OUT/partial-K-of-N.json; `fricsens merge` combines the
+        /// shares into the unsharded run's results, bit for bit.
+        #[arg(long, value_name = "K/N")]
+        shard: Option<String>,
         /// Output directory (default: out/SCENE).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Combine the shares of a sharded finite-difference sweep (`fricsens sensitivity
+    /// --shard K/N`) into the unsharded run's sensitivity.csv and sensitivity.json.
+    Merge {
+        /// The shares' partial-K-of-N.json files (every share exactly once).
+        #[arg(required = true)]
+        partials: Vec<PathBuf>,
+        /// Output directory (default: the first share's).
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -278,6 +293,119 @@ struct InlineArgs {
     krylov: bool,
     explain: bool,
     vtk: bool,
+    shard: Option<String>,
+}
+
+/// `fricsens merge`: the shares of one FDM sweep into the unsharded run's outputs.
+fn merge(files: &[PathBuf], out: Option<PathBuf>) -> Result<(), String> {
+    use fricsens::sensitivity::{merge_fdm, FdmPartial, Parameter};
+    let mut scene_name: Option<String> = None;
+    let mut partials = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(f).map_err(|e| format!("{}: {e}", f.display()))?;
+        let v: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", f.display()))?;
+        let name = v["scene"]
+            .as_str()
+            .ok_or_else(|| format!("{}: no `scene`: not a partial result", f.display()))?;
+        match &scene_name {
+            Some(n) if n != name => {
+                return Err(format!(
+                    "{}: a share of scene `{name}`, the others are of `{n}`",
+                    f.display()
+                ))
+            }
+            _ => scene_name = Some(name.to_string()),
+        }
+        let p: FdmPartial = serde_json::from_value(v["partial"].clone())
+            .map_err(|e| format!("{}: not a partial result: {e}", f.display()))?;
+        partials.push(p);
+    }
+    let scene_name = scene_name.ok_or("no partial results given")?;
+    let scene = Scene::load(&scene_name).map_err(|e| e.to_string())?;
+    let model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
+    let params: Vec<Parameter> = partials[0]
+        .params
+        .iter()
+        .map(|n| Parameter::by_name(&model, n).map_err(|e| e.to_string()))
+        .collect::<Result<_, _>>()?;
+    let mut results = merge_fdm(&model, &params, &partials).map_err(|e| e.to_string())?;
+    // [forward] or [forward, central]: the sharded method is the last
+    let sens = results.pop().ok_or("nothing merged")?;
+    if let Some(why) = &sens.failure {
+        return Err(format!("{}: {why}", scene.name));
+    }
+    let dir = match out {
+        Some(d) => d,
+        None => files[0]
+            .parent()
+            .map(|p| p.to_path_buf())
+            .unwrap_or_else(|| PathBuf::from(".")),
+    };
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    write_sensitivity(&dir, &sens, false)?;
+    out!(
+        "{}: {} shares merged, {} reruns, {} increments; written to {}",
+        scene.name,
+        partials.len(),
+        sens.cost.primal_reruns,
+        sens.increments.len(),
+        dir.display()
+    );
+    Ok(())
+}
+
+/// Write `sensitivity.csv` (one row per increment: value and derivatives of every response)
+/// and `sensitivity.json` (everything) of a sensitivity run into `dir`.
+fn write_sensitivity(
+    dir: &std::path::Path,
+    sens: &fricsens::sensitivity::SensitivityResults,
+    beta_auto: bool,
+) -> Result<(), String> {
+    // CSV: one row per increment, value and derivatives of every response
+    let mut csv = String::from("increment,time,kinks");
+    for r in &sens.responses {
+        csv.push_str(&format!(",{r}"));
+        for p in &sens.parameters {
+            csv.push_str(&format!(",d({r})/d({p})"));
+            if beta_auto {
+                csv.push_str(&format!(",error bar of d({r})/d({p})"));
+            }
+        }
+    }
+    if beta_auto {
+        for p in &sens.parameters {
+            csv.push_str(&format!(",beta({p})"));
+        }
+    }
+    csv.push('\n');
+    for inc in &sens.increments {
+        csv.push_str(&format!(
+            "{},{:.10e},{}",
+            inc.increment,
+            inc.time,
+            inc.kinks.len()
+        ));
+        for (r, v) in inc.values.iter().enumerate() {
+            csv.push_str(&format!(",{v:.12e}"));
+            for (k, d) in inc.derivatives[r].iter().enumerate() {
+                csv.push_str(&format!(",{d:.12e}"));
+                if let Some(e) = inc.error_bars.get(r).and_then(|row| row.get(k)) {
+                    csv.push_str(&format!(",{e:.3e}"));
+                }
+            }
+        }
+        for b in &inc.betas {
+            csv.push_str(&format!(",{b:.0e}"));
+        }
+        csv.push('\n');
+    }
+    let path = dir.join("sensitivity.csv");
+    std::fs::write(&path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
+    let path = dir.join("sensitivity.json");
+    let json = serde_json::to_string_pretty(&sens).map_err(|e| e.to_string())?;
+    std::fs::write(&path, json).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(())
 }
 
 fn sensitivity(
@@ -293,6 +421,7 @@ fn sensitivity(
         krylov,
         explain,
         vtk,
+        shard,
     } = inline;
     use fricsens::sensitivity::{
         run_sensitivity_watched, Method, Parameter, Settings, TangentChoice,
@@ -363,6 +492,39 @@ fn sensitivity(
             settings.method.name()
         ));
     }
+    if let Some(shard) = shard {
+        let shard = fricsens::sensitivity::Shard::parse(&shard)?;
+        let central = match settings.method {
+            Method::Fdm => false,
+            Method::FdmCentral => true,
+            m => {
+                return Err(format!(
+                    "--shard splits the finite-difference reruns: use it with --method fdm or fdm-central, not {}",
+                    m.name()
+                ))
+            }
+        };
+        if vtk {
+            return Err("--shard writes no fields: leave out --vtk".into());
+        }
+        let partial =
+            fricsens::sensitivity::run_fdm_shard(&model, &params, &[beta], central, shard)
+                .map_err(|e| e.to_string())?;
+        let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
+        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        let path = dir.join(format!("partial-{}-of-{}.json", shard.index, shard.count));
+        let json = serde_json::json!({ "scene": scene_name, "partial": partial });
+        std::fs::write(&path, json.to_string()).map_err(|e| format!("{}: {e}", path.display()))?;
+        out!(
+            "{}: share {}/{} of the reruns ({} of them) written to {}; combine the shares with `fricsens merge`",
+            scene.name,
+            shard.index,
+            shard.count,
+            partial.reruns.len(),
+            path.display()
+        );
+        return Ok(());
+    }
     let bar = progress(model.times.len());
     if settings.method.is_inline() {
         bar.set_prefix(settings.method.name());
@@ -374,49 +536,7 @@ fn sensitivity(
     let (res, sens) = run.map_err(|e| e.to_string())?;
     let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    // CSV: one row per increment, value and derivatives of every response
-    let mut csv = String::from("increment,time,kinks");
-    for r in &sens.responses {
-        csv.push_str(&format!(",{r}"));
-        for p in &sens.parameters {
-            csv.push_str(&format!(",d({r})/d({p})"));
-            if beta_auto {
-                csv.push_str(&format!(",error bar of d({r})/d({p})"));
-            }
-        }
-    }
-    if beta_auto {
-        for p in &sens.parameters {
-            csv.push_str(&format!(",beta({p})"));
-        }
-    }
-    csv.push('\n');
-    for inc in &sens.increments {
-        csv.push_str(&format!(
-            "{},{:.10e},{}",
-            inc.increment,
-            inc.time,
-            inc.kinks.len()
-        ));
-        for (r, v) in inc.values.iter().enumerate() {
-            csv.push_str(&format!(",{v:.12e}"));
-            for (k, d) in inc.derivatives[r].iter().enumerate() {
-                csv.push_str(&format!(",{d:.12e}"));
-                if let Some(e) = inc.error_bars.get(r).and_then(|row| row.get(k)) {
-                    csv.push_str(&format!(",{e:.3e}"));
-                }
-            }
-        }
-        for b in &inc.betas {
-            csv.push_str(&format!(",{b:.0e}"));
-        }
-        csv.push('\n');
-    }
-    let path = dir.join("sensitivity.csv");
-    std::fs::write(&path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
-    let path = dir.join("sensitivity.json");
-    let json = serde_json::to_string_pretty(&sens).map_err(|e| e.to_string())?;
-    std::fs::write(&path, json).map_err(|e| format!("{}: {e}", path.display()))?;
+    write_sensitivity(&dir, &sens, beta_auto)?;
     if vtk {
         fricsens::output::write_sensitivity_vtk(&dir, &model, &res, &sens)
             .map_err(|e| e.to_string())?;
@@ -1163,6 +1283,7 @@ fn main() -> ExitCode {
             beta_max,
             beta_min,
         } => validate(&scenes, out, full, beta_max, beta_min),
+        Command::Merge { partials, out } => merge(&partials, out),
         Command::Sensitivity {
             scene,
             params,
@@ -1172,6 +1293,7 @@ fn main() -> ExitCode {
             no_krylov,
             explain,
             vtk,
+            shard,
             out,
         } => sensitivity(
             &scene,
@@ -1183,6 +1305,7 @@ fn main() -> ExitCode {
                 krylov: !no_krylov,
                 explain,
                 vtk,
+                shard,
             },
             out,
         ),

@@ -18,6 +18,7 @@ mod plastic_cantilever;
 mod roundoff;
 mod sensitivity_elastic;
 mod sensitivity_kinks;
+mod shards;
 mod stress;
 mod tangent_choice;
 mod taylor;

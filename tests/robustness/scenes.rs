@@ -203,3 +203,23 @@ fn a_scene_file_is_told_which_settings_it_left_to_their_defaults() {
         Vec::<String>::new()
     );
 }
+
+/// `fricsens scenes --show` prints short arrays inline (`origin = [0.0, -1.0, 0.0]`, an
+/// amplitude as `[[0.0, 0.0], [1.0, 1.0]]`), never one number per line.
+#[test]
+fn shown_scenes_print_short_arrays_inline() {
+    for (name, _) in builtin_list() {
+        let text = builtin(name).unwrap().to_toml().unwrap();
+        for line in text.lines() {
+            let t = line.trim().trim_end_matches(',');
+            assert!(
+                t.parse::<f64>().is_err() && t != "[" && t != "]",
+                "{name}: a line of its own: `{line}`"
+            );
+        }
+        let reread = Scene::from_toml(&text, name).unwrap();
+        assert_eq!(reread.to_toml().unwrap(), text, "{name}");
+    }
+    let jenkins = builtin("jenkins").unwrap().to_toml().unwrap();
+    assert!(jenkins.contains("amplitude = [[0.0, 0.0], [1.0, 1.0], [3.0, -1.0], [5.0, 1.0]]"));
+}
