@@ -116,22 +116,32 @@ pub fn state_fields<S: Scalar>(
             Some(slot) => ev.stress[slot],
             None => ev.cauchy[e].map(S::lift),
         };
-        sig.extend_from_slice(&[
-            s[(0, 0)],
-            s[(1, 1)],
-            s[(2, 2)],
-            s[(0, 1)],
-            s[(1, 2)],
-            s[(0, 2)],
-        ]);
-        let d = s - Matrix3::identity() * (s.trace() / S::lift(3.0));
-        mises.push(safe_sqrt(d.component_mul(&d).sum() * S::lift(1.5)));
+        sig.extend_from_slice(&stress_components(&s));
+        mises.push(von_mises(&s));
         eqps.push(equivalent_plastic_strain(model, dofs, &ev.hist_new, e));
     }
     out.push(cell("cauchy_stress", 6, sig));
     out.push(cell("von_mises", 1, mises));
     out.push(cell("equivalent_plastic_strain", 1, eqps));
     out
+}
+
+/// The six components of a symmetric stress in the VTK files' order: xx, yy, zz, xy, yz, xz.
+pub fn stress_components<S: Scalar>(s: &Matrix3<S>) -> [S; 6] {
+    [
+        s[(0, 0)],
+        s[(1, 1)],
+        s[(2, 2)],
+        s[(0, 1)],
+        s[(1, 2)],
+        s[(0, 2)],
+    ]
+}
+
+/// The von Mises stress `sqrt(3/2 s':s')` of a stress (zero-safe, [`safe_sqrt`]).
+pub fn von_mises<S: Scalar>(s: &Matrix3<S>) -> S {
+    let d = s - Matrix3::identity() * (s.trace() / S::lift(3.0));
+    safe_sqrt(d.component_mul(&d).sum() * S::lift(1.5))
 }
 
 /// The equivalent plastic strain of element `e` in history `hist`: the mean over its Gauss

@@ -210,16 +210,8 @@ pub fn write_vtu(
     let mut sig = Vec::with_capacity(6 * ne);
     let mut mises = Vec::with_capacity(ne);
     for s in stress {
-        sig.extend_from_slice(&[
-            s[(0, 0)],
-            s[(1, 1)],
-            s[(2, 2)],
-            s[(0, 1)],
-            s[(1, 2)],
-            s[(0, 2)],
-        ]);
-        let d = s - nalgebra::Matrix3::identity() * (s.trace() / 3.0);
-        mises.push((1.5 * d.component_mul(&d).sum()).sqrt());
+        sig.extend_from_slice(&crate::fields::stress_components(s));
+        mises.push(crate::fields::von_mises(s));
     }
     let arr = |name: &str, comps: u32, data: Vec<f64>| {
         Attribute::DataArray(DataArray {
