@@ -420,15 +420,17 @@ pub fn merge_fdm(
             });
         }
     }
-    if let Some(p) = params
-        .iter()
-        .zip(first.params.iter().map(Some).chain(std::iter::repeat(None)))
-        .find(|(p, f)| Some(&p.name) != *f)
-    {
-        return Err(MergeError::Parameter(p.0.name.clone()));
-    }
-    if first.params.len() != params.len() {
-        return Err(MergeError::Parameter(first.params[params.len()].clone()));
+    // the model's parameters must be the sweep's, in its order
+    let names: Vec<&str> = params.iter().map(|p| p.name.as_str()).collect();
+    if names != first.params {
+        let differs = (0..names.len().max(first.params.len()))
+            .find(|&i| names.get(i).copied() != first.params.get(i).map(|n| n.as_str()))
+            .expect("the lists differ");
+        let name = names
+            .get(differs)
+            .copied()
+            .unwrap_or(&first.params[differs]);
+        return Err(MergeError::Parameter(name.to_string()));
     }
     let jobs = fdm_jobs(params.len(), first.betas.len(), first.central);
     let mut runs: Vec<Option<Result<Rerun, String>>> = vec![None; jobs.len()];
