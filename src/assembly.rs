@@ -74,6 +74,11 @@ pub struct Frozen<'a> {
     /// an element the design perturbation does not reach contributes the same residual to
     /// both evaluations of SDM's unbalance, so both may leave it out.
     pub skip: Option<&'a [bool]>,
+    /// Per hitting node (flat over pairs): left out of the contact evaluation. A node left out
+    /// adds nothing to the residual (nor to its pair's force), carries its history over
+    /// unchanged and reports no normal force. The adjoint's local Jacobians
+    /// ([`crate::sensitivity`]) evaluate a few nodes at a time with their own seeds.
+    pub skip_contact: Option<&'a [bool]>,
     /// The terms of the residual the evaluation adds (all by default). SDM's error anatomy
     /// ([`crate::sensitivity::anatomy`]) evaluates them one at a time.
     pub terms: Terms,
@@ -490,6 +495,7 @@ impl Assembler {
                 frozen.map(|f| f.contact).filter(|c| !c.is_empty()),
                 frozen.and_then(|f| f.keep_faces),
                 frozen.and_then(|f| f.stick),
+                frozen.and_then(|f| f.skip_contact),
                 terms,
                 want_k,
                 &mut out.residual,

@@ -209,6 +209,7 @@ pub(crate) fn evaluate<S: Scalar>(
     frozen: Option<&[ContactChoice]>,
     keep_faces: Option<&[ContactChoice]>,
     force_stick: Option<&[bool]>,
+    skip_nodes: Option<&[bool]>,
     terms: crate::terms::Terms,
     want_tangent: bool,
     residual: &mut [S],
@@ -248,6 +249,13 @@ pub(crate) fn evaluate<S: Scalar>(
         }
         for (i, &s) in pair.hitting.iter().enumerate() {
             let flat = layout.flat[p] + i;
+            if skip_nodes.is_some_and(|m| m[flat]) {
+                let h0 = layout.history[p] + nh * i;
+                hist_new[h0..h0 + nh].copy_from_slice(&hist_old[h0..h0 + nh]);
+                out.normal_force[flat] = S::zero();
+                out.traction[flat] = Vector3::zeros();
+                continue;
+            }
             par.area = lifted.area[p][i];
             out.area[flat] = par.area;
             par.eps_t = eps_t * pair.tangential_weight[i];

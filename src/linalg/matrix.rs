@@ -248,6 +248,31 @@ impl SparseMatrix {
         Ok(())
     }
 
+    /// `r = b - A^T x` in double-double arithmetic, as [`SparseMatrix::residual_extended`]
+    /// (the refinement of a transposed solve: an adjoint).
+    pub fn residual_extended_transpose(&self, x: &[f64], b: &[f64], r: &mut [f64]) -> Result<()> {
+        let n = self.pattern.n;
+        check_len(n, x.len())?;
+        check_len(n, b.len())?;
+        check_len(n, r.len())?;
+        let cp = self.pattern.symbolic.col_ptr();
+        let ri = self.pattern.symbolic.row_idx();
+        for (j, rj) in r.iter_mut().enumerate() {
+            let (mut hi, mut lo) = (b[j], 0.0);
+            for k in cp[j]..cp[j + 1] {
+                let (a, xi) = (self.values[k], x[ri[k]]);
+                let p = -a * xi;
+                let e = (-a).mul_add(xi, -p);
+                let s = hi + p;
+                let bp = s - hi;
+                lo += (hi - (s - bp)) + (p - bp) + e;
+                hi = s;
+            }
+            *rj = hi + lo;
+        }
+        Ok(())
+    }
+
     /// `y = |A| |x|`, entrywise absolute values (round-off bounds such as `eps |A| |x|`).
     pub fn abs_mul_vec(&self, x: &[f64], y: &mut [f64]) -> Result<()> {
         self.mul_vec_mapped(x, y, f64::abs)

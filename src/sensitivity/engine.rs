@@ -102,7 +102,7 @@ pub(super) const EXTENDED_REFINEMENT_STEPS: usize = 3;
 type CorrectionSolve<'a> =
     dyn FnMut(&mut [f64], &mut SensitivityCost) -> Result<(), crate::linalg::LinalgError> + 'a;
 
-/// Iterative refinement of the solution `x` of `k x = b` (`ncols` column-major columns) with
+/// Iterative refinement of the solution `x` of `k x = b` (`k^T x = b` if `transpose`) (`ncols` column-major columns) with
 /// residuals in double-double arithmetic ([`crate::linalg::SparseMatrix::residual_extended`]),
 /// each correction solved by `correct` (with the factor or GMRES that solved `x`), until every
 /// column's correction is below [`REFINED_TO`] of the column (or
@@ -118,6 +118,7 @@ type CorrectionSolve<'a> =
 /// *Accuracy and Stability of Numerical Algorithms*, section 12.1).
 pub(super) fn refine_extended(
     k: &crate::linalg::SparseMatrix,
+    transpose: bool,
     b: &[f64],
     x: &mut [f64],
     ncols: usize,
@@ -130,7 +131,12 @@ pub(super) fn refine_extended(
     for _ in 0..EXTENDED_REFINEMENT_STEPS {
         for c in 0..ncols {
             let cols = c * n..(c + 1) * n;
-            k.residual_extended(&x[cols.clone()], &b[cols.clone()], &mut r[cols])?;
+            let (xc, bc) = (&x[cols.clone()], &b[cols.clone()]);
+            if transpose {
+                k.residual_extended_transpose(xc, bc, &mut r[cols])?;
+            } else {
+                k.residual_extended(xc, bc, &mut r[cols])?;
+            }
         }
         correct(&mut r, cost)?;
         let mut done = true;
@@ -367,7 +373,7 @@ impl<'a> Engine<'a> {
                         Ok(())
                     };
                     let t = Instant::now();
-                    refine_extended(&k, &b, rhs, ncols, cost, &mut correct)?;
+                    refine_extended(&k, false, &b, rhs, ncols, cost, &mut correct)?;
                     cost.solve_seconds += t.elapsed().as_secs_f64();
                     return Ok(());
                 }
@@ -391,7 +397,7 @@ impl<'a> Engine<'a> {
                 cost.solve_columns += ncols;
                 s.solve_multi_in_place(r, ncols)
             };
-            refine_extended(&k, &b, rhs, ncols, cost, &mut correct)?;
+            refine_extended(&k, false, &b, rhs, ncols, cost, &mut correct)?;
             cost.solve_seconds += t.elapsed().as_secs_f64();
         } else {
             let last = c.last_factor.expect("checked above");
@@ -471,7 +477,7 @@ impl Observer for Engine<'_> {
                 }
                 step
             }
-            Method::Fdm | Method::FdmCentral => {
+            Method::Fdm | Method::FdmCentral | Method::Adjoint => {
                 return Err(SensitivityError::NotInline {
                     method: self.settings.method.name(),
                 }

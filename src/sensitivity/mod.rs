@@ -53,6 +53,7 @@
 use crate::model::Model;
 use crate::solver::{AnalysisError, Results};
 
+mod adjoint;
 pub mod anatomy;
 mod auto;
 mod ddm;
@@ -82,16 +83,20 @@ pub enum Method {
     Fdm,
     /// Central finite differences of reruns.
     FdmCentral,
+    /// The adjoint method: a backward sweep over the stored increments, one transposed
+    /// solve per increment for every response at once, whatever the number of parameters.
+    Adjoint,
 }
 
 impl Method {
     /// All methods.
-    pub const ALL: [Method; 5] = [
+    pub const ALL: [Method; 6] = [
         Method::Sdm,
         Method::SdmCentral,
         Method::Ddm,
         Method::Fdm,
         Method::FdmCentral,
+        Method::Adjoint,
     ];
 
     /// Command-line name.
@@ -102,12 +107,13 @@ impl Method {
             Method::Ddm => "ddm",
             Method::Fdm => "fdm",
             Method::FdmCentral => "fdm-central",
+            Method::Adjoint => "adjoint",
         }
     }
 
     /// Whether the method needs a perturbation size.
     pub fn uses_beta(self) -> bool {
-        !matches!(self, Method::Ddm)
+        !matches!(self, Method::Ddm | Method::Adjoint)
     }
 
     /// Whether the method runs in line with the primal analysis (SDM, DDM), rather than as
@@ -186,6 +192,11 @@ pub struct Settings {
     /// (`SensitivityResults::fields`; the [`fields`] module says how each method takes them).
     /// Their work is timed apart (`SensitivityCost::fields_seconds`).
     pub fields: bool,
+    /// The adjoint's functionals: every response at the increments ending at these times
+    /// (an increment's time to 1e-9); empty: at every increment. Each (response, increment)
+    /// is one column of the backward sweep, and the sweep starts from the latest one: the
+    /// adjoint pays for the functionals asked for, not for the parameters.
+    pub adjoint_at: Vec<f64>,
 }
 
 /// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
@@ -213,6 +224,7 @@ impl Default for Settings {
             explain: false,
             beta_auto: false,
             fields: false,
+            adjoint_at: Vec::new(),
         }
     }
 }
@@ -296,6 +308,9 @@ pub struct SensitivityCost {
     /// The field derivatives' work (`Settings::fields`), not part of the wall time or the
     /// counts above (FDM: the reruns' field evaluations are in their rerun times).
     pub fields_seconds: f64,
+    /// The adjoint's stored forward states, bytes (unknowns, committed history, branches and
+    /// contact choices of every converged increment): what the backward sweep keeps.
+    pub stored_bytes: usize,
 }
 
 impl SensitivityCost {
@@ -402,7 +417,10 @@ pub fn run_sensitivity_watched(
     settings: &Settings,
     watch: &mut dyn FnMut(&crate::solver::Converged<'_>),
 ) -> Result<(Results, SensitivityResults), AnalysisError> {
-    let (res, mut out) = if settings.method.is_inline() {
+    let (res, mut out) = if settings.method == Method::Adjoint {
+        let (res, s) = adjoint::run_adjoint(model, params, settings, watch)?;
+        (res, vec![s])
+    } else if settings.method.is_inline() {
         let (res, out, mut errors) =
             inline_sweep(model, params, std::slice::from_ref(settings), watch)?;
         if let Some(e) = errors.pop().flatten() {
@@ -437,7 +455,7 @@ pub fn run_sensitivity_watched(
 #[non_exhaustive]
 pub enum SensitivityError {
     /// A finite-difference method asked of the in-line engine, or of an in-line sweep.
-    #[error("{method} is not an in-line method (finite differences rerun the analysis: use run_sensitivity)")]
+    #[error("{method} is not an in-line method (finite differences rerun the analysis, the adjoint sweeps back over it: use run_sensitivity)")]
     NotInline {
         /// The method's name.
         method: &'static str,

@@ -77,6 +77,7 @@ impl ActiveSetPredictor {
             None,
             Some(keep_faces),
             None,
+            None,
             crate::assembly::Terms::ALL,
             false,
             &mut trial.residual,

@@ -28,7 +28,7 @@ mod indentation_study;
 mod curved_punch;
 
 #[path = "../../examples/own_friction_law.rs"]
-mod own_friction_law;
+pub(crate) mod own_friction_law;
 
 #[test]
 fn bring_your_own_friction_law_example_runs_and_the_three_methods_agree() {

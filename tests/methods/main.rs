@@ -9,6 +9,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod adjoint;
 mod anatomy;
 mod beta_auto;
 mod examples;

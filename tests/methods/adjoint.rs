@@ -1,0 +1,210 @@
+//! The adjoint method against DDM: the same derivatives, computed backwards through the load
+//! path (history multipliers carried back through J2's return maps and every friction law's
+//! stick anchor) instead of forwards. Both are exact derivatives of the same discrete path on
+//! the same (converged) branches, so they agree to the round-off of their solves: 1e-10 of
+//! each sensitivity's scale, at every increment, for every response and parameter of each
+//! built-in scene's study. And a Taylor test of the adjoint against reruns.
+
+use crate::common::params;
+use fricsens::prelude::*;
+use fricsens::scene::Scene;
+use fricsens::sensitivity::{run_sensitivity, SensitivityResults};
+
+/// Adjoint and DDM of a model for the named parameters, both solving with the tangent at the
+/// converged state.
+fn both(model: &Model, names: &[&str]) -> (SensitivityResults, SensitivityResults) {
+    let ps = params(model, names);
+    let run = |method| {
+        let settings = Settings {
+            method,
+            ..Settings::default()
+        };
+        run_sensitivity(model, &ps, &settings).unwrap().1
+    };
+    (run(Method::Ddm), run(Method::Adjoint))
+}
+
+/// The largest difference between the two over every increment, response and parameter,
+/// relative to each (response, parameter)'s scale (`sensitive_scale`: derivatives that are
+/// round-off of zero are left out), skipping the responses `except`; with where it is.
+fn worst(
+    ddm: &SensitivityResults,
+    adj: &SensitivityResults,
+    values: &[f64],
+    except: &[&str],
+) -> (f64, String) {
+    assert_eq!(ddm.increments.len(), adj.increments.len());
+    let mut w = (0.0, String::new());
+    for (r, name) in ddm.responses.iter().enumerate() {
+        if except.contains(&name.as_str()) {
+            continue;
+        }
+        for (k, b) in values.iter().enumerate() {
+            let Some(scale) = ddm.sensitive_scale(r, k, *b) else {
+                continue;
+            };
+            for (x, y) in ddm.increments.iter().zip(&adj.increments) {
+                assert_eq!(x.increment, y.increment);
+                assert_eq!(x.values[r], y.values[r], "the same primal run");
+                let d = (x.derivatives[r][k] - y.derivatives[r][k]).abs() / scale;
+                if d > w.0 {
+                    w = (
+                        d,
+                        format!(
+                            "{name} / {} at increment {}: DDM {:e}, adjoint {:e}",
+                            ddm.parameters[k],
+                            x.increment,
+                            x.derivatives[r][k],
+                            y.derivatives[r][k]
+                        ),
+                    );
+                }
+            }
+        }
+    }
+    w
+}
+
+/// Every built-in scene whose study runs in seconds (the full leaf spring and the indentation
+/// are compared by `fricsens sensitivity SCENE --method adjoint` against `--method ddm`): J2
+/// history (uniaxial cycle, leaf spring), finite strain (SVK, the elastica), Coulomb stick and
+/// slip with its anchor (Jenkins, strip, contact patch, sliding block, stacked leaves, leaf
+/// spring), shape parameters (the leaf spring's length), a force-controlled indenter (Hertz).
+#[test]
+fn adjoint_equals_ddm_on_the_builtin_scenes() {
+    for name in [
+        "uniaxial-j2",
+        "uniaxial-svk",
+        "cantilever-small",
+        "cantilever",
+        "jenkins",
+        "strip-pullout",
+        "hertz",
+        "contact-patch",
+        "sliding-block",
+        "stacked-leaves",
+        "leaf-spring-coarse",
+    ] {
+        let scene = Scene::load(name).unwrap();
+        let model = scene.build().unwrap();
+        let names: Vec<&str> = scene.study.params.iter().map(String::as_str).collect();
+        let (ddm, adj) = both(&model, &names);
+        let values: Vec<f64> = params(&model, &names).iter().map(|p| p.value).collect();
+        // the small cantilever's tip shortening is zero in exact arithmetic (small strain):
+        // its value (2e-20 against a deflection of 7e-5) and both derivatives are round-off
+        let except: &[&str] = if name == "cantilever-small" {
+            &["tip-shortening"]
+        } else {
+            &[]
+        };
+        let (w, at) = worst(&ddm, &adj, &values, except);
+        eprintln!("{name}: worst {w:.2e} ({at})");
+        assert!(w < 1e-10, "{name}: adjoint and DDM differ by {w:.2e}: {at}");
+    }
+}
+
+/// Klarbring's two-degree-of-freedom system (oracles 6): adjoint = DDM for the displacement
+/// and the normal force. The tangential force is limited by the penalty: in stick it is
+/// `eps_t (u - anchor)` with `eps_t = 1e6 k11`, and any method that forms it from a solution
+/// of a system holding `eps_t` (DDM: `eps_t (du - d anchor)`; the adjoint: the history
+/// multiplier `eps_t (lambda - 1)`-like differences carried back) loses `eps_t / k11` times
+/// machine precision of its derivative: 2.2e-10. Both methods are held to that floor through
+/// the equilibrium of the node, `r_t = k11 u - F_t`, so `d r_t / d mu = k11 du/dmu` (`F_t`
+/// is the load), at every increment, stick included; and to each other within twice it.
+#[test]
+fn adjoint_and_ddm_keep_the_klarbring_equilibrium_to_the_penalty_floor() {
+    let scene = Scene::load("klarbring-2dof").unwrap();
+    let model = scene.build().unwrap();
+    let (ddm, adj) = both(&model, &["mu"]);
+    let (w, at) = worst(&ddm, &adj, &[0.3], &["plane-force-x"]);
+    assert!(w < 1e-10, "klarbring: {w:.2e}: {at}");
+    let k11 = 1.0;
+    let eps_t = model.lifted::<f64>(&[]).tangential[0];
+    assert!(eps_t > 1e3 * k11, "the scene's penalty is stiff: {eps_t}");
+    let floor = f64::EPSILON * eps_t / k11;
+    let (u, fx) = (
+        adj.response_index("u").unwrap(),
+        adj.response_index("plane-force-x").unwrap(),
+    );
+    let scale = (adj.increments.iter()).fold(0.0f64, |m, i| m.max(i.derivatives[u][0].abs()));
+    assert!(scale > 0.5, "du/dmu reaches -0.983 (oracles 6)");
+    for (d, a) in ddm.increments.iter().zip(&adj.increments) {
+        for (s, method) in [(d, "DDM"), (a, "adjoint")] {
+            let (du, dfx) = (s.derivatives[u][0], s.derivatives[fx][0]);
+            assert!(
+                (du + k11 * dfx).abs() < floor * scale,
+                "{method}, increment {}: du {du:e}, dfx {dfx:e}",
+                s.increment
+            );
+        }
+        let gap = (d.derivatives[fx][0] - a.derivatives[fx][0]).abs();
+        assert!(
+            gap < 2.0 * floor * scale,
+            "increment {}: {gap:e}",
+            d.increment
+        );
+    }
+}
+
+/// A user's own friction law (the saturating Coulomb law of `examples/own_friction_law.rs`,
+/// written once, generic in the scalar): the adjoint carries its stick anchor back with no code
+/// of its own.
+#[test]
+fn adjoint_equals_ddm_on_a_user_friction_law() {
+    let model = crate::examples::own_friction_law::model();
+    let names = ["ground.mu", "ground.t_max"];
+    let (ddm, adj) = both(&model, &names);
+    let values: Vec<f64> = params(&model, &names).iter().map(|p| p.value).collect();
+    let (w, at) = worst(&ddm, &adj, &values, &[]);
+    assert!(w < 1e-10, "own law: {w:.2e}: {at}");
+}
+
+/// Taylor test of the adjoint's gradient of one response at the end of the leaf spring's
+/// path in a random direction `d` over its design (mu, the length, sigma_y and H, each
+/// relative to its value): the remainder `|f(b + h d) - f(b) - h df.d|` falls as `h^2` while
+/// `h` falls over three decades (a wrong gradient would leave a remainder falling as `h`).
+#[test]
+fn adjoint_gradient_passes_a_taylor_test() {
+    let scene = Scene::load("leaf-spring-coarse").unwrap();
+    let model = scene.build().unwrap();
+    let names: Vec<&str> = scene.study.params.iter().map(String::as_str).collect();
+    let ps = params(&model, &names);
+    let settings = Settings {
+        method: Method::Adjoint,
+        ..Settings::default()
+    };
+    let (_, adj) = run_sensitivity(&model, &ps, &settings).unwrap();
+    let r = 0;
+    let last = adj.increments.last().unwrap();
+    // a fixed pseudo-random direction (no seed to remember), relative to each value
+    let d: Vec<f64> = (0..ps.len())
+        .map(|k| ((k as f64 + 1.0) * 0.754_877_666).fract() - 0.5)
+        .collect();
+    let slope: f64 = (0..ps.len())
+        .map(|k| last.derivatives[r][k] * d[k] * ps[k].value)
+        .sum();
+    let at = |h: f64| -> f64 {
+        let mut m = model.clone();
+        for (k, p) in ps.iter().enumerate() {
+            for t in &p.targets {
+                m.set_param(*t, p.value * (1.0 + h * d[k]));
+            }
+        }
+        let res = fricsens::solver::Solver::new(&m)
+            .unwrap()
+            .run(&Default::default(), &mut fricsens::solver::NoObserver)
+            .unwrap();
+        let n = res
+            .increment_at(last.time)
+            .expect("the rerun ends where the nominal does");
+        res.response_value(&m, r, n)
+    };
+    let f0 = last.values[r];
+    let hs = [1e-1, 1e-2, 1e-3, 1e-4];
+    let rem: Vec<f64> = hs.iter().map(|&h| (at(h) - f0 - h * slope).abs()).collect();
+    eprintln!("Taylor remainders {rem:?} (slope {slope:e})");
+    for w in rem.windows(2) {
+        // h^2: a factor 100 per decade; 30 allows the path's own curvature to vary
+        assert!(w[1] < w[0] / 30.0, "remainders {rem:?}");
+    }
+}
