@@ -239,7 +239,7 @@ class Scene:
         progress: Progress = None,
     ) -> Sensitivity:
         """Every response's derivative with respect to ``params`` (default: the study's)
-        by ``method``: ``ddm``, ``sdm``, ``sdm-central``, ``fdm`` or ``fdm-central``.
+        by ``method``: ``ddm``, ``sdm``, ``sdm-central``, ``fdm``, ``fdm-central`` or ``adjoint`` (every increment).
         ``beta``: the relative perturbation (None: the study's; ``"auto"`` for SDM);
         ``tangent``: ``exact``, ``last`` or ``refined``; ``fields``: also the derivative of
         the displacement field."""

@@ -274,7 +274,7 @@ impl PyScene {
             .find(|m| m.name() == method)
             .ok_or_else(|| {
                 FricsensError::new_err(format!(
-                    "method `{method}`: one of ddm, sdm, sdm-central, fdm, fdm-central"
+                    "method `{method}`: one of ddm, sdm, sdm-central, fdm, fdm-central, adjoint"
                 ))
             })?;
         let tangent = match tangent {
@@ -309,6 +309,11 @@ impl PyScene {
         if beta_auto && !matches!(method, Method::Sdm | Method::SdmCentral) {
             return Err(FricsensError::new_err(
                 "beta=\"auto\" chooses SDM's steps: use it with method sdm or sdm-central",
+            ));
+        }
+        if fields && method == Method::Adjoint {
+            return Err(FricsensError::new_err(
+                "fields=True: the adjoint's field derivatives are not built yet",
             ));
         }
         let ps = Self::params(&model, &params)?;

@@ -38,7 +38,7 @@ def lateral_scene(tmp_path_factory) -> Path:
     return path
 
 
-def test_ddm_matches_the_j2_uniaxial_closed_form():
+def test_ddm_and_the_adjoint_match_the_j2_uniaxial_closed_form():
     # oracles.md section 1: strain to eps_a = 0.01 and back to -eps_a; after the reversal
     # sigma = E (H eps - sigma_y - 2 H eps_p1) / (E + H), eps_p1 = (E eps_a - sigma_y) / (E + H)
     scene = fricsens.Scene.load("uniaxial-j2")
@@ -62,13 +62,14 @@ def test_ddm_matches_the_j2_uniaxial_closed_form():
     assert exact["sigma_y"] == pytest.approx(-0.86167800, rel=1e-7)
     assert exact["H"] == pytest.approx(-0.022297808, rel=1e-7)
     # (oracles.md prints dsigma/dE = -2.6832978e-4, 9e-7 off its own formula: -2.68329554e-4)
-    s = scene.sensitivity(["sigma_y", "H", "E"], method="ddm")
-    last = -1
-    assert s.times[last] == pytest.approx(3.0)
-    assert s.value("stress")[last] == pytest.approx(sigma(E, sy, H), rel=1e-10)
-    for p, d in exact.items():
-        # radial return is exact on this path: to the solver's tolerance
-        assert s.derivative("stress", p)[last] == pytest.approx(d, rel=1e-9), p
+    for method in ("ddm", "adjoint"):
+        s = scene.sensitivity(["sigma_y", "H", "E"], method=method)
+        last = -1
+        assert s.times[last] == pytest.approx(3.0)
+        assert s.value("stress")[last] == pytest.approx(sigma(E, sy, H), rel=1e-10)
+        for p, d in exact.items():
+            # radial return is exact on this path: to the solver's tolerance
+            assert s.derivative("stress", p)[last] == pytest.approx(d, rel=1e-9), (method, p)
 
 
 @pytest.mark.parametrize("method", ["ddm", "sdm", "fdm-central"])

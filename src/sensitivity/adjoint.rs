@@ -379,6 +379,12 @@ struct Sweep<'a> {
     node_colours: usize,
     /// Every pushed target's unknown.
     pushed: Vec<usize>,
+    /// Per element: the first stored increment at which a Gauss point of it is plastic
+    /// (`usize::MAX`: never). An element elastic throughout keeps its history
+    /// ([`history_unchanged`]'s rule): the history's derivative in the unknowns is zero there
+    /// and the multiplier of its history is read by nothing before its first plastic
+    /// increment, so the local Jacobians leave it out.
+    first_plastic: Vec<usize>,
     cost: SensitivityCost,
 }
 
@@ -416,7 +422,15 @@ impl<'a> Sweep<'a> {
         }
         let touched: Vec<Vec<usize>> = nodes.iter().map(|n| n.2.clone()).collect();
         let (node_colour, node_colours) = colour(&touched, dofs.n_total);
+        let first_plastic = (0..model.mesh.n_elements())
+            .map(|e| {
+                (stored.iter())
+                    .position(|s| s.branches[dofs.gauss(e)].contains(&Branch::Plastic))
+                    .unwrap_or(usize::MAX)
+            })
+            .collect();
         Ok(Sweep {
+            first_plastic,
             model,
             params,
             stored,
@@ -539,7 +553,7 @@ impl<'a> Sweep<'a> {
                     *gi = a + b;
                 }
             }
-            self.z_passes(s, &cots, &mut rhs, &mut ev_ad)?;
+            self.z_passes(m, &cots, &mut rhs, &mut ev_ad)?;
             // K^T lambda = rhs on the free unknowns
             for c in 0..cols.len() {
                 for (i, fixed) in s.constrained.iter().enumerate() {
@@ -557,7 +571,7 @@ impl<'a> Sweep<'a> {
             // mu_{n-1} = d/dh [F + mu . H - lambda . R]
             let mut mu_prev = vec![vec![0.0; nh]; cols.len()];
             if nh > 0 {
-                self.h_passes(s, &cots, &mut mu_prev, &mut ev_ad)?;
+                self.h_passes(m, &cots, &mut mu_prev, &mut ev_ad)?;
             }
             // d/db [F + mu . H - lambda . R], prescribed unknowns moving with the design
             let params = self.params;
@@ -707,12 +721,13 @@ impl<'a> Sweep<'a> {
     /// cotangent: local Jacobians by coloured dual evaluations.
     fn z_passes(
         &mut self,
-        s: &Stored,
+        m: usize,
         cots: &[Cot],
         rhs: &mut [f64],
         ev: &mut Evaluation<Ad>,
     ) -> Result<(), AnalysisError> {
         let model = self.model;
+        let s = &self.stored[m];
         let n = self.asm.dofs.n_total;
         let ne = model.mesh.n_elements();
         let nk = self.nodes.len();
@@ -734,10 +749,18 @@ impl<'a> Sweep<'a> {
             if !want_solids {
                 break;
             }
+            // elastic at this increment: the history does not move with the unknowns
             let members: Vec<usize> = (0..self.solids.len())
                 .filter(|i| self.solid_colour[*i] == colour)
                 .map(|i| self.solids[i])
+                .filter(|&e| {
+                    self.asm.stress_slot(e).is_some()
+                        || s.branches[self.asm.dofs.gauss(e)].contains(&Branch::Plastic)
+                })
                 .collect();
+            if members.is_empty() {
+                continue;
+            }
             let mut skip = vec![true; ne];
             for &e in &members {
                 skip[e] = false;
@@ -944,12 +967,13 @@ impl<'a> Sweep<'a> {
     /// output weighed by the column's cotangent (residual included: `-lambda`).
     fn h_passes(
         &mut self,
-        s: &Stored,
+        m: usize,
         cots: &[Cot],
         mu_prev: &mut [Vec<f64>],
         ev: &mut Evaluation<Ad>,
     ) -> Result<(), AnalysisError> {
         let model = self.model;
+        let s = &self.stored[m];
         let ne = model.mesh.n_elements();
         let nk = self.nodes.len();
         let z: Vec<Ad> = s.z.iter().map(|v| Ad::from_re(*v)).collect();
@@ -968,7 +992,7 @@ impl<'a> Sweep<'a> {
             let members: Vec<usize> = (0..self.solids.len())
                 .filter(|i| self.solid_colour[*i] == colour)
                 .map(|i| self.solids[i])
-                .filter(|&e| !self.asm.dofs.history(e).is_empty())
+                .filter(|&e| !self.asm.dofs.history(e).is_empty() && self.first_plastic[e] < m)
                 .collect();
             if members.is_empty() {
                 continue;
