@@ -462,7 +462,7 @@ impl Assembler {
                 out.branches[gauss.clone()].copy_from_slice(&loc.branches[..ng]);
                 out.yield_ratio[gauss].copy_from_slice(&loc.yield_ratio[..ng]);
                 out.cauchy[e] = loc.cauchy.map(|c| c.value());
-                if let Some(&slot) = self.stress_slot.get(e).filter(|s| **s != usize::MAX) {
+                if let Some(slot) = self.stress_slot(e) {
                     out.stress[slot] = loc.cauchy;
                 }
                 let hist = self.dofs.history(e);

@@ -22,7 +22,7 @@
 
 use crate::assembly::{Assembler, Evaluation};
 use crate::model::{node_dof, Model};
-use crate::scalar::{safe_sqrt, Scalar};
+use crate::scalar::Scalar;
 use nalgebra::Matrix3;
 
 /// Where a field lives.
@@ -126,22 +126,17 @@ pub fn state_fields<S: Scalar>(
     out
 }
 
-/// The six components of a symmetric stress in the VTK files' order: xx, yy, zz, xy, yz, xz.
+/// The six components of a symmetric stress in the VTK files' order (xx, yy, zz, xy, yz,
+/// xz: the Voigt order of [`crate::material::stress_to_voigt`]).
 pub fn stress_components<S: Scalar>(s: &Matrix3<S>) -> [S; 6] {
-    [
-        s[(0, 0)],
-        s[(1, 1)],
-        s[(2, 2)],
-        s[(0, 1)],
-        s[(1, 2)],
-        s[(0, 2)],
-    ]
+    crate::material::stress_to_voigt(s).into()
 }
 
-/// The von Mises stress `sqrt(3/2 s':s')` of a stress (zero-safe, [`safe_sqrt`]).
+/// The von Mises stress of a stress: the stress response's measure
+/// ([`crate::response::StressMeasure::VonMises`]), so that a field and a response read the
+/// same number.
 pub fn von_mises<S: Scalar>(s: &Matrix3<S>) -> S {
-    let d = s - Matrix3::identity() * (s.trace() / S::lift(3.0));
-    safe_sqrt(d.component_mul(&d).sum() * S::lift(1.5))
+    crate::response::StressMeasure::VonMises.of(s)
 }
 
 /// The equivalent plastic strain of element `e` in history `hist`: the mean over its Gauss

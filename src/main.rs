@@ -351,7 +351,7 @@ fn merge(files: &[PathBuf], out: Option<PathBuf>) -> Result<(), String> {
             .unwrap_or_else(|| PathBuf::from(".")),
     };
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    write_sensitivity(&dir, &sens, false)?;
+    write_sensitivity(&dir, &sens)?;
     out!(
         "{}: {} shares merged, {} reruns, {} increments; written to {}",
         scene.name,
@@ -368,8 +368,12 @@ fn merge(files: &[PathBuf], out: Option<PathBuf>) -> Result<(), String> {
 fn write_sensitivity(
     dir: &std::path::Path,
     sens: &fricsens::sensitivity::SensitivityResults,
-    beta_auto: bool,
 ) -> Result<(), String> {
+    // `--beta auto`'s error bars and steps, where the run has them
+    let beta_auto = sens
+        .increments
+        .first()
+        .is_some_and(|i| !i.error_bars.is_empty());
     // CSV: one row per increment, value and derivatives of every response
     let mut csv = String::from("increment,time,kinks");
     for r in &sens.responses {
@@ -465,7 +469,7 @@ fn sensitivity(
         .iter()
         .map(|n| Parameter::by_name(&model, n).map_err(|e| e.to_string()))
         .collect::<Result<_, _>>()?;
-    let settings = Settings {
+    let mut settings = Settings {
         method: match method {
             MethodArg::Sdm => Method::Sdm,
             MethodArg::SdmCentral => Method::SdmCentral,
@@ -487,28 +491,25 @@ fn sensitivity(
         fields: vtk,
         ..Settings::default()
     };
-    let mut settings = settings;
     if settings.method == Method::Adjoint {
         if vtk {
             return Err("--vtk writes the fields' derivatives of the in-line and finite-difference methods; the adjoint's are not built yet: leave out --vtk".into());
         }
         let last = *model.times.last().ok_or("the scene has no increments")?;
-        for a in &at {
-            match a.as_str() {
-                "all" => settings.adjoint_at.clear(),
-                "last" => settings.adjoint_at.push(last),
-                t => settings.adjoint_at.push(
-                    t.parse::<f64>()
-                        .map_err(|_| format!("--at takes a time, `last` or `all`, got `{t}`"))?,
-                ),
-            }
-        }
-        if at.is_empty() {
-            settings.adjoint_at.push(last);
-        }
-        if at.iter().any(|a| a == "all") {
-            settings.adjoint_at.clear();
-        }
+        settings.adjoint_at = if at.iter().any(|a| a == "all") {
+            Vec::new()
+        } else if at.is_empty() {
+            vec![last]
+        } else {
+            (at.iter())
+                .map(|a| match a.as_str() {
+                    "last" => Ok(last),
+                    t => t
+                        .parse::<f64>()
+                        .map_err(|_| format!("--at takes a time, `last` or `all`, got `{t}`")),
+                })
+                .collect::<Result<_, _>>()?
+        };
     } else if !at.is_empty() {
         return Err(format!(
             "--at chooses the adjoint's functionals: use it with --method adjoint, not {}",
@@ -576,7 +577,7 @@ fn sensitivity(
     let (res, sens) = run.map_err(|e| e.to_string())?;
     let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    write_sensitivity(&dir, &sens, beta_auto)?;
+    write_sensitivity(&dir, &sens)?;
     if vtk {
         fricsens::output::write_sensitivity_vtk(&dir, &model, &res, &sens)
             .map_err(|e| e.to_string())?;

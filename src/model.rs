@@ -340,6 +340,15 @@ pub struct Lifted<S: Scalar> {
 }
 
 impl Model {
+    /// Whether every body's material and every contact pair's friction law have admissible
+    /// parameter values (a design set from outside the scene file, e.g. from Python).
+    pub fn check_laws(&self) -> Result<(), crate::law::ParamError> {
+        self.bodies.iter().try_for_each(|b| b.material.check())?;
+        (self.contacts.iter())
+            .filter_map(|c| c.friction.as_ref())
+            .try_for_each(|f| f.check())
+    }
+
     /// Add a linear spring of stiffness `stiffness` (row-major 3x3) between nodes `a` and `b`,
     /// or from `a` to the ground (`b = None`): a group of one `line2` (`point1`) element and
     /// its [`SpringSet`]. Returns the set's index.

@@ -171,15 +171,14 @@ impl PyScene {
             .map_err(|e| ParameterError::new_err(e.to_string()))
     }
 
-    /// A copy with design parameter `name` set to `value` (checked by building the model).
+    /// A copy with design parameter `name` set to `value` (checked by building the model and
+    /// checking its materials' and friction laws' parameters).
     fn with_value(&self, name: &str, value: f64) -> PyResult<Self> {
         let mut s = self.clone();
         s.values.push((name.to_string(), value));
         let model = s.model()?;
         model
-            .bodies
-            .iter()
-            .try_for_each(|b| b.material.check())
+            .check_laws()
             .map_err(|e| ParameterError::new_err(format!("{name} = {value}: {e}")))?;
         Ok(s)
     }

@@ -99,6 +99,9 @@ def test_errors_are_python_exceptions_with_the_librarys_messages(tmp_path):
         scene.sensitivity(["nope"])
     with pytest.raises(fricsens.ParameterError, match="must be > 0"):
         scene.with_values(E=-1.0)
+    # a friction law's parameter is checked as a material's is
+    with pytest.raises(fricsens.ParameterError, match="mu"):
+        fricsens.Scene.load("strip-pullout").with_values(mu=-0.3)
     with pytest.raises(fricsens.FricsensError, match="method"):
         scene.sensitivity(["E"], method="adjoint-ish")
     # an analysis that fails: the cube compressed to minus its length inverts its element

@@ -231,15 +231,9 @@ impl SparseMatrix {
             }
             let rows = cp[j]..cp[j + 1];
             for (&i, &a) in ri[rows.clone()].iter().zip(&self.values[rows]) {
-                // -a x = p + e exactly
-                let p = -a * xj;
-                let e = (-a).mul_add(xj, -p);
-                // hi + p = s + t exactly
-                let s = r[i] + p;
-                let bp = s - r[i];
-                let t = (r[i] - (s - bp)) + (p - bp);
+                let (s, err) = sub_product(r[i], a, xj);
                 r[i] = s;
-                lo[i] += t + e;
+                lo[i] += err;
             }
         }
         for (ri, l) in r.iter_mut().zip(&lo) {
@@ -260,13 +254,9 @@ impl SparseMatrix {
         for (j, rj) in r.iter_mut().enumerate() {
             let (mut hi, mut lo) = (b[j], 0.0);
             for k in cp[j]..cp[j + 1] {
-                let (a, xi) = (self.values[k], x[ri[k]]);
-                let p = -a * xi;
-                let e = (-a).mul_add(xi, -p);
-                let s = hi + p;
-                let bp = s - hi;
-                lo += (hi - (s - bp)) + (p - bp) + e;
+                let (s, err) = sub_product(hi, self.values[k], x[ri[k]]);
                 hi = s;
+                lo += err;
             }
             *rj = hi + lo;
         }
@@ -448,4 +438,19 @@ where
         );
         rl.and(rr)
     }
+}
+
+/// `hi - a x = s + err` with `s` the rounded sum and `err` its exact error (to the rounding of
+/// `err` itself): the product split exactly by a fused multiply-add, the sum by Knuth's
+/// two-sum. The step of the double-double residuals.
+#[inline]
+fn sub_product(hi: f64, a: f64, x: f64) -> (f64, f64) {
+    // -a x = p + e exactly
+    let p = -a * x;
+    let e = (-a).mul_add(x, -p);
+    // hi + p = s + t exactly
+    let s = hi + p;
+    let bp = s - hi;
+    let t = (hi - (s - bp)) + (p - bp);
+    (s, t + e)
 }

@@ -140,9 +140,10 @@ pub(super) fn run_adjoint(
         sel.dedup();
         sel
     };
-    let mut sweep = Sweep::new(model, params, &stored)?;
-    let dfdb = sweep.run(&sel, &engine.dhist)?;
-    out.cost = sweep.cost;
+    let sweep = Sweep::new(model, params, &stored)?;
+    let mut cost = SensitivityCost::default();
+    let dfdb = sweep.run(&sel, &engine.dhist, &mut cost)?;
+    out.cost = cost;
     out.cost.wall_seconds = seconds + t.elapsed().as_secs_f64();
     out.cost.stored_bytes = stored.iter().map(Stored::bytes).sum();
     let nr = model.responses.len();
@@ -160,59 +161,87 @@ pub(super) fn run_adjoint(
     Ok((res, out))
 }
 
-/// A cotangent on an evaluation's outputs: what one column of the sweep weighs each output
-/// with.
-#[derive(Clone)]
-struct Cot {
-    /// On the unknowns themselves (a displacement response).
-    z: Vec<f64>,
-    /// On the residual (reactions; `-lambda` on the free rows after the solve).
-    res: Vec<f64>,
-    /// On the updated history (`mu`, and history responses).
-    hist: Vec<f64>,
-    /// On each hitting node's normal force.
-    nf: Vec<f64>,
-    /// On each hitting node's nominal area (design only).
-    area: Vec<f64>,
-    /// On each hitting node's current area.
-    carea: Vec<f64>,
-    /// On each pair's target force.
-    pf: Vec<[f64; 3]>,
-    /// On each pair's target translation.
-    tr: Vec<[f64; 3]>,
-    /// On the stresses responses read (`Assembler::stress_elements`), row-major.
-    stress: Vec<[f64; 9]>,
-}
-
-impl Cot {
-    fn zero(asm: &Assembler, n_pairs: usize) -> Self {
-        let nk = asm.contact.n_hitting;
-        Cot {
-            z: vec![0.0; asm.dofs.n_total],
-            res: vec![0.0; asm.dofs.n_total],
-            hist: vec![0.0; asm.dofs.n_history],
-            nf: vec![0.0; nk],
-            area: vec![0.0; nk],
-            carea: vec![0.0; nk],
-            pf: vec![[0.0; 3]; n_pairs],
-            tr: vec![[0.0; 3]; n_pairs],
-            stress: vec![[0.0; 9]; asm.stress_elements.len()],
-        }
-    }
-}
-
-/// One scalar a response reads.
+/// One output of an evaluation: a scalar a response reads, and a row of the local
+/// Jacobians.
 #[derive(Clone, Copy)]
 enum Entry {
+    /// An unknown itself (a displacement response).
     Z(usize),
+    /// A residual row (reactions; `-lambda` on the free rows after the solve).
     Res(usize),
+    /// An updated history scalar (`mu`, and history responses).
     Hist(usize),
+    /// A hitting node's normal force.
     Nf(usize),
+    /// A hitting node's nominal area (the design's alone).
     Area(usize),
+    /// A hitting node's current area.
     CArea(usize),
+    /// A pair's target force, by component.
     Pf(usize, usize),
+    /// A pair's target translation, by component.
     Tr(usize, usize),
+    /// A stress a response reads (`Assembler::stress_elements` slot), row-major component.
     Stress(usize, usize),
+}
+
+/// Where each [`Entry`] sits in a cotangent: one flat vector per column of the sweep, what
+/// the column weighs each output with.
+struct Outputs {
+    n: usize,
+    nh: usize,
+    nk: usize,
+    np: usize,
+    ns: usize,
+}
+
+impl Outputs {
+    fn new(asm: &Assembler, n_pairs: usize) -> Self {
+        Outputs {
+            n: asm.dofs.n_total,
+            nh: asm.dofs.n_history,
+            nk: asm.contact.n_hitting,
+            np: n_pairs,
+            ns: asm.stress_elements.len(),
+        }
+    }
+
+    fn len(&self) -> usize {
+        2 * self.n + self.nh + 3 * self.nk + 6 * self.np + 9 * self.ns
+    }
+
+    fn index(&self, e: Entry) -> usize {
+        let (n, nh, nk, np) = (self.n, self.nh, self.nk, self.np);
+        let contact = 2 * n + nh;
+        match e {
+            Entry::Z(i) => i,
+            Entry::Res(i) => n + i,
+            Entry::Hist(i) => 2 * n + i,
+            Entry::Nf(k) => contact + k,
+            Entry::Area(k) => contact + nk + k,
+            Entry::CArea(k) => contact + 2 * nk + k,
+            Entry::Pf(p, c) => contact + 3 * nk + 3 * p + c,
+            Entry::Tr(p, c) => contact + 3 * nk + 3 * np + 3 * p + c,
+            Entry::Stress(s, i) => contact + 3 * nk + 6 * np + 9 * s + i,
+        }
+    }
+
+    fn z(&self) -> std::ops::Range<usize> {
+        0..self.n
+    }
+
+    fn res(&self) -> std::ops::Range<usize> {
+        self.n..2 * self.n
+    }
+
+    fn hist(&self) -> std::ops::Range<usize> {
+        2 * self.n..2 * self.n + self.nh
+    }
+
+    fn carea(&self, range: std::ops::Range<usize>) -> std::ops::Range<usize> {
+        let at = self.index(Entry::CArea(0));
+        at + range.start..at + range.end
+    }
 }
 
 /// The scalars response `r` reads (the support of its value).
@@ -245,85 +274,82 @@ fn support(r: &Response, asm: &Assembler) -> Vec<Entry> {
     }
 }
 
-/// The response's cotangent on the evaluation's outputs at a state: each scalar it reads
-/// seeded alone in a dual number, through the response's own generic `value`.
+/// A response's input at a state in dual numbers, every derivative part zero.
+struct DualInput {
+    z: Vec<Dual64>,
+    res: Vec<Dual64>,
+    hist: Vec<Dual64>,
+    contact: crate::contact::assembly::ContactEval<Dual64>,
+    stress: Vec<Matrix3<Dual64>>,
+}
+
+impl DualInput {
+    fn new(asm: &Assembler, z: &[f64], ev: &Evaluation<f64>) -> Self {
+        let d = |v: &[f64]| -> Vec<Dual64> { v.iter().map(|x| Dual64::from_re(*x)).collect() };
+        let d3 = |v: &[Vector3<f64>]| -> Vec<Vector3<Dual64>> {
+            v.iter().map(|x| x.map(Dual64::from_re)).collect()
+        };
+        let c = &ev.contact;
+        let mut contact = crate::contact::assembly::ContactEval::<Dual64>::new(
+            asm.contact.n_hitting,
+            asm.contact.lambda.len(),
+        );
+        contact.normal_force = d(&c.normal_force);
+        contact.area = d(&c.area);
+        contact.current_area = d(&c.current_area);
+        contact.pair_force = d3(&c.pair_force);
+        contact.translation = d3(&c.translation);
+        DualInput {
+            z: d(z),
+            res: d(&ev.residual),
+            hist: d(&ev.hist_new),
+            contact,
+            stress: ev.stress.iter().map(|s| s.map(Dual64::from_re)).collect(),
+        }
+    }
+
+    fn slot(&mut self, e: Entry) -> &mut Dual64 {
+        let c = &mut self.contact;
+        match e {
+            Entry::Z(i) => &mut self.z[i],
+            Entry::Res(i) => &mut self.res[i],
+            Entry::Hist(i) => &mut self.hist[i],
+            Entry::Nf(k) => &mut c.normal_force[k],
+            Entry::Area(k) => &mut c.area[k],
+            Entry::CArea(k) => &mut c.current_area[k],
+            Entry::Pf(p, i) => &mut c.pair_force[p][i],
+            Entry::Tr(p, i) => &mut c.translation[p][i],
+            Entry::Stress(s, i) => &mut self.stress[s][(i / 3, i % 3)],
+        }
+    }
+
+    fn view<'a>(&'a self, asm: &'a Assembler) -> crate::response::ResponseInput<'a, Dual64> {
+        crate::response::ResponseInput {
+            z: &self.z,
+            residual: &self.res,
+            hist: &self.hist,
+            contact: Some(&self.contact),
+            flat: Some(&asm.contact.flat),
+            stress: &self.stress,
+            stress_elements: Some(&asm.stress_elements),
+        }
+    }
+}
+
+/// Adds response `r`'s cotangent on the evaluation's outputs at a state to `cot`: each scalar
+/// it reads seeded alone in a dual number, through the response's own generic `value`.
 fn response_cotangent(
     r: &Response,
     asm: &Assembler,
-    z: &[f64],
-    ev: &Evaluation<f64>,
-    out: &mut Cot,
+    outputs: &Outputs,
+    input: &mut DualInput,
+    cot: &mut [f64],
 ) {
-    let d = |v: &[f64]| -> Vec<Dual64> { v.iter().map(|x| Dual64::from_re(*x)).collect() };
-    let mut zd = d(z);
-    let mut res = d(&ev.residual);
-    let mut hist = d(&ev.hist_new);
-    let mut contact = crate::contact::assembly::ContactEval::<Dual64>::new(
-        asm.contact.n_hitting,
-        asm.contact.lambda.len(),
-    );
-    let c = &ev.contact;
-    contact.normal_force = d(&c.normal_force);
-    contact.area = d(&c.area);
-    contact.current_area = d(&c.current_area);
-    contact.pair_force = c
-        .pair_force
-        .iter()
-        .map(|v| v.map(Dual64::from_re))
-        .collect();
-    contact.translation = c
-        .translation
-        .iter()
-        .map(|v| v.map(Dual64::from_re))
-        .collect();
-    let mut stress: Vec<Matrix3<Dual64>> =
-        ev.stress.iter().map(|s| s.map(Dual64::from_re)).collect();
     for e in support(r, asm) {
-        let slot: &mut Dual64 = match e {
-            Entry::Z(i) => &mut zd[i],
-            Entry::Res(i) => &mut res[i],
-            Entry::Hist(i) => &mut hist[i],
-            Entry::Nf(k) => &mut contact.normal_force[k],
-            Entry::Area(k) => &mut contact.area[k],
-            Entry::CArea(k) => &mut contact.current_area[k],
-            Entry::Pf(p, c) => &mut contact.pair_force[p][c],
-            Entry::Tr(p, c) => &mut contact.translation[p][c],
-            Entry::Stress(s, i) => &mut stress[s][(i / 3, i % 3)],
-        };
-        slot.eps = 1.0;
-        let input = crate::response::ResponseInput {
-            z: &zd,
-            residual: &res,
-            hist: &hist,
-            contact: Some(&contact),
-            flat: Some(&asm.contact.flat),
-            stress: &stress,
-            stress_elements: Some(&asm.stress_elements),
-        };
-        let g = r.value(&input).eps;
-        match e {
-            Entry::Z(i) => out.z[i] += g,
-            Entry::Res(i) => out.res[i] += g,
-            Entry::Hist(i) => out.hist[i] += g,
-            Entry::Nf(k) => out.nf[k] += g,
-            Entry::Area(k) => out.area[k] += g,
-            Entry::CArea(k) => out.carea[k] += g,
-            Entry::Pf(p, c) => out.pf[p][c] += g,
-            Entry::Tr(p, c) => out.tr[p][c] += g,
-            Entry::Stress(s, i) => out.stress[s][i] += g,
-        }
-        let slot: &mut Dual64 = match e {
-            Entry::Z(i) => &mut zd[i],
-            Entry::Res(i) => &mut res[i],
-            Entry::Hist(i) => &mut hist[i],
-            Entry::Nf(k) => &mut contact.normal_force[k],
-            Entry::Area(k) => &mut contact.area[k],
-            Entry::CArea(k) => &mut contact.current_area[k],
-            Entry::Pf(p, c) => &mut contact.pair_force[p][c],
-            Entry::Tr(p, c) => &mut contact.translation[p][c],
-            Entry::Stress(s, i) => &mut stress[s][(i / 3, i % 3)],
-        };
-        slot.eps = 0.0;
+        input.slot(e).eps = 1.0;
+        let g = r.value(&input.view(asm)).eps;
+        input.slot(e).eps = 0.0;
+        cot[outputs.index(e)] += g;
     }
 }
 
@@ -359,12 +385,79 @@ fn colour(items: &[Vec<usize>], n: usize) -> (Vec<usize>, usize) {
     (colours, count)
 }
 
-/// The backward sweep's fixed data and its work.
+/// What a local pass seeds.
+#[derive(Clone, Copy, PartialEq)]
+enum Seeds {
+    /// The unknowns.
+    Z,
+    /// The committed history.
+    H,
+}
+
+/// One colour's local Jacobians ([`Sweep::local_passes`]).
+struct Pass<'x> {
+    seeds: Seeds,
+    /// Per member: its local inputs, global indices into the unknowns or the history.
+    inputs: Vec<Vec<usize>>,
+    /// Elements left out of the evaluations.
+    skip: &'x [bool],
+    /// Hitting nodes left out of the evaluations.
+    skip_contact: &'x [bool],
+    terms: Terms,
+}
+
+/// The state in `W`-wide duals, the derivative parts zero but where a pass seeds them.
+struct AdState {
+    z: Vec<Ad>,
+    h: Vec<Ad>,
+}
+
+impl AdState {
+    fn new(s: &Stored) -> Self {
+        let ad = |v: &[f64]| v.iter().map(|x| Ad::from_re(*x)).collect();
+        AdState {
+            z: ad(&s.z),
+            h: ad(&s.hist_prev),
+        }
+    }
+
+    /// Seed input `g` in direction `d` (`Some`), or clear it (`None`).
+    fn seed(&mut self, s: &Stored, seeds: Seeds, g: usize, d: Option<usize>) {
+        let (slot, re) = match seeds {
+            Seeds::Z => (&mut self.z[g], s.z[g]),
+            Seeds::H => (&mut self.h[g], s.hist_prev[g]),
+        };
+        *slot = match d {
+            Some(d) => Ad::from_re(re).derivative(d),
+            None => Ad::from_re(re),
+        };
+    }
+}
+
+/// Rows of one member's local Jacobian: the flat output index ([`Outputs`]) and the
+/// derivative parts of that output.
+type Rows = Vec<(usize, [f64; W])>;
+
+/// The terms the solid elements' passes evaluate.
+const SOLIDS: Terms = Terms {
+    solids: true,
+    ..Terms::NONE
+};
+
+/// The terms the hitting nodes' passes evaluate.
+const CONTACT: Terms = Terms {
+    contact_normal: true,
+    friction: true,
+    ..Terms::NONE
+};
+
+/// The backward sweep's fixed data.
 struct Sweep<'a> {
     model: &'a Model,
     params: &'a [Parameter],
     stored: &'a [Stored],
     asm: Assembler,
+    outputs: Outputs,
     lifted: Lifted<f64>,
     lifted_ad: Lifted<Ad>,
     /// Solid elements with unknowns (springs are in the tangent alone: no history, no
@@ -385,7 +478,6 @@ struct Sweep<'a> {
     /// and the multiplier of its history is read by nothing before its first plastic
     /// increment, so the local Jacobians leave it out.
     first_plastic: Vec<usize>,
-    cost: SensitivityCost,
 }
 
 impl<'a> Sweep<'a> {
@@ -430,6 +522,7 @@ impl<'a> Sweep<'a> {
             })
             .collect();
         Ok(Sweep {
+            outputs: Outputs::new(&asm, model.contacts.len()),
             first_plastic,
             model,
             params,
@@ -444,51 +537,20 @@ impl<'a> Sweep<'a> {
             node_colour,
             node_colours,
             pushed,
-            cost: SensitivityCost::default(),
         })
-    }
-
-    /// One evaluation in `W`-wide duals, counted and timed.
-    #[allow(clippy::too_many_arguments)]
-    fn evaluate_ad(
-        &mut self,
-        s: &Stored,
-        z: &[Ad],
-        h: &[Ad],
-        skip: &[bool],
-        skip_contact: &[bool],
-        terms: Terms,
-        ev: &mut Evaluation<Ad>,
-    ) -> Result<(), AnalysisError> {
-        let frozen = Frozen {
-            gauss: Some(&s.branches),
-            contact: &s.choice,
-            skip: Some(skip),
-            skip_contact: Some(skip_contact),
-            terms,
-            ..Frozen::default()
-        };
-        let t = Instant::now();
-        self.asm.evaluate(
-            self.model,
-            &self.lifted_ad,
-            z,
-            h,
-            s.time,
-            Some(&frozen),
-            None,
-            ev,
-        )?;
-        self.cost.evaluation_seconds += t.elapsed().as_secs_f64();
-        self.cost.partial_evaluations += 1;
-        Ok(())
     }
 
     /// `df/db` of every response at the stored increments `sel` (sorted):
     /// `[q * n_responses + r][k]` for increment `sel[q]`. `dh0` is the initial history's
     /// derivative, parameter-major.
-    fn run(&mut self, sel: &[usize], dh0: &[f64]) -> Result<Vec<Vec<f64>>, AnalysisError> {
+    fn run(
+        &self,
+        sel: &[usize],
+        dh0: &[f64],
+        cost: &mut SensitivityCost,
+    ) -> Result<Vec<Vec<f64>>, AnalysisError> {
         let model = self.model;
+        let out = &self.outputs;
         let nr = model.responses.len();
         let ns = sel.last().map_or(0, |m| m + 1);
         let np = self.params.len();
@@ -497,18 +559,17 @@ impl<'a> Sweep<'a> {
         let ncol = nr * sel.len();
         // the stored increment of column j
         let at = |j: usize| sel[j / nr];
-        let n_pairs = model.contacts.len();
         let mut dfdb = vec![vec![0.0; np]; ncol];
         // mu per column (history multipliers carried back)
         let mut mu = vec![vec![0.0; nh]; ncol];
         let mut k = SparseMatrix::new(self.asm.pattern.clone());
-        let mut ev = Evaluation::<f64>::new(&self.asm, model.mesh.n_elements());
-        let mut ev_ad = Evaluation::<Ad>::new(&self.asm, model.mesh.n_elements());
-        let mut ev_d = Evaluation::<Dual64>::new(&self.asm, model.mesh.n_elements());
+        let ne = model.mesh.n_elements();
+        let mut ev = Evaluation::<f64>::new(&self.asm, ne);
+        let mut ev_ad = Evaluation::<Ad>::new(&self.asm, ne);
+        let mut ev_d = Evaluation::<Dual64>::new(&self.asm, ne);
         let mut solver: Option<LinearSolver> = None;
-        let stored = self.stored;
         for m in (0..ns).rev() {
-            let s = &stored[m];
+            let s = &self.stored[m];
             // the converged state, its tangent on the converged branches
             let frozen = Frozen {
                 gauss: Some(&s.branches),
@@ -526,18 +587,20 @@ impl<'a> Sweep<'a> {
                 Some(&mut k),
                 &mut ev,
             )?;
-            self.cost.evaluation_seconds += t.elapsed().as_secs_f64();
-            self.cost.residual_evaluations += 1;
+            cost.evaluation_seconds += t.elapsed().as_secs_f64();
+            cost.residual_evaluations += 1;
             // the columns alive at this increment: responses read here or later
             let cols: Vec<usize> = (0..ncol).filter(|&j| at(j) >= m).collect();
-            let mut cots: Vec<Cot> = cols
+            let mut input = DualInput::new(&self.asm, &s.z, &ev);
+            let mut cots: Vec<Vec<f64>> = cols
                 .iter()
                 .map(|&j| {
-                    let mut c = Cot::zero(&self.asm, n_pairs);
+                    let mut c = vec![0.0; out.len()];
                     if at(j) == m {
-                        response_cotangent(&model.responses[j % nr], &self.asm, &s.z, &ev, &mut c);
+                        let r = &model.responses[j % nr];
+                        response_cotangent(r, &self.asm, out, &mut input, &mut c);
                     }
-                    for (a, b) in c.hist.iter_mut().zip(&mu[j]) {
+                    for (a, b) in c[out.hist()].iter_mut().zip(&mu[j]) {
                         *a += b;
                     }
                     c
@@ -548,12 +611,13 @@ impl<'a> Sweep<'a> {
             let mut scratch = vec![0.0; n];
             for (c, cot) in cots.iter().enumerate() {
                 let g = &mut rhs[c * n..(c + 1) * n];
-                k.mul_vec_transpose(&cot.res, &mut scratch)?;
-                for ((gi, a), b) in g.iter_mut().zip(&scratch).zip(&cot.z) {
+                k.mul_vec_transpose(&cot[out.res()], &mut scratch)?;
+                for ((gi, a), b) in g.iter_mut().zip(&scratch).zip(&cot[out.z()]) {
                     *gi = a + b;
                 }
             }
-            self.z_passes(m, &cots, &mut rhs, &mut ev_ad)?;
+            let mut state = AdState::new(s);
+            self.z_passes(cost, m, &mut state, &cots, &mut rhs, &mut ev_ad)?;
             // K^T lambda = rhs on the free unknowns
             for c in 0..cols.len() {
                 for (i, fixed) in s.constrained.iter().enumerate() {
@@ -562,33 +626,31 @@ impl<'a> Sweep<'a> {
                     }
                 }
             }
-            self.solve_transposed(s, &k, &mut rhs, cols.len(), &mut solver)?;
+            self.solve_transposed(cost, s, &k, &mut rhs, cols.len(), &mut solver)?;
             for (c, cot) in cots.iter_mut().enumerate() {
-                for (r, l) in cot.res.iter_mut().zip(&rhs[c * n..(c + 1) * n]) {
+                for (r, l) in cot[out.res()].iter_mut().zip(&rhs[c * n..(c + 1) * n]) {
                     *r -= l;
                 }
             }
             // mu_{n-1} = d/dh [F + mu . H - lambda . R]
-            let mut mu_prev = vec![vec![0.0; nh]; cols.len()];
+            let mut mu_prev = vec![0.0; nh * cols.len()];
             if nh > 0 {
-                self.h_passes(m, &cots, &mut mu_prev, &mut ev_ad)?;
+                self.h_passes(cost, m, &mut state, &cots, &mut mu_prev, &mut ev_ad)?;
             }
             // d/db [F + mu . H - lambda . R], prescribed unknowns moving with the design
-            let params = self.params;
-            for (p, _) in params.iter().enumerate() {
+            let hd: Vec<Dual64> = s.hist_prev.iter().map(|v| Dual64::from_re(*v)).collect();
+            for (p, par) in self.params.iter().enumerate() {
                 let t = Instant::now();
-                let (lifted, zd) = self.seeded(s, p);
-                let hd: Vec<Dual64> = s.hist_prev.iter().map(|v| Dual64::from_re(*v)).collect();
-                let reach = Reach::seeded(&lifted);
-                let skip = self.unreached(s, &reach, &zd);
+                let (lifted, zd) = self.seeded(s, par);
+                let skip = self.unreached(&Reach::seeded(&lifted), &zd);
                 let fr = Frozen {
                     skip: Some(&skip),
                     ..frozen
                 };
                 self.asm
                     .evaluate(model, &lifted, &zd, &hd, s.time, Some(&fr), None, &mut ev_d)?;
-                self.cost.evaluation_seconds += t.elapsed().as_secs_f64();
-                self.cost.partial_evaluations += 1;
+                cost.evaluation_seconds += t.elapsed().as_secs_f64();
+                cost.partial_evaluations += 1;
                 for (c, &j) in cols.iter().enumerate() {
                     let mut v = 0.0;
                     if at(j) == m {
@@ -599,8 +661,7 @@ impl<'a> Sweep<'a> {
                     v += (mu[j].iter().zip(&ev_d.hist_new))
                         .map(|(a, b)| a * b.eps)
                         .sum::<f64>();
-                    // -lambda . R_b: `cot.res` holds F's cotangent less lambda, and F's own
-                    // reaction part is already in its value above
+                    // -lambda . R_b (F's own reaction part is in its value above)
                     let lam = &rhs[c * n..(c + 1) * n];
                     v -= (lam.iter().zip(&ev_d.residual))
                         .map(|(a, b)| a * b.eps)
@@ -609,7 +670,7 @@ impl<'a> Sweep<'a> {
                 }
             }
             for (c, &j) in cols.iter().enumerate() {
-                mu[j] = std::mem::take(&mut mu_prev[c]);
+                mu[j].copy_from_slice(&mu_prev[c * nh..(c + 1) * nh]);
             }
         }
         // mu_0 . dh_0/db
@@ -623,53 +684,34 @@ impl<'a> Sweep<'a> {
         Ok(dfdb)
     }
 
-    /// The design seeded along parameter `p`, and the state with the prescribed unknowns
+    /// The design seeded along parameter `par`, and the state with the prescribed unknowns
     /// carrying their derivative.
-    fn seeded(&self, s: &Stored, p: usize) -> (Lifted<Dual64>, Vec<Dual64>) {
-        let par = &self.params[p];
-        let overrides: Vec<(DesignParam, Dual64)> = par
-            .targets
-            .iter()
+    fn seeded(&self, s: &Stored, par: &Parameter) -> (Lifted<Dual64>, Vec<Dual64>) {
+        let overrides: Vec<(DesignParam, Dual64)> = (par.targets.iter())
             .map(|t| (*t, Dual64::new(par.value, 1.0)))
             .collect();
         let lifted = self.model.lifted(&overrides);
         let mut dzc = vec![0.0; s.z.len()];
-        for (i, pr) in self.model.prescribed.iter().enumerate() {
-            if par.targets.contains(&DesignParam::Prescribed { index: i }) {
-                let a = pr.amplitude.at(s.time);
-                for &nd in &pr.nodes {
-                    dzc[node_dof(nd, pr.component)] += a;
-                }
-            }
-        }
-        let z =
-            s.z.iter()
-                .zip(&dzc)
-                .map(|(r, e)| Dual64::new(*r, *e))
-                .collect();
+        prescribed_derivative(self.model, par, s.time, &mut dzc);
+        let z = (s.z.iter().zip(&dzc))
+            .map(|(r, e)| Dual64::new(*r, *e))
+            .collect();
         (lifted, z)
     }
 
     /// The elements a parameter's seeds do not reach: no moved node, no changed material
     /// parameter of its body, no moving prescribed unknown (the state and history carry no
     /// derivative here). Elements whose stress a response reads are always evaluated.
-    fn unreached(&self, _s: &Stored, reach: &Reach, z: &[Dual64]) -> Vec<bool> {
+    fn unreached(&self, reach: &Reach, z: &[Dual64]) -> Vec<bool> {
         let dofs = &self.asm.dofs;
         (0..self.model.mesh.n_elements())
             .map(|e| {
                 let b = dofs.element_body[e];
-                let material = self
-                    .model
-                    .bodies
-                    .get(b)
+                let material = (self.model.bodies.get(b))
                     .is_some_and(|_| reach.material[b].iter().any(|c| *c));
+                let moved = (self.model.mesh.element_nodes(e).iter()).any(|&nd| reach.moved[nd]);
                 let reached = material
-                    || self
-                        .model
-                        .mesh
-                        .element_nodes(e)
-                        .iter()
-                        .any(|&nd| reach.moved[nd])
+                    || moved
                     || dofs.element_dofs(e).iter().any(|&i| z[i].eps != 0.0)
                     || self.asm.stress_slot(e).is_some();
                 !reached && !dofs.gauss(e).is_empty()
@@ -680,49 +722,178 @@ impl<'a> Sweep<'a> {
     /// `K^T X = RHS` with the tangent `k` at the converged state (prescribed unknowns as
     /// identity rows), factored anew: the backward sweep keeps no factor of the forward run.
     fn solve_transposed(
-        &mut self,
+        &self,
+        cost: &mut SensitivityCost,
         s: &Stored,
         k: &SparseMatrix,
         rhs: &mut [f64],
         ncols: usize,
         solver: &mut Option<LinearSolver>,
     ) -> Result<(), AnalysisError> {
-        let mut kd = k.clone();
-        for (d, fixed) in s.constrained.iter().enumerate() {
-            if *fixed {
-                kd.set_identity_row_col(d).expect("in range");
-            }
-        }
+        let kd = with_prescribed_rows(k.clone(), &s.constrained);
         if solver.is_none() {
             *solver = Some(LinearSolver::new(self.asm.pattern.clone())?);
         }
         let ls = solver.as_mut().expect("just made");
         let t = Instant::now();
         ls.factor(&kd)?;
-        self.cost.factor_seconds += t.elapsed().as_secs_f64();
-        self.cost.factorizations += 1;
+        cost.factor_seconds += t.elapsed().as_secs_f64();
+        cost.factorizations += 1;
         let t = Instant::now();
         let b = rhs.to_vec();
         ls.solve_transpose_multi_in_place(rhs, ncols)?;
-        self.cost.solve_columns += ncols;
+        cost.solve_columns += ncols;
         // refined to the solution rounded to working precision, as DDM's solves are
         let ls = &*ls;
         let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
             cost.solve_columns += ncols;
             ls.solve_transpose_multi_in_place(r, ncols)
         };
-        refine_extended(&kd, true, &b, rhs, ncols, &mut self.cost, &mut correct)?;
-        self.cost.solve_seconds += t.elapsed().as_secs_f64();
+        refine_extended(&kd, true, &b, rhs, ncols, cost, &mut correct)?;
+        cost.solve_seconds += t.elapsed().as_secs_f64();
         Ok(())
+    }
+
+    /// One colour's local Jacobians: every member's inputs seeded `W` at a time (input `l`
+    /// in direction `l % W` of evaluation `l / W`); after each evaluation, the rows
+    /// `rows(i, ev)` of member `i`, weighed by each column's cotangent, give the derivative
+    /// added to `out[c * stride + input]`. The state's duals are clear again on return.
+    #[allow(clippy::too_many_arguments)]
+    fn local_passes(
+        &self,
+        cost: &mut SensitivityCost,
+        s: &Stored,
+        state: &mut AdState,
+        pass: &Pass<'_>,
+        ev: &mut Evaluation<Ad>,
+        rows: impl Fn(usize, &Evaluation<Ad>) -> Rows,
+        cots: &[Vec<f64>],
+        (out, stride): (&mut [f64], usize),
+    ) -> Result<(), AnalysisError> {
+        let longest = pass.inputs.iter().map(Vec::len).max().unwrap_or(0);
+        let chunk_of = |inputs: &[usize], chunk: usize| {
+            let start = (chunk * W).min(inputs.len());
+            start..((chunk + 1) * W).min(inputs.len())
+        };
+        for chunk in 0..longest.div_ceil(W) {
+            for inputs in &pass.inputs {
+                for l in chunk_of(inputs, chunk) {
+                    state.seed(s, pass.seeds, inputs[l], Some(l % W));
+                }
+            }
+            let frozen = Frozen {
+                gauss: Some(&s.branches),
+                contact: &s.choice,
+                skip: Some(pass.skip),
+                skip_contact: Some(pass.skip_contact),
+                terms: pass.terms,
+                ..Frozen::default()
+            };
+            let t = Instant::now();
+            self.asm.evaluate(
+                self.model,
+                &self.lifted_ad,
+                &state.z,
+                &state.h,
+                s.time,
+                Some(&frozen),
+                None,
+                ev,
+            )?;
+            cost.evaluation_seconds += t.elapsed().as_secs_f64();
+            cost.partial_evaluations += 1;
+            for (i, inputs) in pass.inputs.iter().enumerate() {
+                let ls = chunk_of(inputs, chunk);
+                if ls.is_empty() {
+                    continue;
+                }
+                let rows = rows(i, ev);
+                for l in ls {
+                    let d = l % W;
+                    for (c, cot) in cots.iter().enumerate() {
+                        let v: f64 = (rows.iter()).map(|(o, p)| cot[*o] * p[d]).sum();
+                        out[c * stride + inputs[l]] += v;
+                    }
+                    state.seed(s, pass.seeds, inputs[l], None);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The solids of colour `colour` that `keep` keeps.
+    fn solids_of(&self, colour: usize, keep: impl Fn(usize) -> bool) -> Vec<usize> {
+        (0..self.solids.len())
+            .filter(|i| self.solid_colour[*i] == colour)
+            .map(|i| self.solids[i])
+            .filter(|&e| keep(e))
+            .collect()
+    }
+
+    /// The rows of element `e`'s local Jacobian: its residual rows (`residual`), its
+    /// history, its stress if a response reads it.
+    fn element_rows(&self, e: usize, ev: &Evaluation<Ad>, residual: bool) -> Rows {
+        let out = &self.outputs;
+        let mut rows = Vec::new();
+        if residual {
+            for &g in self.asm.element_dofs(e) {
+                rows.push((out.index(Entry::Res(g)), parts(&ev.residual[g])));
+            }
+        }
+        for i in self.asm.dofs.history(e) {
+            rows.push((out.index(Entry::Hist(i)), parts(&ev.hist_new[i])));
+        }
+        if let Some(sl) = self.asm.stress_slot(e) {
+            for k in 0..9 {
+                let p = parts(&ev.stress[sl][(k / 3, k % 3)]);
+                rows.push((out.index(Entry::Stress(sl, k)), p));
+            }
+        }
+        rows
+    }
+
+    /// The rows of hitting node `f`'s local Jacobian: its normal force, its block's residual
+    /// rows (`residual`), its history, and its force on the target (minus its hitting node's
+    /// rows), which is its part of the pair's target force and of a pushed target's rows.
+    fn node_rows(&self, f: usize, ev: &Evaluation<Ad>, residual: bool) -> Rows {
+        let out = &self.outputs;
+        let (p, i, ref own) = self.nodes[f];
+        let pair = &self.model.contacts[p];
+        let hitting = pair.hitting[i];
+        let nhc = pair.history_len();
+        let h0 = self.asm.contact_history(p) + nhc * i;
+        let mut rows = vec![(out.index(Entry::Nf(f)), parts(&ev.contact.normal_force[f]))];
+        if residual {
+            for &g in own {
+                rows.push((out.index(Entry::Res(g)), parts(&ev.residual[g])));
+            }
+        }
+        for a in h0..h0 + nhc {
+            rows.push((out.index(Entry::Hist(a)), parts(&ev.hist_new[a])));
+        }
+        let force: Vec<[f64; W]> = (0..3)
+            .map(|c| parts(&ev.residual[node_dof(hitting, c)]).map(|v| -v))
+            .collect();
+        for (c, fc) in force.iter().enumerate() {
+            rows.push((out.index(Entry::Pf(p, c)), *fc));
+        }
+        if residual {
+            for (_, dof, mo) in pair.pushed(&self.asm.contact.target[p]) {
+                rows.push((out.index(Entry::Res(dof)), force[mo.component]));
+            }
+        }
+        rows
     }
 
     /// Adds to each column of `rhs` the derivative in the unknowns of the outputs other than
     /// the residual (history, stresses, contact forces, targets) weighed by the column's
     /// cotangent: local Jacobians by coloured dual evaluations.
     fn z_passes(
-        &mut self,
+        &self,
+        cost: &mut SensitivityCost,
         m: usize,
-        cots: &[Cot],
+        state: &mut AdState,
+        cots: &[Vec<f64>],
         rhs: &mut [f64],
         ev: &mut Evaluation<Ad>,
     ) -> Result<(), AnalysisError> {
@@ -731,33 +902,14 @@ impl<'a> Sweep<'a> {
         let n = self.asm.dofs.n_total;
         let ne = model.mesh.n_elements();
         let nk = self.nodes.len();
-        let const_z: Vec<Ad> = s.z.iter().map(|v| Ad::from_re(*v)).collect();
-        let const_h: Vec<Ad> = s.hist_prev.iter().map(|v| Ad::from_re(*v)).collect();
-        let mut z = const_z.clone();
-        // solids: the history and the stresses read, in each element's unknowns
-        let want_solids = self.asm.dofs.n_history > 0 || !self.asm.stress_elements.is_empty();
-        let max_nd = (self.solids.iter())
-            .map(|&e| self.asm.dofs.element_dofs(e).len())
-            .max()
-            .unwrap_or(0);
-        let solids_only = Terms {
-            solids: true,
-            ..Terms::NONE
-        };
-        let all_nodes = vec![true; nk];
+        let every_node = vec![true; nk];
+        // solids plastic at this increment (an elastic one keeps its history: it does not
+        // move with the unknowns), and those whose stress a response reads
         for colour in 0..self.solid_colours {
-            if !want_solids {
-                break;
-            }
-            // elastic at this increment: the history does not move with the unknowns
-            let members: Vec<usize> = (0..self.solids.len())
-                .filter(|i| self.solid_colour[*i] == colour)
-                .map(|i| self.solids[i])
-                .filter(|&e| {
-                    self.asm.stress_slot(e).is_some()
-                        || s.branches[self.asm.dofs.gauss(e)].contains(&Branch::Plastic)
-                })
-                .collect();
+            let members = self.solids_of(colour, |e| {
+                self.asm.stress_slot(e).is_some()
+                    || s.branches[self.asm.dofs.gauss(e)].contains(&Branch::Plastic)
+            });
             if members.is_empty() {
                 continue;
             }
@@ -765,148 +917,69 @@ impl<'a> Sweep<'a> {
             for &e in &members {
                 skip[e] = false;
             }
-            for chunk in 0..max_nd.div_ceil(W) {
-                for &e in &members {
-                    for (l, &g) in self.asm.dofs.element_dofs(e).iter().enumerate() {
-                        if l / W == chunk {
-                            z[g] = Ad::from_re(s.z[g]).derivative(l % W);
-                        }
-                    }
-                }
-                self.evaluate_ad(s, &z, &const_h, &skip, &all_nodes, solids_only, ev)?;
-                for &e in &members {
-                    let dofs = self.asm.element_dofs(e);
-                    let hist = self.asm.dofs.history(e);
-                    let hp: Vec<[f64; W]> = ev.hist_new[hist.clone()].iter().map(parts).collect();
-                    let sp: Option<(usize, Vec<[f64; W]>)> = self.asm.stress_slot(e).map(|sl| {
-                        (
-                            sl,
-                            (0..9)
-                                .map(|i| parts(&ev.stress[sl][(i / 3, i % 3)]))
-                                .collect(),
-                        )
-                    });
-                    for (l, &g) in dofs.iter().enumerate() {
-                        if l / W != chunk {
-                            continue;
-                        }
-                        let d = l % W;
-                        for (c, cot) in cots.iter().enumerate() {
-                            let mut v = 0.0;
-                            for (i, p) in hist.clone().zip(&hp) {
-                                v += cot.hist[i] * p[d];
-                            }
-                            if let Some((sl, ps)) = &sp {
-                                for (i, p) in ps.iter().enumerate() {
-                                    v += cot.stress[*sl][i] * p[d];
-                                }
-                            }
-                            rhs[c * n + g] += v;
-                        }
-                    }
-                }
-                for &e in &members {
-                    for &g in self.asm.dofs.element_dofs(e) {
-                        z[g] = const_z[g];
-                    }
-                }
-            }
+            let pass = Pass {
+                seeds: Seeds::Z,
+                inputs: (members.iter())
+                    .map(|&e| self.asm.element_dofs(e).to_vec())
+                    .collect(),
+                skip: &skip,
+                skip_contact: &every_node,
+                terms: SOLIDS,
+            };
+            let rows = |i: usize, ev: &Evaluation<Ad>| self.element_rows(members[i], ev, false);
+            self.local_passes(cost, s, state, &pass, ev, rows, cots, (rhs, n))?;
         }
         if model.contacts.is_empty() {
             return Ok(());
         }
-        // contact: the nodes' history, normal forces and target forces
-        let contact_only = Terms {
-            contact_normal: true,
-            friction: true,
-            ..Terms::NONE
-        };
-        let no_solids = vec![true; ne];
-        let max_nb = self.nodes.iter().map(|b| b.2.len()).max().unwrap_or(0);
+        // hitting nodes: their history, normal forces and target forces
+        let no_solid = vec![true; ne];
         for colour in 0..self.node_colours {
             let members: Vec<usize> = (0..nk).filter(|f| self.node_colour[*f] == colour).collect();
             let mut skip = vec![true; nk];
             for &f in &members {
                 skip[f] = false;
             }
-            for chunk in 0..max_nb.div_ceil(W) {
-                for &f in &members {
-                    for (l, &g) in self.nodes[f].2.iter().enumerate() {
-                        if l / W == chunk {
-                            z[g] = Ad::from_re(s.z[g]).derivative(l % W);
-                        }
-                    }
-                }
-                self.evaluate_ad(s, &z, &const_h, &no_solids, &skip, contact_only, ev)?;
-                for &f in &members {
-                    let (p, i, ref own) = self.nodes[f];
-                    let hitting = model.contacts[p].hitting[i];
-                    let nhc = model.contacts[p].history_len();
-                    let h0 = self.asm.contact_history(p) + nhc * i;
-                    let hp: Vec<[f64; W]> = ev.hist_new[h0..h0 + nhc].iter().map(parts).collect();
-                    let nfp = parts(&ev.contact.normal_force[f]);
-                    // the node's force on the target is minus its hitting node's rows
-                    let fp: Vec<[f64; W]> = (0..3)
-                        .map(|c| parts(&ev.residual[node_dof(hitting, c)]))
-                        .collect();
-                    for (l, &g) in own.iter().enumerate() {
-                        if l / W != chunk {
-                            continue;
-                        }
-                        let d = l % W;
-                        for (c, cot) in cots.iter().enumerate() {
-                            let mut v = cot.nf[f] * nfp[d];
-                            for (a, pa) in hp.iter().enumerate() {
-                                v += cot.hist[h0 + a] * pa[d];
-                            }
-                            for (cc, pa) in fp.iter().enumerate() {
-                                v -= cot.pf[p][cc] * pa[d];
-                            }
-                            rhs[c * n + g] += v;
-                        }
-                    }
-                }
-                for &f in &members {
-                    for &g in &self.nodes[f].2 {
-                        z[g] = const_z[g];
-                    }
-                }
-            }
+            let pass = Pass {
+                seeds: Seeds::Z,
+                inputs: members.iter().map(|&f| self.nodes[f].2.clone()).collect(),
+                skip: &no_solid,
+                skip_contact: &skip,
+                terms: CONTACT,
+            };
+            let rows = |i: usize, ev: &Evaluation<Ad>| self.node_rows(members[i], ev, false);
+            self.local_passes(cost, s, state, &pass, ev, rows, cots, (rhs, n))?;
         }
         // a pushed target's translations: every node sees them
-        let pushed = self.pushed.clone();
-        let none = vec![false; nk];
-        for chunk in pushed.chunks(W) {
-            for (d, &g) in chunk.iter().enumerate() {
-                z[g] = Ad::from_re(s.z[g]).derivative(d);
-            }
-            self.evaluate_ad(s, &z, &const_h, &no_solids, &none, contact_only, ev)?;
-            let first = self.asm.dofs.first_contact_history;
-            let hp: Vec<[f64; W]> = ev.hist_new[first..].iter().map(parts).collect();
-            let nfp: Vec<[f64; W]> = ev.contact.normal_force.iter().map(parts).collect();
-            for (d, &g) in chunk.iter().enumerate() {
-                for (c, cot) in cots.iter().enumerate() {
-                    let mut v = 0.0;
-                    for (a, pa) in hp.iter().enumerate() {
-                        v += cot.hist[first + a] * pa[d];
-                    }
-                    for (f, pa) in nfp.iter().enumerate() {
-                        v += cot.nf[f] * pa[d];
-                    }
-                    for p in 0..model.contacts.len() {
-                        for cc in 0..3 {
-                            v += cot.pf[p][cc] * parts(&ev.contact.pair_force[p][cc])[d];
-                            v += cot.tr[p][cc] * parts(&ev.contact.translation[p][cc])[d];
-                        }
-                    }
-                    rhs[c * n + g] += v;
+        if !self.pushed.is_empty() {
+            let out = &self.outputs;
+            let pass = Pass {
+                seeds: Seeds::Z,
+                inputs: vec![self.pushed.clone()],
+                skip: &no_solid,
+                skip_contact: &vec![false; nk],
+                terms: CONTACT,
+            };
+            let rows = |_: usize, ev: &Evaluation<Ad>| {
+                let first = self.asm.dofs.first_contact_history;
+                let mut rows: Rows = (first..self.asm.dofs.n_history)
+                    .map(|a| (out.index(Entry::Hist(a)), parts(&ev.hist_new[a])))
+                    .collect();
+                for (f, nf) in ev.contact.normal_force.iter().enumerate() {
+                    rows.push((out.index(Entry::Nf(f)), parts(nf)));
                 }
-            }
-            for &g in chunk {
-                z[g] = const_z[g];
-            }
+                for p in 0..model.contacts.len() {
+                    for c in 0..3 {
+                        let pf = parts(&ev.contact.pair_force[p][c]);
+                        rows.push((out.index(Entry::Pf(p, c)), pf));
+                        let tr = parts(&ev.contact.translation[p][c]);
+                        rows.push((out.index(Entry::Tr(p, c)), tr));
+                    }
+                }
+                rows
+            };
+            self.local_passes(cost, s, state, &pass, ev, rows, cots, (rhs, n))?;
         }
-        // the current tributary areas, from the hitting faces' nodes
         self.current_area_pass(s, cots, rhs);
         Ok(())
     }
@@ -914,46 +987,41 @@ impl<'a> Sweep<'a> {
     /// The current areas' part of the unknowns' derivative: each node of a pair's hitting
     /// faces seeded alone, through the same generic area routine the contact evaluation
     /// uses.
-    fn current_area_pass(&self, s: &Stored, cots: &[Cot], rhs: &mut [f64]) {
+    fn current_area_pass(&self, s: &Stored, cots: &[Vec<f64>], rhs: &mut [f64]) {
         let n = self.asm.dofs.n_total;
         for (p, pair) in self.model.contacts.iter().enumerate() {
             let Some(faces) = &pair.hitting_faces else {
                 continue;
             };
             let first = self.asm.contact_flat(p);
-            let range = first..first + pair.hitting.len();
+            let carea = self.outputs.carea(first..first + pair.hitting.len());
             if cots
                 .iter()
-                .all(|c| c.carea[range.clone()].iter().all(|v| *v == 0.0))
+                .all(|c| c[carea.clone()].iter().all(|v| *v == 0.0))
             {
                 continue;
             }
-            let pos = |nd: usize| -> Vector3<f64> {
-                self.lifted.coords[nd]
-                    + Vector3::new(
-                        s.z[node_dof(nd, 0)],
-                        s.z[node_dof(nd, 1)],
-                        s.z[node_dof(nd, 2)],
-                    )
+            let pos = |nd: usize| -> Vector3<Dual64> {
+                let u = Vector3::new(
+                    s.z[node_dof(nd, 0)],
+                    s.z[node_dof(nd, 1)],
+                    s.z[node_dof(nd, 2)],
+                );
+                (self.lifted.coords[nd] + u).map(Dual64::from_re)
             };
             for &nd in faces.all_nodes() {
                 for comp in 0..3 {
-                    let areas = faces.tributary_areas_at(
-                        |m| {
-                            let x = pos(m).map(Dual64::from_re);
-                            if m == nd {
-                                let mut x = x;
-                                x[comp].eps = 1.0;
-                                x
-                            } else {
-                                x
-                            }
-                        },
-                        &pair.hitting,
-                    );
+                    let seeded = |m: usize| {
+                        let mut x = pos(m);
+                        if m == nd {
+                            x[comp].eps = 1.0;
+                        }
+                        x
+                    };
+                    let areas = faces.tributary_areas_at(seeded, &pair.hitting);
                     let g = node_dof(nd, comp);
                     for (c, cot) in cots.iter().enumerate() {
-                        let v: f64 = (areas.iter().zip(&cot.carea[range.clone()]))
+                        let v: f64 = (areas.iter().zip(&cot[carea.clone()]))
                             .map(|(a, w)| a.eps * w)
                             .sum();
                         rhs[c * n + g] += v;
@@ -963,37 +1031,29 @@ impl<'a> Sweep<'a> {
         }
     }
 
-    /// Adds to each column's `mu_prev` the derivative in the committed history of every
-    /// output weighed by the column's cotangent (residual included: `-lambda`).
+    /// Adds to each column's `mu_prev` (column-major) the derivative in the committed history
+    /// of every output weighed by the column's cotangent (residual included: `-lambda`).
     fn h_passes(
-        &mut self,
+        &self,
+        cost: &mut SensitivityCost,
         m: usize,
-        cots: &[Cot],
-        mu_prev: &mut [Vec<f64>],
+        state: &mut AdState,
+        cots: &[Vec<f64>],
+        mu_prev: &mut [f64],
         ev: &mut Evaluation<Ad>,
     ) -> Result<(), AnalysisError> {
         let model = self.model;
         let s = &self.stored[m];
+        let nh = self.asm.dofs.n_history;
         let ne = model.mesh.n_elements();
         let nk = self.nodes.len();
-        let z: Vec<Ad> = s.z.iter().map(|v| Ad::from_re(*v)).collect();
-        let const_h: Vec<Ad> = s.hist_prev.iter().map(|v| Ad::from_re(*v)).collect();
-        let mut h = const_h.clone();
-        let solids_only = Terms {
-            solids: true,
-            ..Terms::NONE
-        };
-        let all_nodes = vec![true; nk];
-        let max_nh = (self.solids.iter())
-            .map(|&e| self.asm.dofs.history(e).len())
-            .max()
-            .unwrap_or(0);
+        let every_node = vec![true; nk];
+        // solids plastic before this increment: the history multiplier of the others is
+        // read by nothing
         for colour in 0..self.solid_colours {
-            let members: Vec<usize> = (0..self.solids.len())
-                .filter(|i| self.solid_colour[*i] == colour)
-                .map(|i| self.solids[i])
-                .filter(|&e| !self.asm.dofs.history(e).is_empty() && self.first_plastic[e] < m)
-                .collect();
+            let members = self.solids_of(colour, |e| {
+                !self.asm.dofs.history(e).is_empty() && self.first_plastic[e] < m
+            });
             if members.is_empty() {
                 continue;
             }
@@ -1001,143 +1061,41 @@ impl<'a> Sweep<'a> {
             for &e in &members {
                 skip[e] = false;
             }
-            for chunk in 0..max_nh.div_ceil(W) {
-                for &e in &members {
-                    for (l, i) in self.asm.dofs.history(e).enumerate() {
-                        if l / W == chunk {
-                            h[i] = Ad::from_re(s.hist_prev[i]).derivative(l % W);
-                        }
-                    }
-                }
-                self.evaluate_ad(s, &z, &h, &skip, &all_nodes, solids_only, ev)?;
-                for &e in &members {
-                    let dofs = self.asm.element_dofs(e);
-                    let hist = self.asm.dofs.history(e);
-                    let rp: Vec<[f64; W]> = dofs.iter().map(|&g| parts(&ev.residual[g])).collect();
-                    let hp: Vec<[f64; W]> = ev.hist_new[hist.clone()].iter().map(parts).collect();
-                    let sp: Option<(usize, Vec<[f64; W]>)> = self.asm.stress_slot(e).map(|sl| {
-                        (
-                            sl,
-                            (0..9)
-                                .map(|i| parts(&ev.stress[sl][(i / 3, i % 3)]))
-                                .collect(),
-                        )
-                    });
-                    for (l, i0) in hist.clone().enumerate() {
-                        if l / W != chunk {
-                            continue;
-                        }
-                        let d = l % W;
-                        for (c, cot) in cots.iter().enumerate() {
-                            let mut v = 0.0;
-                            for (&g, p) in dofs.iter().zip(&rp) {
-                                v += cot.res[g] * p[d];
-                            }
-                            for (i, p) in hist.clone().zip(&hp) {
-                                v += cot.hist[i] * p[d];
-                            }
-                            if let Some((sl, ps)) = &sp {
-                                for (i, p) in ps.iter().enumerate() {
-                                    v += cot.stress[*sl][i] * p[d];
-                                }
-                            }
-                            mu_prev[c][i0] += v;
-                        }
-                    }
-                }
-                for &e in &members {
-                    for i in self.asm.dofs.history(e) {
-                        h[i] = const_h[i];
-                    }
-                }
-            }
+            let pass = Pass {
+                seeds: Seeds::H,
+                inputs: (members.iter())
+                    .map(|&e| self.asm.dofs.history(e).collect())
+                    .collect(),
+                skip: &skip,
+                skip_contact: &every_node,
+                terms: SOLIDS,
+            };
+            let rows = |i: usize, ev: &Evaluation<Ad>| self.element_rows(members[i], ev, true);
+            self.local_passes(cost, s, state, &pass, ev, rows, cots, (mu_prev, nh))?;
         }
-        if model.contacts.is_empty() {
-            return Ok(());
-        }
-        let contact_only = Terms {
-            contact_normal: true,
-            friction: true,
-            ..Terms::NONE
-        };
-        let no_solids = vec![true; ne];
-        let max_nhc = model
-            .contacts
-            .iter()
-            .map(|p| p.history_len())
-            .max()
-            .unwrap_or(0);
+        let no_solid = vec![true; ne];
         for colour in 0..self.node_colours {
             let members: Vec<usize> = (0..nk).filter(|f| self.node_colour[*f] == colour).collect();
             let mut skip = vec![true; nk];
             for &f in &members {
                 skip[f] = false;
             }
-            for chunk in 0..max_nhc.div_ceil(W) {
-                let mut any = false;
-                for &f in &members {
-                    let (p, i, _) = self.nodes[f];
-                    let nhc = model.contacts[p].history_len();
-                    let h0 = self.asm.contact_history(p) + nhc * i;
-                    for l in 0..nhc {
-                        if l / W == chunk {
-                            h[h0 + l] = Ad::from_re(s.hist_prev[h0 + l]).derivative(l % W);
-                            any = true;
-                        }
-                    }
-                }
-                if !any {
-                    continue;
-                }
-                self.evaluate_ad(s, &z, &h, &no_solids, &skip, contact_only, ev)?;
-                for &f in &members {
-                    let (p, i, ref own) = self.nodes[f];
-                    let pair = &model.contacts[p];
-                    let hitting = pair.hitting[i];
-                    let nhc = pair.history_len();
-                    let h0 = self.asm.contact_history(p) + nhc * i;
-                    let rp: Vec<[f64; W]> = own.iter().map(|&g| parts(&ev.residual[g])).collect();
-                    let hp: Vec<[f64; W]> = ev.hist_new[h0..h0 + nhc].iter().map(parts).collect();
-                    let nfp = parts(&ev.contact.normal_force[f]);
-                    let fp: Vec<[f64; W]> = (0..3)
-                        .map(|c| parts(&ev.residual[node_dof(hitting, c)]))
-                        .collect();
-                    let targets: Vec<(usize, usize)> = pair
-                        .pushed(&self.asm.contact.target[p])
-                        .map(|(_, dof, mo)| (dof, mo.component))
-                        .collect();
-                    for l in 0..nhc {
-                        if l / W != chunk {
-                            continue;
-                        }
-                        let d = l % W;
-                        for (c, cot) in cots.iter().enumerate() {
-                            let mut v = cot.nf[f] * nfp[d];
-                            for (&g, pa) in own.iter().zip(&rp) {
-                                v += cot.res[g] * pa[d];
-                            }
-                            for (a, pa) in hp.iter().enumerate() {
-                                v += cot.hist[h0 + a] * pa[d];
-                            }
-                            // the target force and a pushed target's rows: the node's force,
-                            // minus its hitting node's rows
-                            for (cc, pa) in fp.iter().enumerate() {
-                                v -= cot.pf[p][cc] * pa[d];
-                            }
-                            for &(dof, cc) in &targets {
-                                v -= cot.res[dof] * fp[cc][d];
-                            }
-                            mu_prev[c][h0 + l] += v;
-                        }
-                    }
-                }
-                for &f in &members {
-                    let (p, i, _) = self.nodes[f];
-                    let nhc = model.contacts[p].history_len();
-                    let h0 = self.asm.contact_history(p) + nhc * i;
-                    h[h0..h0 + nhc].copy_from_slice(&const_h[h0..h0 + nhc]);
-                }
-            }
+            let pass = Pass {
+                seeds: Seeds::H,
+                inputs: (members.iter())
+                    .map(|&f| {
+                        let (p, i, _) = self.nodes[f];
+                        let nhc = model.contacts[p].history_len();
+                        let h0 = self.asm.contact_history(p) + nhc * i;
+                        (h0..h0 + nhc).collect()
+                    })
+                    .collect(),
+                skip: &no_solid,
+                skip_contact: &skip,
+                terms: CONTACT,
+            };
+            let rows = |i: usize, ev: &Evaluation<Ad>| self.node_rows(members[i], ev, true);
+            self.local_passes(cost, s, state, &pass, ev, rows, cots, (mu_prev, nh))?;
         }
         Ok(())
     }

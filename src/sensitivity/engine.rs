@@ -42,6 +42,35 @@ pub(super) struct PseudoLoads {
     pub(super) hists: Vec<Vec<Dual64>>,
 }
 
+/// Adds the derivative of the prescribed unknowns at `time` with respect to `param` to `out`.
+pub(super) fn prescribed_derivative(model: &Model, param: &Parameter, time: f64, out: &mut [f64]) {
+    for (i, p) in model.prescribed.iter().enumerate() {
+        if param
+            .targets
+            .contains(&DesignParam::Prescribed { index: i })
+        {
+            let a = p.amplitude.at(time);
+            for &n in &p.nodes {
+                out[node_dof(n, p.component)] += a;
+            }
+        }
+    }
+}
+
+/// `k` with the prescribed unknowns' identity rows and columns, as in Newton's factored
+/// tangent.
+pub(super) fn with_prescribed_rows(
+    mut k: crate::linalg::SparseMatrix,
+    constrained: &[bool],
+) -> crate::linalg::SparseMatrix {
+    for (d, fixed) in constrained.iter().enumerate() {
+        if *fixed {
+            k.set_identity_row_col(d).expect("in range");
+        }
+    }
+    k
+}
+
 /// Per element: whether the Gauss-point branches of `a` and `b` agree on all its points
 /// (`None` when either leaves them free: every element counts as changed).
 pub(super) fn unchanged_elements(
@@ -270,17 +299,7 @@ impl<'a> Engine<'a> {
 
     /// Derivative of the prescribed unknowns with respect to parameter `k`.
     pub(super) fn prescribed_derivative(&self, c: &Converged<'_>, k: usize, out: &mut [f64]) {
-        for (i, p) in c.model.prescribed.iter().enumerate() {
-            let hit = self.params[k]
-                .targets
-                .contains(&DesignParam::Prescribed { index: i });
-            if hit {
-                let a = p.amplitude.at(c.time);
-                for &n in &p.nodes {
-                    out[node_dof(n, p.component)] += a;
-                }
-            }
-        }
+        prescribed_derivative(c.model, &self.params[k], c.time, out);
     }
 
     /// Whether flat hitting node `k` belongs to a pair with friction.
@@ -299,15 +318,7 @@ impl<'a> Engine<'a> {
         rhs: &mut [f64],
         ncols: usize,
     ) -> Result<(), AnalysisError> {
-        // the prescribed unknowns' identity rows, as in Newton's factored tangent
-        let prescribed = |mut k: crate::linalg::SparseMatrix| {
-            for (d, fixed) in c.constrained.iter().enumerate() {
-                if *fixed {
-                    k.set_identity_row_col(d).expect("in range");
-                }
-            }
-            k
-        };
+        let prescribed = |k| with_prescribed_rows(k, c.constrained);
         let converged_k = || prescribed(c.tangent.clone());
         // the last Newton factorization is the converged tangent only if it was assembled on
         // the converged branches (see `Converged::factor_matches`)

@@ -64,6 +64,7 @@ mod kinks;
 mod sdm;
 
 pub use crate::design::{Parameter, ParameterError};
+pub use auto::{CENTRAL_LADDER, FORWARD_LADDER};
 use engine::*;
 pub use engine::{history_unchanged, Engine};
 pub use fdm::*;

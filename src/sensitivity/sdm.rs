@@ -208,6 +208,8 @@ impl Engine<'_> {
         // the nominal state evaluated over the elements a parameter reaches (forward SDM,
         // where the others are left out)
         let mut ev_0 = Evaluation::<f64>::new(c.assembler, ne);
+        // every response at the converged state
+        let values = response_values(c);
         let mut rhs = vec![0.0; n * np];
         let mut dzc = vec![vec![0.0; n]; np];
         // round-off: the unbalance against the forces that cancel in it (the reference force
@@ -329,7 +331,7 @@ impl Engine<'_> {
             } else {
                 for (r, resp) in c.model.responses.iter().enumerate() {
                     let vp = resp.value(&ev_p.response_input(&zp, c.assembler));
-                    let v0 = resp.value(&c.eval.response_input(c.z, c.assembler));
+                    let v0 = values[r];
                     dresp[r][k] = (vp - v0) / db;
                     roundoff[r][k] |= vp != v0 && roundoff_dominated(vp - v0, v0, f64::EPSILON);
                 }
@@ -346,7 +348,7 @@ impl Engine<'_> {
             // the size of what cancels in the response's own difference: a force read from
             // the residual or the contact sums forces of the size of the reference force
             let reads = c.model.responses[r].kind.reads();
-            let value = c.model.responses[r].value(&c.eval.response_input(c.z, c.assembler));
+            let value = values[r];
             let cancelling = if !reads.residual_nodes.is_empty() || reads.contact {
                 value.abs().max(c.record.reference_force)
             } else {

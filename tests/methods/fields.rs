@@ -61,7 +61,12 @@ fn stress_field_derivatives_equal_the_stress_response_by_every_method() {
                     .iter()
                     .map(|i| i.derivatives[r][k].abs())
                     .fold(0.0, f64::max);
-                worst = worst.max((from_field - from_response).abs() / scale);
+                let gap = (from_field - from_response).abs() / scale;
+                assert!(
+                    gap.is_finite(),
+                    "{method:?}: {from_field} against {from_response}"
+                );
+                worst = worst.max(gap);
             }
         }
         println!("{method:?}: field against response {worst:.1e} of the scale");
@@ -92,7 +97,9 @@ fn stress_field_derivatives_equal_the_stress_response_by_every_method() {
                     .fold(0.0f64, |m, v| m.max(v.abs()));
                 for i in 0..d.fields.len() {
                     for (x, y) in disp(&s, i, k).iter().zip(disp(d, i, k)) {
-                        worst = worst.max((x - y).abs() / scale);
+                        let gap = (x - y).abs() / scale;
+                        assert!(gap.is_finite(), "{method:?}: {x} against {y}");
+                        worst = worst.max(gap);
                     }
                 }
             }
@@ -100,7 +107,12 @@ fn stress_field_derivatives_equal_the_stress_response_by_every_method() {
             // forward SDM at 1e-7 (truncation, beta x curvature) and central FDM at 1e-5
             // (truncation beta^2 and the reruns' Newton tolerance over 2 db): 7.9e-8 and
             // 1.0e-6 measured
-            assert!(worst < 1e-5, "{method:?}: {worst:.1e}");
+            let tol = if method == Method::FdmCentral {
+                1e-5
+            } else {
+                1e-6
+            };
+            assert!(worst < tol, "{method:?}: {worst:.1e}");
         }
     }
 }
