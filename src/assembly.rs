@@ -346,7 +346,7 @@ impl Assembler {
                 let crossing = with_material!(&body.material, m => {
                     crate::material::MaterialLaw::elastic_crossing(
                         m,
-                        &lifted.material[b],
+                        lifted.material_of(b, e),
                         &e0[g],
                         &e1[g],
                         hist,
@@ -597,7 +597,7 @@ impl Assembler {
                 dofs: &d[..nd / 3],
                 kinematics: body.kinematics,
                 material: m,
-                params: &lifted.material[b],
+                params: lifted.material_of(b, e),
                 hist_old: &hist_old[hist],
                 frozen: fr,
             };

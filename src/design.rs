@@ -86,6 +86,24 @@ pub enum ParameterError {
         /// The parameter name.
         name: String,
     },
+    /// A field parameter's bracket is not `[N]`, `[*]` or `[A..B]`.
+    #[error("parameter '{name}': use [N] (an element or node number), [*] or [A..B]")]
+    FieldSyntax {
+        /// The parameter name.
+        name: String,
+    },
+    /// A field parameter's element or node is not on what it names.
+    #[error("parameter '{name}': {what} {number} is not in '{on}'")]
+    NotOn {
+        /// The parameter name.
+        name: String,
+        /// `element`, `hitting node` or `node`.
+        what: &'static str,
+        /// The number given.
+        number: usize,
+        /// The body, pair or node set.
+        on: String,
+    },
     /// A target that does not exist in the model.
     #[error("design parameter {target:?} does not exist")]
     NoTarget {
@@ -130,8 +148,17 @@ impl Parameter {
     /// * `load.NAME`, `prescribed.NAME`, `pressure.NAME`: the magnitude of a nodal load, a
     ///   prescribed displacement or a pressure;
     /// * the name of a shape map (matched first, dots and all): its value
-    ///   ([`crate::mesh::shape_map`]).
+    ///   ([`crate::mesh::shape_map`]);
+    /// * field parameters, one entity each (its number in brackets, as ParaView numbers cells
+    ///   and points): `BODY.PARAM[E]`, material parameter `PARAM` of element `E` of the body
+    ///   alone; `PAIR.PARAM[N]`, friction parameter `PARAM` at hitting node `N` alone;
+    ///   `SET.x|y|z[N]`, the offset of node `N` of node set `SET` along an axis (a design
+    ///   velocity per node and direction). [`Parameter::expand`] makes the whole field.
     pub fn by_name(model: &Model, name: &str) -> Result<Self, ParameterError> {
+        if let Some((base, number)) = field_parts(name)? {
+            let target = field_target(model, name, base, number)?;
+            return Self::single(model, name, target);
+        }
         let named = || name.to_string();
         let no_body = |body: &str| ParameterError::NoBody {
             name: named(),
@@ -298,6 +325,33 @@ impl Parameter {
         })
     }
 
+    /// The parameters a name stands for: [`Parameter::by_name`]'s one, or a field's every
+    /// entity (`BODY.PARAM[*]`, `PAIR.PARAM[*]`, `SET.x[*]`) or those numbered `A` to `B - 1`
+    /// (`[A..B]`), one parameter each, in entity order.
+    pub fn expand(model: &Model, name: &str) -> Result<Vec<Self>, ParameterError> {
+        let syntax = || ParameterError::FieldSyntax {
+            name: name.to_string(),
+        };
+        let Some(open) = name.rfind('[').filter(|_| name.ends_with(']')) else {
+            return Ok(vec![Self::by_name(model, name)?]);
+        };
+        let (base, inner) = (&name[..open], &name[open + 1..name.len() - 1]);
+        let range = if inner == "*" {
+            0..usize::MAX
+        } else if let Some((a, b)) = inner.split_once("..") {
+            let a = a.parse().map_err(|_| syntax())?;
+            let b = b.parse().map_err(|_| syntax())?;
+            a..b
+        } else {
+            return Ok(vec![Self::by_name(model, name)?]);
+        };
+        let members = field_members(model, name, base)?;
+        (members.into_iter())
+            .filter(|m| range.contains(m))
+            .map(|m| Self::by_name(model, &format!("{base}[{m}]")))
+            .collect()
+    }
+
     /// Perturbation step `db = beta b_0` (`beta` where `b_0 = 0`).
     pub fn step(&self, beta: f64) -> f64 {
         if self.value == 0.0 {
@@ -306,4 +360,141 @@ impl Parameter {
             beta * self.value
         }
     }
+}
+
+/// A field parameter's name split into what it names and the entity number in its bracket
+/// (`None` for a name without a trailing `[N]`; `PAIR.motion[K]` is not a field).
+fn field_parts(name: &str) -> Result<Option<(&str, usize)>, ParameterError> {
+    let Some(open) = name.rfind('[').filter(|_| name.ends_with(']')) else {
+        return Ok(None);
+    };
+    let base = &name[..open];
+    if base.ends_with(".motion") {
+        return Ok(None);
+    }
+    let number =
+        name[open + 1..name.len() - 1]
+            .parse()
+            .map_err(|_| ParameterError::FieldSyntax {
+                name: name.to_string(),
+            })?;
+    Ok(Some((base, number)))
+}
+
+/// What `OWNER.WHAT` names: a body's material parameter, a pair's friction parameter, or a
+/// node set's axis.
+enum FieldOwner<'a> {
+    Body(usize, usize),
+    Pair(usize, usize),
+    Nodes(&'a [usize], usize),
+}
+
+fn field_owner<'a>(
+    model: &'a Model,
+    name: &str,
+    base: &str,
+) -> Result<(FieldOwner<'a>, String), ParameterError> {
+    let no_match = || ParameterError::NoMatch {
+        name: name.to_string(),
+    };
+    let (owner, what) = base.rsplit_once('.').ok_or_else(no_match)?;
+    if let Some((b, body)) = (model.bodies.iter().enumerate()).find(|(_, b)| b.name == owner) {
+        let names = body.material.param_names();
+        let index =
+            names
+                .iter()
+                .position(|n| *n == what)
+                .ok_or_else(|| ParameterError::LawParameter {
+                    name: name.to_string(),
+                    what: "material",
+                    law: body.material.name().to_string(),
+                    known: names.iter().map(|n| n.to_string()).collect(),
+                })?;
+        return Ok((FieldOwner::Body(b, index), owner.to_string()));
+    }
+    if let Some((p, pair)) = (model.contacts.iter().enumerate()).find(|(_, c)| c.name == owner) {
+        let f = pair
+            .friction
+            .as_ref()
+            .ok_or_else(|| ParameterError::Frictionless {
+                name: name.to_string(),
+                pair: owner.to_string(),
+            })?;
+        let index = (f.param_names().iter().position(|n| *n == what)).ok_or_else(|| {
+            ParameterError::LawParameter {
+                name: name.to_string(),
+                what: "friction law",
+                law: f.name().to_string(),
+                known: f.param_names().iter().map(|n| n.to_string()).collect(),
+            }
+        })?;
+        return Ok((FieldOwner::Pair(p, index), owner.to_string()));
+    }
+    if let Some(nodes) = model.mesh.node_sets.get(owner) {
+        let axis = ["x", "y", "z"]
+            .iter()
+            .position(|a| *a == what)
+            .ok_or_else(|| ParameterError::Axis {
+                name: name.to_string(),
+                axis: what.to_string(),
+            })?;
+        return Ok((FieldOwner::Nodes(nodes, axis), owner.to_string()));
+    }
+    Err(no_match())
+}
+
+/// The target of field parameter `base[number]`.
+fn field_target(
+    model: &Model,
+    name: &str,
+    base: &str,
+    number: usize,
+) -> Result<DesignParam, ParameterError> {
+    let (owner, on) = field_owner(model, name, base)?;
+    let not_on = |what| ParameterError::NotOn {
+        name: name.to_string(),
+        what,
+        number,
+        on: on.clone(),
+    };
+    match owner {
+        FieldOwner::Body(b, index) => {
+            let elements = model.mesh.group_elements(model.bodies[b].group);
+            elements
+                .contains(&number)
+                .then_some(DesignParam::ElementMaterial {
+                    element: number,
+                    index,
+                })
+                .ok_or_else(|| not_on("element"))
+        }
+        FieldOwner::Pair(pair, index) => {
+            let node = (model.contacts[pair].hitting.iter())
+                .position(|n| *n == number)
+                .ok_or_else(|| not_on("hitting node"))?;
+            Ok(DesignParam::NodeFriction { pair, node, index })
+        }
+        FieldOwner::Nodes(nodes, axis) => nodes
+            .contains(&number)
+            .then_some(DesignParam::NodeShape { node: number, axis })
+            .ok_or_else(|| not_on("node")),
+    }
+}
+
+/// The entity numbers of field `base` (`BODY.PARAM`, `PAIR.PARAM`, `SET.AXIS`), ascending.
+fn field_members(model: &Model, name: &str, base: &str) -> Result<Vec<usize>, ParameterError> {
+    Ok(match field_owner(model, name, base)?.0 {
+        FieldOwner::Body(b, _) => model.mesh.group_elements(model.bodies[b].group).collect(),
+        FieldOwner::Pair(p, _) => {
+            let mut v = model.contacts[p].hitting.clone();
+            v.sort_unstable();
+            v
+        }
+        FieldOwner::Nodes(nodes, _) => {
+            let mut v = nodes.to_vec();
+            v.sort_unstable();
+            v.dedup();
+            v
+        }
+    })
 }

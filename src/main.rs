@@ -465,10 +465,10 @@ fn sensitivity(
     } else {
         names
     };
-    let params: Vec<Parameter> = names
-        .iter()
-        .map(|n| Parameter::by_name(&model, n).map_err(|e| e.to_string()))
-        .collect::<Result<_, _>>()?;
+    let mut params: Vec<Parameter> = Vec::new();
+    for n in names {
+        params.extend(Parameter::expand(&model, n).map_err(|e| e.to_string())?);
+    }
     let mut settings = Settings {
         method: match method {
             MethodArg::Sdm => Method::Sdm,

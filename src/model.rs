@@ -245,6 +245,14 @@ pub struct Model {
     /// What building the model chose for the user (defaults derived from the scene, hitting
     /// nodes left out of a pair), one sentence each: `fricsens run` prints them.
     pub notes: Vec<String>,
+    /// A material field: `(element, parameter index) -> value` where an element's material
+    /// parameter differs from its body's ([`DesignParam::ElementMaterial`]). Empty unless a
+    /// design sets one.
+    pub element_params: std::collections::BTreeMap<(usize, usize), f64>,
+    /// A friction field: `(pair, hitting node index, parameter index) -> value` where a
+    /// hitting node's friction-law parameter differs from its pair's
+    /// ([`DesignParam::NodeFriction`]). Empty unless a design sets one.
+    pub node_friction: std::collections::BTreeMap<(usize, usize, usize), f64>,
 }
 
 /// A design parameter: something the responses can be differentiated with respect to.
@@ -311,6 +319,32 @@ pub enum DesignParam {
         /// Index into [`Model::pressures`].
         index: usize,
     },
+    /// Material parameter `index` of element `element` alone (a material field: one
+    /// parameter per element; its nominal value is its body's).
+    ElementMaterial {
+        /// Global element number.
+        element: usize,
+        /// Index into the body's [`Material::params`].
+        index: usize,
+    },
+    /// Friction-law parameter `index` at hitting node `node` of pair `pair` alone (a
+    /// friction field along a surface; its nominal value is the pair's).
+    NodeFriction {
+        /// Index into [`Model::contacts`].
+        pair: usize,
+        /// Index into the pair's hitting nodes.
+        node: usize,
+        /// Index into the law's [`crate::contact::Friction::params`].
+        index: usize,
+    },
+    /// Offset of reference coordinate `axis` of node `node` (a nodal shape parameter: the
+    /// design velocity of one node in one direction; nominal 0).
+    NodeShape {
+        /// Node number.
+        node: usize,
+        /// Axis (0 = x, 1 = y, 2 = z).
+        axis: usize,
+    },
 }
 
 /// Model data lifted to a scalar type, design parameters substituted.
@@ -337,6 +371,41 @@ pub struct Lifted<S: Scalar> {
     pub area: Vec<Vec<S>>,
     /// Magnitudes of the pressure loads.
     pub pressures: Vec<S>,
+    /// The elements whose material parameters differ from their body's (a material field),
+    /// sorted by element: `(element, body, parameters)`.
+    pub element_material: Vec<(usize, usize, Vec<S>)>,
+    /// Per pair, the hitting nodes whose friction parameters differ from the pair's (a
+    /// friction field), sorted by hitting index: `(node index, parameters)`.
+    pub node_friction: Vec<Vec<(usize, Vec<S>)>>,
+}
+
+impl<S: Scalar> Lifted<S> {
+    /// The material parameters of element `e` of body `b`: its own where a material field
+    /// sets them, else its body's.
+    #[inline]
+    pub fn material_of(&self, b: usize, e: usize) -> &[S] {
+        if self.element_material.is_empty() {
+            return &self.material[b];
+        }
+        match self.element_material.binary_search_by_key(&e, |m| m.0) {
+            Ok(k) => &self.element_material[k].2,
+            Err(_) => &self.material[b],
+        }
+    }
+
+    /// The friction-law parameters at hitting node `i` of pair `p`: its own where a friction
+    /// field sets them, else the pair's.
+    #[inline]
+    pub fn friction_of(&self, p: usize, i: usize) -> &[S] {
+        let own = &self.node_friction[p];
+        if own.is_empty() {
+            return &self.friction[p];
+        }
+        match own.binary_search_by_key(&i, |m| m.0) {
+            Ok(k) => &own[k].1,
+            Err(_) => &self.friction[p],
+        }
+    }
 }
 
 impl Model {
@@ -520,7 +589,36 @@ impl Model {
             DesignParam::TangentialStiffness { pair } => {
                 self.contacts.get(pair).map(|c| c.tangential_stiffness)
             }
+            DesignParam::ElementMaterial { element, index } => {
+                let body = self.element_body(element)?;
+                (self.element_params.get(&(element, index)).copied())
+                    .or_else(|| self.bodies[body].material.params().get(index).copied())
+            }
+            DesignParam::NodeFriction { pair, node, index } => {
+                let c = self.contacts.get(pair)?;
+                c.hitting.get(node)?;
+                (self.node_friction.get(&(pair, node, index)).copied())
+                    .or_else(|| c.friction.as_ref()?.params().get(index).copied())
+            }
+            DesignParam::NodeShape { node, axis } => {
+                (node < self.mesh.n_nodes() && axis < 3).then(|| {
+                    self.mesh
+                        .node_moves
+                        .get(&(node, axis))
+                        .copied()
+                        .unwrap_or(0.0)
+                })
+            }
         }
+    }
+
+    /// The body element `e` belongs to (`None` for a spring or an element beyond the mesh).
+    pub fn element_body(&self, e: usize) -> Option<usize> {
+        (e < self.mesh.n_elements())
+            .then(|| {
+                (self.bodies.iter()).position(|b| self.mesh.group_elements(b.group).contains(&e))
+            })
+            .flatten()
     }
 
     /// A length scale of the model: the diagonal of its reference bounding box.
@@ -568,6 +666,15 @@ impl Model {
             DesignParam::TangentialStiffness { pair } => {
                 self.contacts[pair].tangential_stiffness = v
             }
+            DesignParam::ElementMaterial { element, index } => {
+                self.element_params.insert((element, index), v);
+            }
+            DesignParam::NodeFriction { pair, node, index } => {
+                self.node_friction.insert((pair, node, index), v);
+            }
+            DesignParam::NodeShape { node, axis } => {
+                self.mesh.node_moves.insert((node, axis), v);
+            }
         }
     }
 
@@ -608,8 +715,28 @@ impl Model {
             .iter()
             .map(|c| S::lift(c.tangential_stiffness))
             .collect();
+        let mut element_own: Vec<(usize, usize, S)> = (self.element_params.iter())
+            .map(|(&(e, i), v)| (e, i, S::lift(*v)))
+            .collect();
+        let mut node_own: Vec<(usize, usize, usize, S)> = (self.node_friction.iter())
+            .map(|(&(p, n, i), v)| (p, n, i, S::lift(*v)))
+            .collect();
+        let mut moves: Vec<(usize, usize, S)> = Vec::new();
         for (p, v) in overrides {
             match *p {
+                DesignParam::ElementMaterial { element, index } => {
+                    element_own.retain(|m| (m.0, m.1) != (element, index));
+                    element_own.push((element, index, *v));
+                }
+                DesignParam::NodeFriction { pair, node, index } => {
+                    node_own.retain(|m| (m.0, m.1, m.2) != (pair, node, index));
+                    node_own.push((pair, node, index, *v));
+                }
+                DesignParam::NodeShape { node, axis } => {
+                    // the coordinates below hold the nominal offset: add the change
+                    let nominal = self.mesh.node_moves.get(&(node, axis)).copied();
+                    moves.push((node, axis, *v - S::lift(nominal.unwrap_or(0.0))));
+                }
                 DesignParam::Material { body, index } => material[body][index] = *v,
                 DesignParam::BlockLength { block, axis } => geometry[block].lengths[axis] = *v,
                 DesignParam::BlockOrigin { block, axis } => geometry[block].origin[axis] = *v,
@@ -622,7 +749,32 @@ impl Model {
                 DesignParam::Pressure { index } => pressures[index] = *v,
             }
         }
-        let coords = self.mesh.coordinates_at(&geometry, &shape);
+        let mut coords = self.mesh.coordinates_at(&geometry, &shape);
+        for (node, axis, dv) in moves {
+            coords[node][axis] += dv;
+        }
+        // the fields: each element's (hitting node's) whole parameter vector, its body's
+        // (pair's) with its own values in place
+        element_own.sort_by_key(|m| m.0);
+        let mut element_material: Vec<(usize, usize, Vec<S>)> = Vec::new();
+        for (e, i, v) in element_own {
+            if element_material.last().is_none_or(|m| m.0 != e) {
+                let b = self
+                    .element_body(e)
+                    .expect("a material field on a body's element");
+                element_material.push((e, b, material[b].clone()));
+            }
+            element_material.last_mut().expect("pushed").2[i] = v;
+        }
+        node_own.sort_by_key(|m| (m.0, m.1));
+        let mut node_friction: Vec<Vec<(usize, Vec<S>)>> = vec![Vec::new(); self.contacts.len()];
+        for (p, n, i, v) in node_own {
+            let own = &mut node_friction[p];
+            if own.last().is_none_or(|m| m.0 != n) {
+                own.push((n, friction[p].clone()));
+            }
+            own.last_mut().expect("pushed").1[i] = v;
+        }
         let area = (self.contacts.iter())
             .map(|c| match &c.hitting_faces {
                 Some(faces) => faces.tributary_areas(&coords, &c.hitting),
@@ -640,6 +792,8 @@ impl Model {
             friction,
             rigid_motion,
             tangential,
+            element_material,
+            node_friction,
         }
     }
 }

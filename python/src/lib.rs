@@ -68,12 +68,13 @@ impl PyScene {
     }
 
     fn params(model: &Model, names: &[String]) -> PyResult<Vec<Parameter>> {
-        names
-            .iter()
-            .map(|n| {
-                Parameter::by_name(model, n).map_err(|e| ParameterError::new_err(e.to_string()))
-            })
-            .collect()
+        let mut out = Vec::new();
+        for n in names {
+            out.extend(
+                Parameter::expand(model, n).map_err(|e| ParameterError::new_err(e.to_string()))?,
+            );
+        }
+        Ok(out)
     }
 }
 

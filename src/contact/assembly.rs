@@ -257,6 +257,7 @@ pub(crate) fn evaluate<S: Scalar>(
                 continue;
             }
             par.area = lifted.area[p][i];
+            par.friction_params = lifted.friction_of(p, i);
             out.area[flat] = par.area;
             par.eps_t = eps_t * pair.tangential_weight[i];
             let block = &layout.blocks[p][i];
@@ -605,8 +606,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
             seeded_nodes.push((n, v));
             Ok(v)
         };
-    let fparams: Vec<Ad<N>> = lifted.friction[p]
-        .iter()
+    let fparams: Vec<Ad<N>> = (lifted.friction_of(p, i).iter())
         .map(|v| Ad::<N>::from_re(v.value()))
         .collect();
     let eps_t = Ad::<N>::from_re(lifted.tangential[p].value() * pair.tangential_weight[i]);

@@ -365,6 +365,10 @@ pub struct Mesh {
     /// Design-dependent maps of the reference coordinates, applied in order after the blocks'
     /// placement ([`shape_map`]).
     pub shape_maps: Vec<ShapeMap>,
+    /// Offsets of single node coordinates, `(node, axis) -> offset`, added after the shape
+    /// maps: the values of nodal shape parameters (a design velocity per node and direction,
+    /// [`crate::model::DesignParam::NodeShape`]). Empty unless a design moves a node.
+    pub node_moves: BTreeMap<(usize, usize), f64>,
 }
 
 /// Mesh construction errors.
@@ -753,6 +757,9 @@ impl Mesh {
         let mut x = self.placed(geometry);
         for (m, b) in self.shape_maps.iter().zip(shape) {
             m.apply(*b, &mut x);
+        }
+        for (&(node, axis), v) in &self.node_moves {
+            x[node][axis] += S::lift(*v);
         }
         x
     }

@@ -712,6 +712,7 @@ impl Scene {
             responses,
             solver: self.solver.clone(),
             notes,
+            ..Model::default()
         };
         if !history_refs.is_empty() {
             let dofs = model.dof_map();
@@ -732,7 +733,7 @@ impl Scene {
             }
         }
         for (i, name) in self.study.params.iter().enumerate() {
-            crate::design::Parameter::by_name(&model, name)
+            crate::design::Parameter::expand(&model, name)
                 .map_err(|e| invalid(&format!("study.params[{i}]"), e.to_string()))?;
         }
         Ok(model)

@@ -451,6 +451,10 @@ const CONTACT: Terms = Terms {
     ..Terms::NONE
 };
 
+/// A field parameter's element (flat hitting node), the index of the law's parameter, and
+/// its own index among the parameters.
+type FieldParam = (usize, usize, usize);
+
 /// The backward sweep's fixed data.
 struct Sweep<'a> {
     model: &'a Model,
@@ -472,6 +476,13 @@ struct Sweep<'a> {
     node_colours: usize,
     /// Every pushed target's unknown.
     pushed: Vec<usize>,
+    /// Per parameter: a field parameter, its reach one element's material or one hitting
+    /// node's friction law ([`Sweep::field_passes`]), instead of the general pass.
+    field: Vec<bool>,
+    /// The material field parameters by solid colour.
+    element_fields: Vec<Vec<FieldParam>>,
+    /// The friction field parameters by node colour.
+    node_fields: Vec<Vec<FieldParam>>,
     /// Per element: the first stored increment at which a Gauss point of it is plastic
     /// (`usize::MAX`: never). An element elastic throughout keeps its history
     /// ([`history_unchanged`]'s rule): the history's derivative in the unknowns is zero there
@@ -514,6 +525,28 @@ impl<'a> Sweep<'a> {
         }
         let touched: Vec<Vec<usize>> = nodes.iter().map(|n| n.2.clone()).collect();
         let (node_colour, node_colours) = colour(&touched, dofs.n_total);
+        // field parameters: one target, one element's material or one node's friction law
+        let mut field = vec![false; params.len()];
+        let mut element_fields = vec![Vec::new(); solid_colours];
+        let mut node_fields = vec![Vec::new(); node_colours];
+        let solid_at: std::collections::HashMap<usize, usize> =
+            solids.iter().enumerate().map(|(i, e)| (*e, i)).collect();
+        for (k, p) in params.iter().enumerate() {
+            match p.targets.as_slice() {
+                [DesignParam::ElementMaterial { element, index }] => {
+                    if let Some(&i) = solid_at.get(element) {
+                        element_fields[solid_colour[i]].push((*element, *index, k));
+                        field[k] = true;
+                    }
+                }
+                [DesignParam::NodeFriction { pair, node, index }] => {
+                    let f = asm.contact_flat(*pair) + node;
+                    node_fields[node_colour[f]].push((f, *index, k));
+                    field[k] = true;
+                }
+                _ => {}
+            }
+        }
         let first_plastic = (0..model.mesh.n_elements())
             .map(|e| {
                 (stored.iter())
@@ -537,6 +570,9 @@ impl<'a> Sweep<'a> {
             node_colour,
             node_colours,
             pushed,
+            field,
+            element_fields,
+            node_fields,
         })
     }
 
@@ -638,8 +674,9 @@ impl<'a> Sweep<'a> {
                 self.h_passes(cost, m, &mut state, &cots, &mut mu_prev, &mut ev_ad)?;
             }
             // d/db [F + mu . H - lambda . R], prescribed unknowns moving with the design
+            self.field_passes(cost, m, &cols, &cots, &mut dfdb, &mut ev_ad)?;
             let hd: Vec<Dual64> = s.hist_prev.iter().map(|v| Dual64::from_re(*v)).collect();
-            for (p, par) in self.params.iter().enumerate() {
+            for (p, par) in (self.params.iter().enumerate()).filter(|(p, _)| !self.field[*p]) {
                 let t = Instant::now();
                 let (lifted, zd) = self.seeded(s, par);
                 let skip = self.unreached(&Reach::seeded(&lifted), &zd);
@@ -707,8 +744,7 @@ impl<'a> Sweep<'a> {
         (0..self.model.mesh.n_elements())
             .map(|e| {
                 let b = dofs.element_body[e];
-                let material = (self.model.bodies.get(b))
-                    .is_some_and(|_| reach.material[b].iter().any(|c| *c));
+                let material = b < self.model.bodies.len() && reach.any_material(b, e);
                 let moved = (self.model.mesh.element_nodes(e).iter()).any(|&nd| reach.moved[nd]);
                 let reached = material
                     || moved
@@ -1029,6 +1065,107 @@ impl<'a> Sweep<'a> {
                 }
             }
         }
+    }
+
+    /// Adds to `dfdb` (`[column][parameter]`, the columns `cols` alive at increment `m`) the
+    /// derivatives in the field parameters, `d/db [F + mu . H - lambda . R]` as the general
+    /// pass, which is the column's cotangent (`-lambda` on the residual, `mu` on the history)
+    /// on the outputs' derivatives: a field parameter reaches one element (one hitting node)
+    /// alone, so every parameter of a colour's members is seeded in one evaluation, each
+    /// parameter index in a direction of its own, and each member's rows read apart. An
+    /// element elastic at this increment is left out for a parameter that acts on the
+    /// plastic branch alone (its residual, history and stress do not see it).
+    fn field_passes(
+        &self,
+        cost: &mut SensitivityCost,
+        m: usize,
+        cols: &[usize],
+        cots: &[Vec<f64>],
+        dfdb: &mut [Vec<f64>],
+        ev: &mut Evaluation<Ad>,
+    ) -> Result<(), AnalysisError> {
+        let model = self.model;
+        let s = &self.stored[m];
+        let state = AdState::new(s);
+        let ne = model.mesh.n_elements();
+        let nk = self.nodes.len();
+        let seeded = |value: f64, index: usize| {
+            (index < W)
+                .then(|| Ad::from_re(value).derivative(index))
+                .ok_or_else(|| AnalysisError::from(SensitivityError::FieldIndex { index }))
+        };
+        let mut passes: Vec<(Vec<FieldParam>, Terms)> = Vec::new();
+        for fields in &self.element_fields {
+            let live: Vec<FieldParam> = (fields.iter().copied())
+                .filter(|&(e, i, _)| {
+                    let b = self.asm.dofs.element_body[e];
+                    model.bodies[b].material.enters_elastic_branch(i)
+                        || s.branches[self.asm.dofs.gauss(e)].contains(&Branch::Plastic)
+                })
+                .collect();
+            passes.push((live, SOLIDS));
+        }
+        for fields in &self.node_fields {
+            passes.push((fields.clone(), CONTACT));
+        }
+        for (mut fields, terms) in passes {
+            fields.sort_by_key(|f| f.0);
+            if fields.is_empty() {
+                continue;
+            }
+            let solids = terms.solids;
+            let mut overrides = Vec::with_capacity(fields.len());
+            let mut skip = vec![true; ne];
+            let mut skip_contact = vec![true; nk];
+            for &(x, index, k) in &fields {
+                let value = self.params[k].value;
+                overrides.push((self.params[k].targets[0], seeded(value, index)?));
+                if solids {
+                    skip[x] = false;
+                } else {
+                    skip_contact[x] = false;
+                }
+            }
+            let lifted: Lifted<Ad> = model.lifted(&overrides);
+            let frozen = Frozen {
+                gauss: Some(&s.branches),
+                contact: &s.choice,
+                skip: Some(&skip),
+                skip_contact: Some(&skip_contact),
+                terms,
+                ..Frozen::default()
+            };
+            let t = Instant::now();
+            (self.asm).evaluate(
+                model,
+                &lifted,
+                &state.z,
+                &state.h,
+                s.time,
+                Some(&frozen),
+                None,
+                ev,
+            )?;
+            cost.evaluation_seconds += t.elapsed().as_secs_f64();
+            cost.partial_evaluations += 1;
+            let mut rows_of: Vec<(usize, Rows)> = Vec::new();
+            for &(x, index, k) in &fields {
+                if rows_of.last().is_none_or(|r| r.0 != x) {
+                    let rows = if solids {
+                        self.element_rows(x, ev, true)
+                    } else {
+                        self.node_rows(x, ev, true)
+                    };
+                    rows_of.push((x, rows));
+                }
+                let rows = &rows_of.last().expect("pushed").1;
+                for (c, &j) in cols.iter().enumerate() {
+                    let v: f64 = (rows.iter()).map(|(o, p)| cots[c][*o] * p[index]).sum();
+                    dfdb[j][k] += v;
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Adds to each column's `mu_prev` (column-major) the derivative in the committed history

@@ -591,27 +591,33 @@ impl Observer for Engine<'_> {
 }
 
 /// What a design perturbation changes in the model an element sees: which nodes move and
-/// which material parameters of each body change.
+/// which material parameters of each body, and of each element of a material field, change.
 pub(super) struct Reach {
     pub(super) moved: Vec<bool>,
-    pub(super) material: Vec<Vec<bool>>,
+    material: Vec<Vec<bool>>,
+    /// `(element, changed parameters)` of the elements with their own parameters, sorted.
+    elements: Vec<(usize, Vec<bool>)>,
 }
 
 impl Reach {
     /// The changes from design `base` to design `other` (SDM's finite perturbation).
     pub(super) fn between(other: &Lifted<f64>, base: &Lifted<f64>) -> Self {
+        let differ = |p: &[f64], q: &[f64]| p.iter().zip(q).map(|(a, b)| a != b).collect();
+        let mut own: Vec<(usize, usize)> = (other.element_material.iter())
+            .chain(&base.element_material)
+            .map(|m| (m.0, m.1))
+            .collect();
+        own.sort_unstable();
+        own.dedup();
         Reach {
-            moved: other
-                .coords
-                .iter()
-                .zip(&base.coords)
+            moved: (other.coords.iter().zip(&base.coords))
                 .map(|(a, b)| a != b)
                 .collect(),
-            material: other
-                .material
-                .iter()
-                .zip(&base.material)
-                .map(|(p, q)| p.iter().zip(q).map(|(a, b)| a != b).collect())
+            material: (other.material.iter().zip(&base.material))
+                .map(|(p, q)| differ(p, q))
+                .collect(),
+            elements: (own.into_iter())
+                .map(|(e, b)| (e, differ(other.material_of(b, e), base.material_of(b, e))))
                 .collect(),
         }
     }
@@ -620,17 +626,28 @@ impl Reach {
     pub(super) fn seeded(lifted: &Lifted<Dual64>) -> Self {
         let carries = |x: &Dual64| x.eps != 0.0;
         Reach {
-            moved: lifted
-                .coords
-                .iter()
+            moved: (lifted.coords.iter())
                 .map(|x| x.iter().any(carries))
                 .collect(),
-            material: lifted
-                .material
-                .iter()
+            material: (lifted.material.iter())
                 .map(|p| p.iter().map(carries).collect())
                 .collect(),
+            elements: (lifted.element_material.iter())
+                .map(|(e, _, p)| (*e, p.iter().map(carries).collect()))
+                .collect(),
         }
+    }
+
+    /// Whether material parameter `i` of element `e` of body `b` changes.
+    pub(super) fn material_changed(&self, b: usize, e: usize, i: usize) -> bool {
+        self.material[b][i]
+            || (self.elements.binary_search_by_key(&e, |m| m.0))
+                .is_ok_and(|k| self.elements[k].1[i])
+    }
+
+    /// Whether any material parameter of element `e` of body `b` changes.
+    pub(super) fn any_material(&self, b: usize, e: usize) -> bool {
+        (0..self.material[b].len()).any(|i| self.material_changed(b, e, i))
     }
 }
 

@@ -467,6 +467,13 @@ pub enum SensitivityError {
         /// The nominal run's pseudo-time.
         time: f64,
     },
+    /// A field parameter of a law with more parameters than the adjoint's field passes seed
+    /// at once.
+    #[error("the adjoint seeds field parameters of index below 8; got index {index}")]
+    FieldIndex {
+        /// The law parameter's index.
+        index: usize,
+    },
     /// A method stopped; `reason` is the error that stopped it, as recorded in its results
     /// ([`SensitivityResults::failure`]).
     #[error("{method} failed: {reason}")]

@@ -92,10 +92,10 @@ impl Engine<'_> {
                     return false;
                 };
                 let elastic = gauss[dofs.gauss(e)].iter().all(|g| *g == Branch::Elastic);
-                let material_unchanged =
-                    reach.material[b].iter().enumerate().all(|(i, changed)| {
-                        !changed || (elastic && !body.material.enters_elastic_branch(i))
-                    });
+                let material_unchanged = (0..body.material.params().len()).all(|i| {
+                    !reach.material_changed(b, e, i)
+                        || (elastic && !body.material.enters_elastic_branch(i))
+                });
                 let hist = dofs.history(e);
                 material_unchanged
                     && !model.mesh.element_nodes(e).iter().any(|&n| reach.moved[n])

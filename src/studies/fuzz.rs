@@ -780,7 +780,7 @@ pub(crate) fn check_increment(
                     nalgebra::Vector3::x()
                 };
                 let trial = dir * (1e12 * (p_n.abs() + tn) + 1.0);
-                let params = &c.lifted.friction[p];
+                let params = c.lifted.friction_of(p, k);
                 let limit = crate::with_friction!(law, f => f.return_map(params, &trial, p_n.max(0.0), 0.0, None))
                     .traction
                     .norm();
