@@ -191,6 +191,26 @@ enum Command {
         #[arg(long, conflicts_with = "rewrite")]
         merge: Vec<PathBuf>,
     },
+    /// The adjoint's study: cost against the number of parameters (1 to 10,000 element-wise
+    /// fields) for DDM, SDM, FDM and the adjoint on the leaf spring and the indentation, where
+    /// the adjoint becomes cheaper; the map of d(block force)/d(sigma_y) and d/d(E) of every
+    /// element of the leaf spring (VTK and SVG), spot-checked by DDM (writes adjoint.md,
+    /// crossover.csv, crossover.svg, map.vtu, map-*.svg, adjoint.json)
+    AdjointStudy {
+        /// Output directory.
+        #[arg(long, default_value = "validation/adjoint")]
+        out: PathBuf,
+        /// The coarse leaf spring alone (checks the tool, measures nothing useful).
+        #[arg(long)]
+        quick: bool,
+        /// Seconds one measurement may take before a method's larger counts are extrapolated.
+        #[arg(long, default_value_t = 60.0)]
+        budget_s: f64,
+        /// Also every element's E and sigma_y of the leaf spring refined by this factor
+        /// (6: 4,944 elements, 9,888 parameters), its first six increments.
+        #[arg(long)]
+        large: Option<f64>,
+    },
     /// One size of the scaling study, measured in this process; prints one JSON line.
     #[command(hide = true)]
     ScalingOne {
@@ -1012,6 +1032,36 @@ fn ccx(
     Ok(())
 }
 
+fn adjoint_study(
+    out: PathBuf,
+    quick: bool,
+    budget_seconds: f64,
+    large: Option<f64>,
+) -> Result<(), String> {
+    use fricsens::studies::adjoint_study::{run_study, StudyOptions};
+    let study = run_study(&StudyOptions {
+        out: out.clone(),
+        quick,
+        budget_seconds,
+        large,
+    })
+    .map_err(|e| e.to_string())?;
+    for c in &study.crossovers {
+        out!(
+            "{}: the adjoint is cheaper than {} beyond {} parameters",
+            c.scene,
+            c.method,
+            c.n.map_or("no number of".to_string(), |n| format!("{n:.1}"))
+        );
+    }
+    out!(
+        "study in {:.0} s; written to {}",
+        study.wall_seconds,
+        out.join("adjoint.md").display()
+    );
+    Ok(())
+}
+
 fn scaling(
     out: PathBuf,
     max_dofs: usize,
@@ -1292,6 +1342,12 @@ fn main() -> ExitCode {
             deck,
             keep,
         } => ccx(&scene, out, beta, deck, keep),
+        Command::AdjointStudy {
+            out,
+            quick,
+            budget_s,
+            large,
+        } => adjoint_study(out, quick, budget_s, large),
         Command::Scaling {
             out,
             max_dofs,

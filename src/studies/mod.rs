@@ -2,6 +2,8 @@
 //! only with the `studies` cargo feature (on by default; a library user who wants the core alone
 //! writes `default-features = false` and does not compile plotters, clap or indicatif):
 //!
+//! * [`adjoint_study`] — the adjoint's cost against the number of parameters, and a
+//!   sensitivity map over every element;
 //! * [`validate`] — the validation harness: every method across a perturbation sweep on the
 //!   built-in scenes, compared with DDM and the scenes' closed forms; writes the report;
 //! * [`compare_laws`] — the friction laws side by side on one scene;
@@ -13,6 +15,7 @@
 //!
 //! Nothing in the library's core imports from here.
 
+pub mod adjoint_study;
 pub mod ccx;
 pub mod compare_laws;
 pub mod fuzz;

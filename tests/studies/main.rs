@@ -8,6 +8,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod adjoint_study;
 mod ccx;
 mod scaling;
 mod validation;

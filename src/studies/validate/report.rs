@@ -366,6 +366,7 @@ pub(super) fn report(
     for (file, what) in [
         ("robustness/robustness.md", "fricsens fuzz"),
         ("scaling/scaling.md", "fricsens scaling"),
+        ("adjoint/adjoint.md", "fricsens adjoint-study"),
         ("ccx/ccx.md", "fricsens ccx"),
     ] {
         if let Ok(text) = std::fs::read_to_string(opts.out.join(file)) {

@@ -1,0 +1,47 @@
+//! The adjoint's study (issue 28), its reduced path end to end: the coarse leaf spring's
+//! crossover (every method measured while a measurement takes at most 2 s, the rest
+//! extrapolated), its sensitivity map and the map's DDM spot checks. The study itself is
+//! `fricsens adjoint-study` (minutes).
+
+use fricsens::studies::adjoint_study::{run_study, StudyOptions};
+use std::path::PathBuf;
+
+#[test]
+fn quick_study_writes_the_crossover_and_a_map_that_ddm_confirms() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("adjoint-quick");
+    let _ = std::fs::remove_dir_all(&dir);
+    let study = run_study(&StudyOptions {
+        out: dir.clone(),
+        quick: true,
+        budget_seconds: 2.0,
+        large: None,
+    })
+    .unwrap();
+    for f in [
+        "adjoint.md",
+        "crossover.csv",
+        "crossover.svg",
+        "map.vtu",
+        "map-E.svg",
+        "map-sigma_y.svg",
+        "adjoint.json",
+    ] {
+        assert!(dir.join(f).exists(), "{f} written");
+    }
+    // DDM at five elements, both quantities: the same derivatives to the solves' round-off
+    assert_eq!(study.spot_checks.len(), 10);
+    for c in &study.spot_checks {
+        assert!(c.difference < 1e-10, "{c:?}");
+        assert!(c.adjoint != 0.0, "{c:?}: an element the block force sees");
+    }
+    // every method measured at the two smallest counts (the rest depends on the timings)
+    for c in &study.costs {
+        assert!(c.seconds.is_finite() && c.seconds > 0.0, "{c:?}");
+        if c.n <= 10 {
+            assert!(c.measured, "{c:?}");
+        }
+    }
+    // one crossover per other method (their values are timings: the study reports them,
+    // no test asserts them)
+    assert_eq!(study.crossovers.len(), 3);
+}
