@@ -724,13 +724,12 @@ impl Model {
         let mut moves: Vec<(usize, usize, S)> = Vec::new();
         for (p, v) in overrides {
             match *p {
+                // after the model's own values: the later of two equal keys wins below
                 DesignParam::ElementMaterial { element, index } => {
-                    element_own.retain(|m| (m.0, m.1) != (element, index));
-                    element_own.push((element, index, *v));
+                    element_own.push((element, index, *v))
                 }
                 DesignParam::NodeFriction { pair, node, index } => {
-                    node_own.retain(|m| (m.0, m.1, m.2) != (pair, node, index));
-                    node_own.push((pair, node, index, *v));
+                    node_own.push((pair, node, index, *v))
                 }
                 DesignParam::NodeShape { node, axis } => {
                     // the coordinates below hold the nominal offset: add the change
@@ -755,6 +754,7 @@ impl Model {
         }
         // the fields: each element's (hitting node's) whole parameter vector, its body's
         // (pair's) with its own values in place
+        // stable: equal keys keep their order, and the last written is the one that holds
         element_own.sort_by_key(|m| m.0);
         let mut element_material: Vec<(usize, usize, Vec<S>)> = Vec::new();
         for (e, i, v) in element_own {

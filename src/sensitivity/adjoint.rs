@@ -72,7 +72,12 @@ impl Stored {
 /// The forward pass: stores every converged increment, the initial history's derivative and
 /// the flagged points (by the in-line engine's rules).
 struct Recorder<'a> {
+    /// The in-line engine's rules for the flagged points (no parameters: it keeps nothing per
+    /// parameter).
     engine: Engine<'a>,
+    params: &'a [Parameter],
+    /// `dh_0/db` per parameter (`None`: zero).
+    dh0: Vec<Option<Vec<f64>>>,
     stored: Vec<Stored>,
     watch: &'a mut dyn FnMut(&Converged<'_>),
     seconds: f64,
@@ -82,7 +87,10 @@ impl Observer for Recorder<'_> {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
         let t = Instant::now();
         if self.stored.is_empty() && !c.model.contacts.is_empty() {
-            self.engine.initial_history_derivative(c)?;
+            for p in self.params {
+                let d = initial_history_derivative(c.model, c.assembler, p)?;
+                self.dh0.push(d);
+            }
         }
         self.stored.push(Stored {
             index: c.index,
@@ -109,7 +117,9 @@ pub(super) fn run_adjoint(
     watch: &mut dyn FnMut(&Converged<'_>),
 ) -> Result<(Results, SensitivityResults), AnalysisError> {
     let mut rec = Recorder {
-        engine: Engine::new(model, params, settings.clone()),
+        engine: Engine::new(model, &[], settings.clone()),
+        params,
+        dh0: Vec::new(),
         stored: Vec::new(),
         watch,
         seconds: 0.0,
@@ -120,9 +130,11 @@ pub(super) fn run_adjoint(
         engine,
         stored,
         seconds,
+        dh0,
         ..
     } = rec;
     let mut out = engine.results;
+    out.parameters = params.iter().map(|p| p.name.clone()).collect();
     out.primal_seconds = res.cost.wall_seconds - seconds;
     let t = Instant::now();
     // the increments whose responses are the functionals
@@ -142,7 +154,7 @@ pub(super) fn run_adjoint(
     };
     let sweep = Sweep::new(model, params, &stored)?;
     let mut cost = SensitivityCost::default();
-    let dfdb = sweep.run(&sel, &engine.dhist, &mut cost)?;
+    let dfdb = sweep.run(&sel, &dh0, &mut cost)?;
     out.cost = cost;
     out.cost.wall_seconds = seconds + t.elapsed().as_secs_f64();
     out.cost.stored_bytes = stored.iter().map(Stored::bytes).sum();
@@ -578,11 +590,11 @@ impl<'a> Sweep<'a> {
 
     /// `df/db` of every response at the stored increments `sel` (sorted):
     /// `[q * n_responses + r][k]` for increment `sel[q]`. `dh0` is the initial history's
-    /// derivative, parameter-major.
+    /// derivative per parameter (`None` or absent: zero).
     fn run(
         &self,
         sel: &[usize],
-        dh0: &[f64],
+        dh0: &[Option<Vec<f64>>],
         cost: &mut SensitivityCost,
     ) -> Result<Vec<Vec<f64>>, AnalysisError> {
         let model = self.model;
@@ -712,10 +724,10 @@ impl<'a> Sweep<'a> {
         }
         // mu_0 . dh_0/db
         for (j, row) in dfdb.iter_mut().enumerate() {
-            for (p, d) in row.iter_mut().enumerate() {
-                *d += (mu[j].iter().zip(&dh0[p * nh..(p + 1) * nh]))
-                    .map(|(a, b)| a * b)
-                    .sum::<f64>();
+            for (d, dh) in row.iter_mut().zip(dh0) {
+                if let Some(dh) = dh {
+                    *d += (mu[j].iter().zip(dh)).map(|(a, b)| a * b).sum::<f64>();
+                }
             }
         }
         Ok(dfdb)

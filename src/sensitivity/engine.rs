@@ -57,6 +57,33 @@ pub(super) fn prescribed_derivative(model: &Model, param: &Parameter, time: f64,
     }
 }
 
+/// `dh_0/db` of parameter `param`: the history at t = 0 is not zero for frictional contact
+/// (each hitting node's anchor is the projection of its reference position), and a shape
+/// parameter moves it. Evaluated by dual numbers on the same routine the solver starts from;
+/// `None` for a parameter that moves no node and no rigid target (the anchors stay).
+pub(super) fn initial_history_derivative(
+    model: &Model,
+    asm: &crate::assembly::Assembler,
+    param: &Parameter,
+) -> Result<Option<Vec<f64>>, AnalysisError> {
+    let seed = Dual64::new(param.value, 1.0);
+    let overrides: Vec<(DesignParam, Dual64)> = param.targets.iter().map(|t| (*t, seed)).collect();
+    let lifted: Lifted<Dual64> = model.lifted(&overrides);
+    let carries = |x: &Dual64| x.eps != 0.0;
+    if !(lifted.coords.iter()).any(|x| x.iter().any(carries))
+        && !(lifted.rigid_motion.iter()).any(|m| m.iter().any(carries))
+    {
+        return Ok(None);
+    }
+    let h0 = crate::contact::assembly::initial_history(
+        model,
+        &asm.contact,
+        asm.dofs.n_history,
+        &lifted,
+    )?;
+    Ok(Some(h0.iter().map(|h| h.eps).collect()))
+}
+
 /// `k` with the prescribed unknowns' identity rows and columns, as in Newton's factored
 /// tangent.
 pub(super) fn with_prescribed_rows(
@@ -258,40 +285,21 @@ impl<'a> Engine<'a> {
         self
     }
 
-    pub(super) fn overrides<S: Scalar>(
-        &self,
-        value: impl Fn(usize, f64) -> S,
-    ) -> Vec<(DesignParam, S)> {
-        let mut v = Vec::new();
-        for (k, p) in self.params.iter().enumerate() {
-            let s = value(k, p.value);
-            for t in &p.targets {
-                v.push((*t, s));
-            }
-        }
-        v
+    /// Parameter `k`'s targets set to `value` (the others keep their values, the model's):
+    /// the overrides of a design moved along one parameter.
+    pub(super) fn overrides<S: Scalar>(&self, k: usize, value: S) -> Vec<(DesignParam, S)> {
+        self.params[k].targets.iter().map(|t| (*t, value)).collect()
     }
 
-    /// `dh_0/db`: the history at t = 0 is not zero for frictional contact (each hitting
-    /// node's anchor is the projection of its reference position), and a shape parameter
-    /// moves it. Evaluated by dual numbers on the same routine the solver starts from.
+    /// `dh_0/db` of every parameter ([`initial_history_derivative`]).
     pub(super) fn initial_history_derivative(
         &mut self,
         c: &Converged<'_>,
     ) -> Result<(), AnalysisError> {
         let nh = c.hist_prev.len();
         for k in 0..self.params.len() {
-            let lifted: Lifted<Dual64> = c
-                .model
-                .lifted(&self.overrides(|j, v| Dual64::new(v, if j == k { 1.0 } else { 0.0 })));
-            let h0 = crate::contact::assembly::initial_history(
-                c.model,
-                &c.assembler.contact,
-                c.assembler.dofs.n_history,
-                &lifted,
-            )?;
-            for (i, h) in h0.iter().enumerate().take(nh) {
-                self.dhist[k * nh + i] = h.eps;
+            if let Some(d) = initial_history_derivative(c.model, c.assembler, &self.params[k])? {
+                self.dhist[k * nh..(k + 1) * nh].copy_from_slice(&d[..nh]);
             }
         }
         Ok(())

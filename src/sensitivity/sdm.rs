@@ -14,7 +14,7 @@ impl Engine<'_> {
     /// The design perturbed by `db` along parameter `k`, lifted to f64.
     pub(super) fn lifted_at(&self, c: &Converged<'_>, k: usize, db: f64) -> Lifted<f64> {
         c.model
-            .lifted(&self.overrides(|j, v| if j == k { v + db } else { v }))
+            .lifted(&self.overrides(k, self.params[k].value + db))
     }
 
     /// f64 evaluation at the design `lifted` (perturbed by `db` along parameter `k`), with the
