@@ -397,6 +397,16 @@ fn colour(items: &[Vec<usize>], n: usize) -> (Vec<usize>, usize) {
     (colours, count)
 }
 
+/// A mask of `len` entries, every one set but `members`' (the elements or hitting nodes a
+/// pass leaves out).
+fn all_but(members: &[usize], len: usize) -> Vec<bool> {
+    let mut skip = vec![true; len];
+    for &m in members {
+        skip[m] = false;
+    }
+    skip
+}
+
 /// What a local pass seeds.
 #[derive(Clone, Copy, PartialEq)]
 enum Seeds {
@@ -961,10 +971,7 @@ impl<'a> Sweep<'a> {
             if members.is_empty() {
                 continue;
             }
-            let mut skip = vec![true; ne];
-            for &e in &members {
-                skip[e] = false;
-            }
+            let skip = all_but(&members, ne);
             let pass = Pass {
                 seeds: Seeds::Z,
                 inputs: (members.iter())
@@ -984,10 +991,7 @@ impl<'a> Sweep<'a> {
         let no_solid = vec![true; ne];
         for colour in 0..self.node_colours {
             let members: Vec<usize> = (0..nk).filter(|f| self.node_colour[*f] == colour).collect();
-            let mut skip = vec![true; nk];
-            for &f in &members {
-                skip[f] = false;
-            }
+            let skip = all_but(&members, nk);
             let pass = Pass {
                 seeds: Seeds::Z,
                 inputs: members.iter().map(|&f| self.nodes[f].2.clone()).collect(),
@@ -1127,17 +1131,16 @@ impl<'a> Sweep<'a> {
             }
             let solids = terms.solids;
             let mut overrides = Vec::with_capacity(fields.len());
-            let mut skip = vec![true; ne];
-            let mut skip_contact = vec![true; nk];
-            for &(x, index, k) in &fields {
+            for &(_, index, k) in &fields {
                 let value = self.params[k].value;
                 overrides.push((self.params[k].targets[0], seeded(value, index)?));
-                if solids {
-                    skip[x] = false;
-                } else {
-                    skip_contact[x] = false;
-                }
             }
+            let members: Vec<usize> = fields.iter().map(|f| f.0).collect();
+            let (skip, skip_contact) = if solids {
+                (all_but(&members, ne), vec![true; nk])
+            } else {
+                (vec![true; ne], all_but(&members, nk))
+            };
             let lifted: Lifted<Ad> = model.lifted(&overrides);
             let frozen = Frozen {
                 gauss: Some(&s.branches),
@@ -1206,10 +1209,7 @@ impl<'a> Sweep<'a> {
             if members.is_empty() {
                 continue;
             }
-            let mut skip = vec![true; ne];
-            for &e in &members {
-                skip[e] = false;
-            }
+            let skip = all_but(&members, ne);
             let pass = Pass {
                 seeds: Seeds::H,
                 inputs: (members.iter())
@@ -1225,10 +1225,7 @@ impl<'a> Sweep<'a> {
         let no_solid = vec![true; ne];
         for colour in 0..self.node_colours {
             let members: Vec<usize> = (0..nk).filter(|f| self.node_colour[*f] == colour).collect();
-            let mut skip = vec![true; nk];
-            for &f in &members {
-                skip[f] = false;
-            }
+            let skip = all_but(&members, nk);
             let pass = Pass {
                 seeds: Seeds::H,
                 inputs: (members.iter())

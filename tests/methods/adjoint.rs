@@ -5,7 +5,7 @@
 //! each sensitivity's scale, at every increment, for every response and parameter of each
 //! built-in scene's study. And a Taylor test of the adjoint against reruns.
 
-use crate::common::params;
+use crate::common::{params, taylor_remainders};
 use fricsens::prelude::*;
 use fricsens::scene::Scene;
 use fricsens::sensitivity::{run_sensitivity, SensitivityResults};
@@ -176,33 +176,7 @@ fn adjoint_gradient_passes_a_taylor_test() {
     let (_, adj) = run_sensitivity(&model, &ps, &settings).unwrap();
     let r = 0;
     let last = adj.increments.last().unwrap();
-    // a fixed pseudo-random direction (no seed to remember), relative to each value
-    let d: Vec<f64> = (0..ps.len())
-        .map(|k| ((k as f64 + 1.0) * 0.754_877_666).fract() - 0.5)
-        .collect();
-    let slope: f64 = (0..ps.len())
-        .map(|k| last.derivatives[r][k] * d[k] * ps[k].value)
-        .sum();
-    let at = |h: f64| -> f64 {
-        let mut m = model.clone();
-        for (k, p) in ps.iter().enumerate() {
-            for t in &p.targets {
-                m.set_param(*t, p.value * (1.0 + h * d[k]));
-            }
-        }
-        let res = fricsens::solver::Solver::new(&m)
-            .unwrap()
-            .run(&Default::default(), &mut fricsens::solver::NoObserver)
-            .unwrap();
-        let n = res
-            .increment_at(last.time)
-            .expect("the rerun ends where the nominal does");
-        res.response_value(&m, r, n)
-    };
-    let f0 = last.values[r];
-    let hs = [1e-1, 1e-2, 1e-3, 1e-4];
-    let rem: Vec<f64> = hs.iter().map(|&h| (at(h) - f0 - h * slope).abs()).collect();
-    eprintln!("Taylor remainders {rem:?} (slope {slope:e})");
+    let rem = taylor_remainders(&model, &ps, last, r, &[1e-1, 1e-2, 1e-3, 1e-4]);
     for w in rem.windows(2) {
         // h^2: a factor 100 per decade; 30 allows the path's own curvature to vary
         assert!(w[1] < w[0] / 30.0, "remainders {rem:?}");

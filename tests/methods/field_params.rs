@@ -8,6 +8,7 @@
 //! * a Taylor test of the adjoint's gradient in a random field direction, against reruns of
 //!   the model with every element's and node's own values set.
 
+use crate::common::taylor_remainders;
 use fricsens::design::{DesignParam, ParameterError};
 use fricsens::prelude::*;
 use fricsens::scene::Scene;
@@ -115,29 +116,7 @@ fn adjoint_field_gradient_passes_a_taylor_test() {
     .unwrap();
     let r = 0;
     let last = adj.increments.last().unwrap();
-    // a fixed pseudo-random direction (no seed to remember), relative to each value
-    let d: Vec<f64> = (0..ps.len())
-        .map(|k| ((k as f64 + 1.0) * 0.754_877_666).fract() - 0.5)
-        .collect();
-    let slope: f64 = (0..ps.len())
-        .map(|k| last.derivatives[r][k] * d[k] * ps[k].value)
-        .sum();
-    let at = |h: f64| -> f64 {
-        let mut m = model.clone();
-        for (k, p) in ps.iter().enumerate() {
-            m.set_param(p.targets[0], p.value * (1.0 + h * d[k]));
-        }
-        let res = fricsens::solver::Solver::new(&m)
-            .unwrap()
-            .run(&Default::default(), &mut fricsens::solver::NoObserver)
-            .unwrap();
-        let n = res.increment_at(last.time).expect("the same path");
-        res.response_value(&m, r, n)
-    };
-    let f0 = last.values[r];
-    let hs = [1e-1, 1e-2, 1e-3, 1e-4];
-    let rem: Vec<f64> = hs.iter().map(|&h| (at(h) - f0 - h * slope).abs()).collect();
-    eprintln!("Taylor remainders {rem:?} (slope {slope:e})");
+    let rem = taylor_remainders(&model, &ps, last, r, &[1e-1, 1e-2, 1e-3, 1e-4]);
     for w in rem.windows(2) {
         // h^2: a factor 100 per decade; 30 allows the path's own curvature to vary
         assert!(w[1] < w[0] / 30.0, "remainders {rem:?}");
