@@ -109,6 +109,12 @@ enum Command {
         /// other methods write; one column of the backward sweep per response and increment).
         #[arg(long, value_name = "T")]
         at: Vec<String>,
+        /// The adjoint's checkpoints: keep the solver's state after every K-th user increment
+        /// instead of every increment's, and recompute the increments between two of them
+        /// when the backward sweep reaches them (the same states bit for bit; the output
+        /// reports the memory kept and the recomputation).
+        #[arg(long, value_name = "K")]
+        checkpoint: Option<usize>,
         /// Output directory (default: out/SCENE).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -322,6 +328,7 @@ struct InlineArgs {
     vtk: bool,
     shard: Option<String>,
     at: Vec<String>,
+    checkpoint: Option<usize>,
 }
 
 /// `fricsens merge`: the shares of one FDM sweep into the unsharded run's outputs.
@@ -455,6 +462,7 @@ fn sensitivity(
         vtk,
         shard,
         at,
+        checkpoint,
     } = inline;
     use fricsens::sensitivity::{
         run_sensitivity_watched, Method, Parameter, Settings, TangentChoice,
@@ -508,12 +516,26 @@ fn sensitivity(
         krylov,
         explain,
         beta_auto,
-        fields: vtk,
+        // the adjoint's --vtk draws the field parameters' derivatives alone
+        fields: vtk && !matches!(method, MethodArg::Adjoint),
+        adjoint_checkpoint: checkpoint.unwrap_or(0),
         ..Settings::default()
     };
+    if checkpoint.is_some() && settings.method != Method::Adjoint {
+        return Err(format!(
+            "--checkpoint sets the adjoint's checkpoints: use it with --method adjoint, not {}",
+            settings.method.name()
+        ));
+    }
+    if checkpoint == Some(0) {
+        return Err(
+            "--checkpoint K keeps the state after every K-th user increment: K must be at least 1"
+                .into(),
+        );
+    }
     if settings.method == Method::Adjoint {
-        if vtk {
-            return Err("--vtk writes the fields' derivatives of the in-line and finite-difference methods; the adjoint's are not built yet: leave out --vtk".into());
+        if vtk && !params.iter().any(|p| p.name.contains('[')) {
+            return Err("--vtk with the adjoint draws the derivatives in field parameters (BODY.PARAM[*], PAIR.PARAM[*], SET.x[*]) on the mesh; none was given".into());
         }
         let last = *model.times.last().ok_or("the scene has no increments")?;
         settings.adjoint_at = if at.iter().any(|a| a == "all") {
@@ -598,9 +620,18 @@ fn sensitivity(
     let dir = out.unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     write_sensitivity(&dir, &sens)?;
-    if vtk {
+    if vtk && settings.method != Method::Adjoint {
         fricsens::output::write_sensitivity_vtk(&dir, &model, &res, &sens)
             .map_err(|e| e.to_string())?;
+    }
+    let maps = fricsens::output::write_parameter_fields_vtk(&dir, &model, &res, &sens, &params)
+        .map_err(|e| e.to_string())?;
+    if !maps.is_empty() {
+        out!(
+            "field parameters: d(response)/d(field) drawn on the mesh in {} file(s), {}",
+            maps.len(),
+            dir.join("vtk").join("parameters.pvd").display()
+        );
     }
     let flagged = sens
         .increments
@@ -676,7 +707,16 @@ fn sensitivity(
             out!();
         }
     }
-    let _ = res;
+    if settings.method == Method::Adjoint {
+        out!(
+            "  adjoint: kept {:.1} MiB of forward states ({} checkpoint(s)); recomputed {} increment(s) in {:.3} s ({:.2} of the primal)",
+            c.stored_bytes as f64 / (1024.0 * 1024.0),
+            c.checkpoints,
+            c.recomputed_increments,
+            c.recompute_seconds,
+            c.recompute_seconds / sens.primal_seconds.max(1e-12)
+        );
+    }
     if explain {
         let path = dir.join("anatomy.csv");
         std::fs::write(&path, fricsens::sensitivity::anatomy::anatomy_csv(&sens))
@@ -1392,6 +1432,7 @@ fn main() -> ExitCode {
             vtk,
             shard,
             at,
+            checkpoint,
             out,
         } => sensitivity(
             &scene,
@@ -1405,6 +1446,7 @@ fn main() -> ExitCode {
                 vtk,
                 shard,
                 at,
+                checkpoint,
             },
             out,
         ),

@@ -395,6 +395,105 @@ pub fn write_sensitivity_vtk(
     write_pvd(&vtk.join("sensitivity.pvd"), &files)
 }
 
+/// The field a field parameter belongs to, and where it sits on the mesh: its name without
+/// the bracketed index (`upper.sigma_y[12]` belongs to `upper.sigma_y`), and the cell or
+/// point it is of. `None` for a parameter of the whole model.
+fn field_member(model: &Model, p: &crate::design::Parameter) -> Option<(String, Location)> {
+    use crate::model::DesignParam;
+    let group = p.name.split('[').next().unwrap_or(&p.name).to_string();
+    match p.targets[..] {
+        [DesignParam::ElementMaterial { element, .. }] => Some((group, Location::Cell(element))),
+        [DesignParam::NodeFriction { pair, node, .. }] => {
+            let hitting = *model.contacts.get(pair)?.hitting.get(node)?;
+            Some((group, Location::Point(hitting)))
+        }
+        [DesignParam::NodeShape { node, .. }] => Some((group, Location::Point(node))),
+        _ => None,
+    }
+}
+
+/// A field parameter's cell (element) or point (node).
+#[derive(Clone, Copy, PartialEq)]
+enum Location {
+    Cell(usize),
+    Point(usize),
+}
+
+/// Write `vtk/parameters_NNNN.vtu` for every increment of `sens` and their collection
+/// `vtk/parameters.pvd`, when `params` holds field parameters (`BODY.PARAM[E]`,
+/// `PAIR.PARAM[N]`, `SET.x[N]`): each response's derivative in every member of each field
+/// drawn on the mesh, `d(RESPONSE)/d(FIELD)`, as cell data for a material field (per element)
+/// and as point data for a friction field (at each hitting node) or a nodal shape field (per
+/// node and axis); cells and points outside the field hold 0. The state drawn beside them is
+/// the increment's where `res` kept it, else the reference configuration. Returns the files
+/// written (none without field parameters).
+pub fn write_parameter_fields_vtk(
+    dir: &Path,
+    model: &Model,
+    res: &Results,
+    sens: &crate::sensitivity::SensitivityResults,
+    params: &[crate::design::Parameter],
+) -> Result<Vec<PathBuf>, OutputError> {
+    let members: Vec<Option<(String, Location)>> =
+        params.iter().map(|p| field_member(model, p)).collect();
+    let mut groups: Vec<(String, bool)> = Vec::new();
+    for (g, loc) in members.iter().flatten() {
+        let cell = matches!(loc, Location::Cell(_));
+        if !groups.iter().any(|(n, _)| n == g) {
+            groups.push((g.clone(), cell));
+        }
+    }
+    if groups.is_empty() {
+        return Ok(Vec::new());
+    }
+    let vtk = dir.join("vtk");
+    std::fs::create_dir_all(&vtk).map_err(io(&vtk))?;
+    let (ne, nn) = (model.mesh.n_elements(), model.mesh.n_nodes());
+    let mut files = Vec::new();
+    let mut written = Vec::new();
+    for inc in &sens.increments {
+        let mut extra = ExtraFields::default();
+        for (r, name) in sens.responses.iter().enumerate() {
+            for (g, cell) in &groups {
+                let mut v = vec![0.0; if *cell { ne } else { nn }];
+                for (k, m) in members.iter().enumerate() {
+                    match m {
+                        Some((mg, Location::Cell(i) | Location::Point(i))) if mg == g => {
+                            v[*i] = inc.derivatives[r][k];
+                        }
+                        _ => {}
+                    }
+                }
+                let entry = (format!("d({name})/d({g})"), 1, v);
+                if *cell {
+                    extra.cell.push(entry);
+                } else {
+                    extra.point.push(entry);
+                }
+            }
+        }
+        let k = res.times.iter().position(|t| (t - inc.time).abs() < 1e-12);
+        let kept = k.filter(|k| res.states.len() == res.times.len() && *k < res.stresses.len());
+        let zero_z = vec![0.0; res.states.last().map_or(3 * nn, Vec::len)];
+        let zero_s = vec![nalgebra::Matrix3::zeros(); ne];
+        let (z, stress) = match kept {
+            Some(k) => (&res.states[k], &res.stresses[k]),
+            None if Some(inc.time) == res.times.last().copied() && !res.states.is_empty() => (
+                res.states.last().expect("not empty"),
+                res.stresses.last().unwrap_or(&zero_s),
+            ),
+            None => (&zero_z, &zero_s),
+        };
+        let name = format!("parameters_{:04}.vtu", inc.increment);
+        let path = vtk.join(&name);
+        write_vtu(&path, model, z, stress, &extra)?;
+        files.push((inc.time, name));
+        written.push(path);
+    }
+    write_pvd(&vtk.join("parameters.pvd"), &files)?;
+    Ok(written)
+}
+
 /// Which increments [`write_run`] writes as VTK files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum VtkOutput {

@@ -37,7 +37,7 @@ use crate::linalg::{LinearSolver, SparseMatrix};
 use crate::material::Branch;
 use crate::model::{node_dof, DesignParam, Lifted};
 use crate::response::{Response, ResponseKind};
-use crate::solver::{AnalysisError, Converged, Observer, RunOptions, Solver};
+use crate::solver::{AnalysisError, Converged, Observer, Resume, RunOptions, Solver, Span};
 use crate::terms::Terms;
 use nalgebra::{Matrix3, Vector3};
 use num_dual::{Dual64, DualSVec64};
@@ -56,43 +56,11 @@ struct Stored {
     branches: Vec<Branch>,
     choice: Vec<ContactChoice>,
     constrained: Vec<bool>,
-    values: Vec<f64>,
-    kinks: Vec<Kink>,
 }
 
 impl Stored {
-    fn bytes(&self) -> usize {
-        8 * (self.z.len() + self.hist_prev.len() + self.values.len())
-            + self.branches.len()
-            + self.constrained.len()
-            + std::mem::size_of::<ContactChoice>() * self.choice.len()
-    }
-}
-
-/// The forward pass: stores every converged increment, the initial history's derivative and
-/// the flagged points (by the in-line engine's rules).
-struct Recorder<'a> {
-    /// The in-line engine's rules for the flagged points (no parameters: it keeps nothing per
-    /// parameter).
-    engine: Engine<'a>,
-    params: &'a [Parameter],
-    /// `dh_0/db` per parameter (`None`: zero).
-    dh0: Vec<Option<Vec<f64>>>,
-    stored: Vec<Stored>,
-    watch: &'a mut dyn FnMut(&Converged<'_>),
-    seconds: f64,
-}
-
-impl Observer for Recorder<'_> {
-    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
-        let t = Instant::now();
-        if self.stored.is_empty() && !c.model.contacts.is_empty() {
-            for p in self.params {
-                let d = initial_history_derivative(c.model, c.assembler, p)?;
-                self.dh0.push(d);
-            }
-        }
-        self.stored.push(Stored {
+    fn new(c: &Converged<'_>) -> Self {
+        Stored {
             index: c.index,
             time: c.time,
             z: c.z.to_vec(),
@@ -100,12 +68,137 @@ impl Observer for Recorder<'_> {
             branches: c.eval.branches.clone(),
             choice: c.eval.contact.choice.clone(),
             constrained: c.constrained.to_vec(),
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        8 * (self.z.len() + self.hist_prev.len())
+            + self.branches.len()
+            + self.constrained.len()
+            + std::mem::size_of::<ContactChoice>() * self.choice.len()
+    }
+}
+
+/// What the forward pass keeps of every converged increment, checkpointed or not: its
+/// number, time, response values and flagged points.
+struct Light {
+    index: usize,
+    time: f64,
+    values: Vec<f64>,
+    kinks: Vec<Kink>,
+}
+
+/// The forward pass: every increment's [`Light`] record, the [`Stored`] states of the
+/// increments from user increment `keep_from` on (all of them without checkpoints), the first
+/// plastic increment of every element, the initial history's derivative and the flagged
+/// points (by the in-line engine's rules).
+struct Recorder<'a> {
+    /// The in-line engine's rules for the flagged points (no parameters: it keeps nothing per
+    /// parameter).
+    engine: Engine<'a>,
+    params: &'a [Parameter],
+    /// `dh_0/db` per parameter (`None`: zero).
+    dh0: Vec<Option<Vec<f64>>>,
+    lights: Vec<Light>,
+    stored: Vec<Stored>,
+    /// The first user increment whose converged increments are stored.
+    keep_from: usize,
+    /// Per element: the first increment (position) at which a Gauss point of it is plastic
+    /// (`usize::MAX`: not yet).
+    first_plastic: Vec<usize>,
+    watch: &'a mut dyn FnMut(&Converged<'_>),
+    seconds: f64,
+}
+
+/// The user increment (0-based) converged increment `c` belongs to.
+fn user_increment_of(c: &Converged<'_>) -> usize {
+    let times = &c.model.times;
+    let tol = 1e-12 * times.last().map_or(1.0, |t| t.abs().max(1.0));
+    times.partition_point(|t| *t < c.time - tol)
+}
+
+impl Observer for Recorder<'_> {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        let t = Instant::now();
+        if self.lights.is_empty() && !c.model.contacts.is_empty() {
+            for p in self.params {
+                let d = initial_history_derivative(c.model, c.assembler, p)?;
+                self.dh0.push(d);
+            }
+        }
+        let position = self.lights.len();
+        let dofs = &c.assembler.dofs;
+        for (e, first) in self.first_plastic.iter_mut().enumerate() {
+            if *first == usize::MAX && c.eval.branches[dofs.gauss(e)].contains(&Branch::Plastic) {
+                *first = position;
+            }
+        }
+        self.lights.push(Light {
+            index: c.index,
+            time: c.time,
             values: response_values(c),
             kinks: self.engine.kinks(c),
         });
+        if user_increment_of(c) >= self.keep_from {
+            self.stored.push(Stored::new(c));
+        }
         self.seconds += t.elapsed().as_secs_f64();
         (self.watch)(c);
         Ok(())
+    }
+}
+
+/// A recomputed span's states.
+struct Keeper(Vec<Stored>);
+
+impl Observer for Keeper {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
+        self.0.push(Stored::new(c));
+        Ok(())
+    }
+}
+
+/// Where the backward sweep gets the stored increments from: segments between checkpoints,
+/// the last one kept by the forward run, the others recomputed from their resume point when
+/// the sweep reaches them ([`Solver::run_span`]: bit for bit the forward run's states).
+struct Store<'m> {
+    solver: Solver<'m>,
+    /// Per segment: its resume point (`None`: the start), the position of its first
+    /// increment, and the user increment it ends after.
+    segments: Vec<(Option<Resume>, usize, usize)>,
+    /// The last segment's states, from the forward run.
+    last: Vec<Stored>,
+    /// Bytes of the resume points.
+    resume_bytes: usize,
+}
+
+impl Store<'_> {
+    /// The states of segment `k` (positions `segments[k].1..`), and the bytes they take.
+    fn fetch(
+        &mut self,
+        k: usize,
+        cost: &mut SensitivityCost,
+    ) -> Result<Vec<Stored>, AnalysisError> {
+        if k + 1 == self.segments.len() {
+            return Ok(std::mem::take(&mut self.last));
+        }
+        let (from, _, to) = &self.segments[k];
+        let t = Instant::now();
+        let span = Span {
+            from: from.as_ref(),
+            to: *to,
+            keep_every: 0,
+        };
+        let opts = RunOptions {
+            keep_states: false,
+            time_limit: None,
+        };
+        let mut keeper = Keeper(Vec::new());
+        self.solver
+            .run_span(&span, &opts, &mut keeper, &mut Vec::new())?;
+        cost.recompute_seconds += t.elapsed().as_secs_f64();
+        cost.recomputed_increments += keeper.0.len();
+        Ok(keeper.0)
     }
 }
 
@@ -116,21 +209,45 @@ pub(super) fn run_adjoint(
     settings: &Settings,
     watch: &mut dyn FnMut(&Converged<'_>),
 ) -> Result<(Results, SensitivityResults), AnalysisError> {
+    let users = model.times.len();
+    let every = settings.adjoint_checkpoint;
+    // segments start at user increments 0, every, 2 every, ...: the last one is kept
+    let keep_from = if every == 0 || users == 0 {
+        0
+    } else {
+        ((users - 1) / every) * every
+    };
     let mut rec = Recorder {
         engine: Engine::new(model, &[], settings.clone()),
         params,
         dh0: Vec::new(),
+        lights: Vec::new(),
         stored: Vec::new(),
+        keep_from,
+        first_plastic: vec![usize::MAX; model.mesh.n_elements()],
         watch,
         seconds: 0.0,
     };
     let mut solver = Solver::new(model)?;
-    let res = solver.run(&RunOptions::default(), &mut rec)?;
+    let span = Span {
+        from: None,
+        to: users,
+        keep_every: every,
+    };
+    // checkpointed, the primal's results keep no state per increment either
+    let opts = RunOptions {
+        keep_states: every == 0,
+        time_limit: None,
+    };
+    let mut resumes = Vec::new();
+    let res = solver.run_span(&span, &opts, &mut rec, &mut resumes)?;
     let Recorder {
         engine,
+        lights,
         stored,
         seconds,
         dh0,
+        first_plastic,
         ..
     } = rec;
     let mut out = engine.results;
@@ -139,11 +256,11 @@ pub(super) fn run_adjoint(
     let t = Instant::now();
     // the increments whose responses are the functionals
     let sel: Vec<usize> = if settings.adjoint_at.is_empty() {
-        (0..stored.len()).collect()
+        (0..lights.len()).collect()
     } else {
         let mut sel = Vec::new();
         for at in &settings.adjoint_at {
-            let m = (stored.iter())
+            let m = (lights.iter())
                 .position(|s| (s.time - at).abs() < 1e-9)
                 .ok_or(SensitivityError::NoIncrementAt { time: *at })?;
             sel.push(m);
@@ -152,15 +269,32 @@ pub(super) fn run_adjoint(
         sel.dedup();
         sel
     };
-    let sweep = Sweep::new(model, params, &stored)?;
+    let resume_bytes = resumes.iter().map(Resume::bytes).sum();
+    let last_bytes: usize = stored.iter().map(Stored::bytes).sum();
+    let mut segments: Vec<(Option<Resume>, usize, usize)> = vec![(None, 0, 0)];
+    for r in resumes {
+        let user = r.user;
+        segments.last_mut().expect("one at least").2 = user;
+        let first = r.increments();
+        segments.push((Some(r), first, 0));
+    }
+    segments.last_mut().expect("one at least").2 = users;
+    let mut store = Store {
+        solver,
+        segments,
+        last: stored,
+        resume_bytes,
+    };
+    let sweep = Sweep::new(model, params, first_plastic)?;
     let mut cost = SensitivityCost::default();
-    let dfdb = sweep.run(&sel, &dh0, &mut cost)?;
+    let dfdb = sweep.run(&sel, &dh0, &mut cost, &mut store, |m| lights[m].time)?;
     out.cost = cost;
     out.cost.wall_seconds = seconds + t.elapsed().as_secs_f64();
-    out.cost.stored_bytes = stored.iter().map(Stored::bytes).sum();
+    out.cost.stored_bytes = out.cost.stored_bytes.max(last_bytes) + store.resume_bytes;
+    out.cost.checkpoints = store.segments.len() - 1;
     let nr = model.responses.len();
     for (q, &m) in sel.iter().enumerate() {
-        let s = &stored[m];
+        let s = &lights[m];
         out.increments.push(IncrementSensitivity {
             increment: s.index,
             time: s.time,
@@ -481,7 +615,6 @@ type FieldParam = (usize, usize, usize);
 struct Sweep<'a> {
     model: &'a Model,
     params: &'a [Parameter],
-    stored: &'a [Stored],
     asm: Assembler,
     outputs: Outputs,
     lifted: Lifted<f64>,
@@ -517,7 +650,7 @@ impl<'a> Sweep<'a> {
     fn new(
         model: &'a Model,
         params: &'a [Parameter],
-        stored: &'a [Stored],
+        first_plastic: Vec<usize>,
     ) -> Result<Self, AnalysisError> {
         let asm = Assembler::new(model, &[])?;
         let dofs = &asm.dofs;
@@ -569,19 +702,11 @@ impl<'a> Sweep<'a> {
                 _ => {}
             }
         }
-        let first_plastic = (0..model.mesh.n_elements())
-            .map(|e| {
-                (stored.iter())
-                    .position(|s| s.branches[dofs.gauss(e)].contains(&Branch::Plastic))
-                    .unwrap_or(usize::MAX)
-            })
-            .collect();
         Ok(Sweep {
             outputs: Outputs::new(&asm, model.contacts.len()),
             first_plastic,
             model,
             params,
-            stored,
             lifted: model.lifted(&[]),
             lifted_ad: model.lifted(&[]),
             asm,
@@ -600,12 +725,15 @@ impl<'a> Sweep<'a> {
 
     /// `df/db` of every response at the stored increments `sel` (sorted):
     /// `[q * n_responses + r][k]` for increment `sel[q]`. `dh0` is the initial history's
-    /// derivative per parameter (`None` or absent: zero).
+    /// derivative per parameter (`None` or absent: zero). The stored increments come from
+    /// `store`, a segment at a time from the last.
     fn run(
         &self,
         sel: &[usize],
         dh0: &[Option<Vec<f64>>],
         cost: &mut SensitivityCost,
+        store: &mut Store<'_>,
+        lights_time: impl Fn(usize) -> f64,
     ) -> Result<Vec<Vec<f64>>, AnalysisError> {
         let model = self.model;
         let out = &self.outputs;
@@ -626,8 +754,30 @@ impl<'a> Sweep<'a> {
         let mut ev_ad = Evaluation::<Ad>::new(&self.asm, ne);
         let mut ev_d = Evaluation::<Dual64>::new(&self.asm, ne);
         let mut solver: Option<LinearSolver> = None;
+        let mut segment: Vec<Stored> = Vec::new();
+        let mut seg_first = usize::MAX;
+        let mut seg = store.segments.len();
         for m in (0..ns).rev() {
-            let s = &self.stored[m];
+            while m < seg_first {
+                seg -= 1;
+                seg_first = store.segments[seg].1;
+                if m >= seg_first {
+                    segment = store.fetch(seg, cost)?;
+                    // a recomputed segment is the forward run's, increment for increment
+                    let same = |(i, s): (usize, &Stored)| {
+                        s.index == seg_first + i + 1 && s.time == lights_time(seg_first + i)
+                    };
+                    if !segment.iter().enumerate().all(same) || segment.len() <= m - seg_first {
+                        return Err(SensitivityError::Recomputed {
+                            increment: seg_first + 1,
+                        }
+                        .into());
+                    }
+                    let bytes = segment.iter().map(Stored::bytes).sum();
+                    cost.stored_bytes = cost.stored_bytes.max(bytes);
+                }
+            }
+            let s = &segment[m - seg_first];
             // the converged state, its tangent on the converged branches
             let frozen = Frozen {
                 gauss: Some(&s.branches),
@@ -675,7 +825,7 @@ impl<'a> Sweep<'a> {
                 }
             }
             let mut state = AdState::new(s);
-            self.z_passes(cost, m, &mut state, &cots, &mut rhs, &mut ev_ad)?;
+            self.z_passes(cost, s, &mut state, &cots, &mut rhs, &mut ev_ad)?;
             // K^T lambda = rhs on the free unknowns
             for c in 0..cols.len() {
                 for (i, fixed) in s.constrained.iter().enumerate() {
@@ -693,10 +843,10 @@ impl<'a> Sweep<'a> {
             // mu_{n-1} = d/dh [F + mu . H - lambda . R]
             let mut mu_prev = vec![0.0; nh * cols.len()];
             if nh > 0 {
-                self.h_passes(cost, m, &mut state, &cots, &mut mu_prev, &mut ev_ad)?;
+                self.h_passes(cost, s, m, &mut state, &cots, &mut mu_prev, &mut ev_ad)?;
             }
             // d/db [F + mu . H - lambda . R], prescribed unknowns moving with the design
-            self.field_passes(cost, m, &cols, &cots, &mut dfdb, &mut ev_ad)?;
+            self.field_passes(cost, s, &cols, &cots, &mut dfdb, &mut ev_ad)?;
             let hd: Vec<Dual64> = s.hist_prev.iter().map(|v| Dual64::from_re(*v)).collect();
             for (p, par) in (self.params.iter().enumerate()).filter(|(p, _)| !self.field[*p]) {
                 let t = Instant::now();
@@ -949,14 +1099,13 @@ impl<'a> Sweep<'a> {
     fn z_passes(
         &self,
         cost: &mut SensitivityCost,
-        m: usize,
+        s: &Stored,
         state: &mut AdState,
         cots: &[Vec<f64>],
         rhs: &mut [f64],
         ev: &mut Evaluation<Ad>,
     ) -> Result<(), AnalysisError> {
         let model = self.model;
-        let s = &self.stored[m];
         let n = self.asm.dofs.n_total;
         let ne = model.mesh.n_elements();
         let nk = self.nodes.len();
@@ -1094,14 +1243,13 @@ impl<'a> Sweep<'a> {
     fn field_passes(
         &self,
         cost: &mut SensitivityCost,
-        m: usize,
+        s: &Stored,
         cols: &[usize],
         cots: &[Vec<f64>],
         dfdb: &mut [Vec<f64>],
         ev: &mut Evaluation<Ad>,
     ) -> Result<(), AnalysisError> {
         let model = self.model;
-        let s = &self.stored[m];
         let state = AdState::new(s);
         let ne = model.mesh.n_elements();
         let nk = self.nodes.len();
@@ -1184,10 +1332,13 @@ impl<'a> Sweep<'a> {
     }
 
     /// Adds to each column's `mu_prev` (column-major) the derivative in the committed history
-    /// of every output weighed by the column's cotangent (residual included: `-lambda`).
+    /// of every output weighed by the column's cotangent (residual included: `-lambda`), at
+    /// the increment stored at position `m` (`s`).
+    #[allow(clippy::too_many_arguments)]
     fn h_passes(
         &self,
         cost: &mut SensitivityCost,
+        s: &Stored,
         m: usize,
         state: &mut AdState,
         cots: &[Vec<f64>],
@@ -1195,7 +1346,6 @@ impl<'a> Sweep<'a> {
         ev: &mut Evaluation<Ad>,
     ) -> Result<(), AnalysisError> {
         let model = self.model;
-        let s = &self.stored[m];
         let nh = self.asm.dofs.n_history;
         let ne = model.mesh.n_elements();
         let nk = self.nodes.len();

@@ -198,6 +198,11 @@ pub struct Settings {
     /// is one column of the backward sweep, and the sweep starts from the latest one: the
     /// adjoint pays for the functionals asked for, not for the parameters.
     pub adjoint_at: Vec<f64>,
+    /// The adjoint's checkpoints: keep the solver's state at the end of every
+    /// `adjoint_checkpoint`-th user increment instead of every converged increment's, and
+    /// recompute each segment between two of them from the first when the backward sweep
+    /// reaches it (bit for bit the forward run's states); 0: keep every increment.
+    pub adjoint_checkpoint: usize,
 }
 
 /// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
@@ -226,6 +231,7 @@ impl Default for Settings {
             beta_auto: false,
             fields: false,
             adjoint_at: Vec::new(),
+            adjoint_checkpoint: 0,
         }
     }
 }
@@ -310,8 +316,15 @@ pub struct SensitivityCost {
     /// counts above (FDM: the reruns' field evaluations are in their rerun times).
     pub fields_seconds: f64,
     /// The adjoint's stored forward states, bytes (unknowns, committed history, branches and
-    /// contact choices of every converged increment): what the backward sweep keeps.
+    /// contact choices of every converged increment): what the backward sweep keeps. With
+    /// checkpoints, the largest segment's states at any one time and every resume point.
     pub stored_bytes: usize,
+    /// The adjoint's checkpoints (resume points kept by the forward run).
+    pub checkpoints: usize,
+    /// Converged increments the adjoint solved again from its checkpoints.
+    pub recomputed_increments: usize,
+    /// Wall time of those recomputations (part of the wall time).
+    pub recompute_seconds: f64,
 }
 
 impl SensitivityCost {
@@ -473,6 +486,13 @@ pub enum SensitivityError {
     FieldIndex {
         /// The law parameter's index.
         index: usize,
+    },
+    /// The adjoint recomputed a segment from a checkpoint and did not retrace the forward
+    /// run's increments (a solver that does not resume exactly).
+    #[error("the adjoint's recomputation from the checkpoint before increment {increment} did not retrace the forward run's increments")]
+    Recomputed {
+        /// The first increment of the segment.
+        increment: usize,
     },
     /// A method stopped; `reason` is the error that stopped it, as recorded in its results
     /// ([`SensitivityResults::failure`]).

@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::assembly::{AssemblyFailure, Evaluation};
+use crate::contact::ContactChoice;
 use crate::element::ElementFailure;
 use crate::material::Branch;
 use crate::model::SolverSettings;
@@ -15,12 +16,82 @@ impl Solver<'_> {
         opts: &RunOptions,
         observer: &mut dyn Observer,
     ) -> Result<Results, AnalysisError> {
+        let span = Span {
+            from: None,
+            to: self.model.times.len(),
+            keep_every: 0,
+        };
+        self.run_span(&span, opts, observer, &mut Vec::new())
+    }
+
+    /// Run the user's increments of `span`: from its resume point (or the start) to the end
+    /// of user increment `span.to`, pushing a [`Resume`] onto `resumes` at the end of every
+    /// `span.keep_every`-th user increment (counted from the start of the load history). A
+    /// run resumed from a point another run kept goes on exactly as that run did, bit for bit:
+    /// the resume point holds everything the solver carries from one user increment into
+    /// the next. The results of a resumed run start at its resume point.
+    pub fn run_span(
+        &mut self,
+        span: &Span<'_>,
+        opts: &RunOptions,
+        observer: &mut dyn Observer,
+        resumes: &mut Vec<Resume>,
+    ) -> Result<Results, AnalysisError> {
         let model = self.model;
-        let mut run = self.begin(opts)?;
-        for &t_end in &model.times {
+        let (mut run, first) = match span.from {
+            None => (self.begin(opts)?, 0),
+            Some(r) => (self.resume(r, opts), r.user),
+        };
+        let to = span.to.min(model.times.len());
+        for (u, &t_end) in model.times.iter().enumerate().take(to).skip(first) {
             self.user_increment(&mut run, t_end, opts, observer)?;
+            if span.keep_every > 0 && (u + 1) % span.keep_every == 0 && u + 1 < to {
+                resumes.push(self.resume_point(&run, u + 1));
+            }
         }
         Ok(run.finish(opts))
+    }
+
+    /// What the solver carries into user increment `user` (0-based) from `run`.
+    fn resume_point(&self, run: &Run, user: usize) -> Resume {
+        Resume {
+            user,
+            z: run.z.clone(),
+            hist: run.hist.clone(),
+            t_prev: run.t_prev,
+            previous: run.previous.clone(),
+            index: run.index,
+            suggested: run.suggested,
+            converged_choice: self.converged_choice.clone(),
+            force_history: self.force_history,
+        }
+    }
+
+    /// A run set up to go on from resume point `r`.
+    fn resume(&mut self, r: &Resume, opts: &RunOptions) -> Run {
+        let start = Instant::now();
+        self.deadline = opts
+            .time_limit
+            .map(|s| start + std::time::Duration::from_secs_f64(s.max(0.0)));
+        self.force_history = r.force_history;
+        self.converged_choice.clone_from(&r.converged_choice);
+        self.factored_choice.clear();
+        self.factored_branches.clear();
+        let ne = self.model.mesh.n_elements();
+        let mut res = Results::default();
+        res.times.push(r.t_prev);
+        res.contact_flat = self.assembler.contact.flat.clone();
+        Run {
+            start,
+            res,
+            z: r.z.clone(),
+            hist: r.hist.clone(),
+            eval: Evaluation::<f64>::new(&self.assembler, ne),
+            t_prev: r.t_prev,
+            previous: r.previous.clone(),
+            index: r.index,
+            suggested: r.suggested,
+        }
     }
 
     /// Set up a run: the deadline, the initial state and history, the start state's contact
@@ -372,6 +443,50 @@ impl Solver<'_> {
 }
 
 /// What a run carries from one increment to the next.
+/// The user's increments a run covers ([`Solver::run_span`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Span<'r> {
+    /// The resume point it starts from (`None`: the start of the load history).
+    pub from: Option<&'r Resume>,
+    /// The user increments it ends after (the whole load history: `Model::times.len()`).
+    pub to: usize,
+    /// Keep a resume point after every `keep_every`-th user increment (0: none).
+    pub keep_every: usize,
+}
+
+/// Everything the solver carries from the end of one user increment into the next: the
+/// converged state and committed history, the predictor's previous state, the step the last
+/// sub-increment suggests, the contact states the next first iteration starts from and the
+/// mean reference force. A run resumed from it ([`Solver::run_span`]) is the run that kept
+/// it, bit for bit (the adjoint's checkpoints).
+#[derive(Clone, Debug)]
+pub struct Resume {
+    /// User increments done (the next one's index, 0-based).
+    pub user: usize,
+    z: Vec<f64>,
+    hist: Vec<f64>,
+    t_prev: f64,
+    previous: Option<(Vec<f64>, f64)>,
+    index: usize,
+    suggested: f64,
+    converged_choice: Vec<ContactChoice>,
+    force_history: (f64, usize),
+}
+
+impl Resume {
+    /// Converged increments (sub-increments counted) done.
+    pub fn increments(&self) -> usize {
+        self.index
+    }
+
+    /// Bytes it keeps.
+    pub fn bytes(&self) -> usize {
+        let prev = self.previous.as_ref().map_or(0, |p| p.0.len());
+        8 * (self.z.len() + self.hist.len() + prev)
+            + std::mem::size_of::<ContactChoice>() * self.converged_choice.len()
+    }
+}
+
 struct Run {
     /// When it started.
     start: Instant,

@@ -37,6 +37,7 @@ mod setup;
 
 pub use crate::precheck::{PrecheckError, PrecheckWarning};
 use active_set::*;
+pub use increment::{Resume, Span};
 use limits::*;
 use newton::*;
 pub use setup::Solver;

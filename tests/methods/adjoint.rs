@@ -182,3 +182,144 @@ fn adjoint_gradient_passes_a_taylor_test() {
         assert!(w[1] < w[0] / 30.0, "remainders {rem:?}");
     }
 }
+
+/// Checkpoints: the forward run keeps the solver's state after every K-th user increment
+/// alone, and the backward sweep recomputes each segment from its checkpoint when it reaches
+/// it. The recomputed states are the forward run's bit for bit (the solver resumes with
+/// everything it carries from one user increment into the next), so the derivatives are the
+/// unchecked sweep's exactly, at every increment; on the coarse leaf spring (J2 history,
+/// stick/slip anchors, cut-back sub-increments, a shape parameter) and the strip pull-out.
+/// Every increment before the last segment is solved again once, and no more.
+#[test]
+fn checkpointed_adjoint_is_the_stored_one_bit_for_bit() {
+    for name in ["leaf-spring-coarse", "strip-pullout"] {
+        let scene = Scene::load(name).unwrap();
+        let model = scene.build().unwrap();
+        let names: Vec<&str> = scene.study.params.iter().map(String::as_str).collect();
+        let ps = params(&model, &names);
+        let run = |every| {
+            let settings = Settings {
+                method: Method::Adjoint,
+                adjoint_checkpoint: every,
+                ..Settings::default()
+            };
+            run_sensitivity(&model, &ps, &settings).unwrap().1
+        };
+        let all = run(0);
+        assert_eq!(all.cost.recomputed_increments, 0);
+        let users = model.times.len();
+        for every in [1, 3, users] {
+            let cp = run(every);
+            assert_eq!(cp.increments.len(), all.increments.len());
+            for (a, c) in all.increments.iter().zip(&cp.increments) {
+                assert_eq!(a.increment, c.increment);
+                assert_eq!(
+                    a.values, c.values,
+                    "{name}, every {every}: the same forward run"
+                );
+                assert_eq!(
+                    a.derivatives, c.derivatives,
+                    "{name}, every {every}, increment {}",
+                    a.increment
+                );
+            }
+            // segments start at user increments 0, every, 2 every, ...; the last is kept
+            let checkpoints = (users - 1) / every;
+            assert_eq!(cp.cost.checkpoints, checkpoints, "{name}, every {every}");
+            let last_segment = match checkpoints {
+                0 => all.increments.len(),
+                c => (all.increments.iter())
+                    .filter(|i| i.time > model.times[c * every - 1])
+                    .count(),
+            };
+            assert_eq!(
+                cp.cost.recomputed_increments,
+                all.increments.len() - last_segment,
+                "{name}, every {every}: each increment before the last segment once"
+            );
+        }
+    }
+}
+
+/// `fricsens sensitivity --method adjoint --vtk` with field parameters draws each response's
+/// derivative in every member of a field on the mesh (`vtk/parameters_NNNN.vtu`): a material
+/// field as cell data, a friction field as point data at its hitting nodes. Read back with a
+/// VTK reader, every cell and point holds the derivative sensitivity.json gives for the
+/// parameter named by that cell's or point's number (the numbers are ParaView's ids), and
+/// every other one 0.
+#[test]
+fn adjoint_field_derivatives_are_drawn_on_the_mesh() {
+    use crate::common::{fricsens, scratch_path};
+    use vtkio::model::{Attribute, DataSet};
+    let dir = scratch_path("adjoint-vtk");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = fricsens()
+        .args(["sensitivity", "leaf-spring-coarse", "--method", "adjoint"])
+        .args([
+            "--param",
+            "upper.sigma_y[*]",
+            "--param",
+            "leaves.mu[*]",
+            "--vtk",
+        ])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sensitivity.json")).unwrap())
+            .unwrap();
+    let last = json["increments"]
+        .as_array()
+        .unwrap()
+        .last()
+        .unwrap()
+        .clone();
+    let k = last["increment"].as_u64().unwrap();
+    let vtk = vtkio::Vtk::import(dir.join("vtk").join(format!("parameters_{k:04}.vtu"))).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not an unstructured grid")
+    };
+    let piece = pieces[0].load_piece_data(None).unwrap();
+    let array = |data: &[Attribute], name: &str| -> Vec<f64> {
+        (data.iter())
+            .find_map(|a| match a {
+                Attribute::DataArray(d) if d.name == name => d.data.clone().cast_into(),
+                _ => None,
+            })
+            .unwrap_or_else(|| panic!("no {name}"))
+    };
+    let responses = json["responses"].as_array().unwrap();
+    let names = json["parameters"].as_array().unwrap();
+    for (r, resp) in responses.iter().enumerate() {
+        let resp = resp.as_str().unwrap();
+        let cells = array(&piece.data.cell, &format!("d({resp})/d(upper.sigma_y)"));
+        let points = array(&piece.data.point, &format!("d({resp})/d(leaves.mu)"));
+        let (mut cell_seen, mut point_seen) = (vec![false; cells.len()], vec![false; points.len()]);
+        for (p, name) in names.iter().enumerate() {
+            let name = name.as_str().unwrap();
+            let (field, id) = name.trim_end_matches(']').split_once('[').unwrap();
+            let id: usize = id.parse().unwrap();
+            let d = last["derivatives"][r][p].as_f64().unwrap();
+            let (drawn, seen) = match field {
+                "upper.sigma_y" => (&cells, &mut cell_seen),
+                "leaves.mu" => (&points, &mut point_seen),
+                f => panic!("unexpected field {f}"),
+            };
+            assert_eq!(drawn[id], d, "{resp} / {name}");
+            seen[id] = true;
+        }
+        for (drawn, seen) in [(&cells, &cell_seen), (&points, &point_seen)] {
+            assert!(seen.iter().any(|s| *s), "{resp}: a field with members");
+            for (v, s) in drawn.iter().zip(seen) {
+                assert!(*s || *v == 0.0, "{resp}: outside the field, 0");
+            }
+        }
+    }
+}
