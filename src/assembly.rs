@@ -396,6 +396,14 @@ impl Assembler {
             }
         };
         let ne = model.mesh.n_elements();
+        // the elements evaluated; a skipped one's outputs are written directly (no force,
+        // history carried over, branches as frozen), without a `Local` of its own: a pass
+        // over a few elements pays for those alone
+        let order: Vec<usize> = (0..ne).filter(|&e| !skipped(e)).collect();
+        for e in (0..ne).filter(|&e| skipped(e)) {
+            self.write_skipped(hist_old, frozen.and_then(|f| f.gauss), e, out);
+        }
+        let ne = order.len();
         let mut locals: Vec<Local<S>> = Vec::new();
         // element tangents of one chunk, allocated once per evaluation (not per element)
         let stride = MAX_DOFS * MAX_DOFS;
@@ -417,10 +425,8 @@ impl Assembler {
             } else {
                 (start..end).map(|_| None).collect()
             };
-            let local = |(e, k): (usize, Option<&mut [S]>)| {
-                if skipped(e) {
-                    return self.skipped_local(hist_old, frozen.and_then(|f| f.gauss), e);
-                }
+            let local = |(i, k): (usize, Option<&mut [S]>)| {
+                let e = order[i];
                 self.element_local(
                     model,
                     lifted,
@@ -443,7 +449,7 @@ impl Assembler {
             }
             // scatter sequentially in element order (bit-identical whatever the thread count)
             for (off, loc) in locals.iter().enumerate() {
-                let e = start + off;
+                let e = order[start + off];
                 let nd = self.dofs.element_dofs(e).len();
                 if nd == 0 {
                     continue;
@@ -469,9 +475,7 @@ impl Assembler {
                 let nh = hist.len();
                 out.hist_new[hist].copy_from_slice(&loc.hist[..nh]);
                 out.min_det_f = out.min_det_f.min(loc.min_det_f);
-                // a skipped element adds nothing (its slot of `kbuf` holds whatever an element
-                // of an earlier chunk left there)
-                if let (Some(k), false) = (tangent.as_deref_mut(), skipped(e)) {
+                if let Some(k) = tangent.as_deref_mut() {
                     let ks = &kbuf[off * stride..off * stride + nd * nd];
                     for (f, v) in kf.iter_mut().zip(ks) {
                         *f = v.value();
@@ -528,22 +532,30 @@ impl Assembler {
         Ok(())
     }
 
-    /// The [`Local`] of an element left out of the evaluation ([`Frozen::skip`]): no force,
-    /// history carried over, branches as frozen.
-    fn skipped_local<S: Scalar>(
+    /// The outputs of an element left out of the evaluation ([`Frozen::skip`]): no force,
+    /// history carried over, branches as frozen (else elastic), no stress.
+    fn write_skipped<S: Scalar>(
         &self,
         hist_old: &[S],
         frozen: Option<&[Branch]>,
         e: usize,
-    ) -> Local<S> {
-        let mut loc = Local::empty();
+        out: &mut Evaluation<S>,
+    ) {
+        if self.dofs.element_dofs(e).is_empty() {
+            return;
+        }
         let gauss = self.dofs.gauss(e);
-        if let Some(f) = frozen {
-            loc.branches[..gauss.len()].copy_from_slice(&f[gauss]);
+        match frozen {
+            Some(f) => out.branches[gauss.clone()].copy_from_slice(&f[gauss.clone()]),
+            None => out.branches[gauss.clone()].fill(Branch::Elastic),
+        }
+        out.yield_ratio[gauss].fill(-1.0);
+        out.cauchy[e] = Matrix3::zeros();
+        if let Some(slot) = self.stress_slot(e) {
+            out.stress[slot] = Matrix3::zeros();
         }
         let hist = self.dofs.history(e);
-        loc.hist[..hist.len()].copy_from_slice(&hist_old[hist]);
-        loc
+        out.hist_new[hist.clone()].copy_from_slice(&hist_old[hist]);
     }
 
     #[allow(clippy::too_many_arguments)]
