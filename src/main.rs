@@ -78,6 +78,10 @@ enum Command {
         /// choice; no extra solve, but an error of the order of Newton's last correction in
         /// every in-line method: 1.2e-2 relative on the leaf spring). `refined`: the last
         /// factorization plus two steps of iterative refinement against the converged tangent.
+        /// The adjoint takes the same three, transposed: `exact` factors the converged tangent
+        /// anew at every increment of its backward sweep; `last` and `refined` solve with
+        /// Newton's last factorizations, which the forward run then keeps (the memory is
+        /// reported), and equal DDM with the same tangent.
         #[arg(long, default_value = "exact")]
         tangent: TangentArg,
         /// Factor the converged tangent (exact, or where Newton's last factor is on other
@@ -660,7 +664,7 @@ fn sensitivity(
         c.solve_columns,
         c.primal_reruns
     );
-    if settings.method.is_inline() {
+    if settings.method.is_inline() || settings.method == Method::Adjoint {
         out!(
             "  tangent: {}",
             match settings.tangent {

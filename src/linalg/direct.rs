@@ -93,6 +93,7 @@ pub(super) enum SymbolicFactor {
     Cholesky(SymbolicCholesky<usize>),
 }
 
+#[derive(Clone)]
 pub(super) enum NumericFactor {
     None,
     SymLu(Box<NumericSymLu>),
@@ -473,6 +474,99 @@ impl LinearSolver {
             res = worst(&residuals(a, b, x, &mut r, ncols)?);
         }
         Ok(res)
+    }
+}
+
+/// A numeric factorization kept apart from the solver that made it ([`LinearSolver::keep`]):
+/// the adjoint keeps Newton's last factorization of every increment to solve with it on its
+/// way back ([`LinearSolver::with_kept`]).
+pub struct KeptFactor(NumericFactor);
+
+impl KeptFactor {
+    /// Bytes of its factors.
+    pub fn bytes(&self) -> usize {
+        match &self.0 {
+            NumericFactor::None => 0,
+            NumericFactor::SymLu(f) => f.bytes(),
+            NumericFactor::Lu(_) => 0,
+            NumericFactor::Llt(v) | NumericFactor::Ldlt(v) => 8 * v.len(),
+        }
+    }
+}
+
+impl std::fmt::Debug for KeptFactor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "KeptFactor({} bytes)", self.bytes())
+    }
+}
+
+impl LinearSolver {
+    /// A copy of the current numeric factorization, to solve with later by a solver on the
+    /// same pattern ([`LinearSolver::with_kept`]). `None` when not factored, or factored by
+    /// faer's LU after the symmetric-pattern LU declined the matrix (whose symbolic analysis
+    /// another solver may not hold).
+    pub fn keep(&self) -> Option<KeptFactor> {
+        match &self.numeric {
+            NumericFactor::None | NumericFactor::Lu(_) => None,
+            f => Some(KeptFactor(f.clone())),
+        }
+    }
+
+    /// Run `f` with `kept` in place of this solver's own factorization (this solver's
+    /// symbolic analysis; the pattern must be the one `kept` was factored on), and put both
+    /// back. Fails with [`LinalgError::NotFactored`] when the factor's kind is not this
+    /// solver's.
+    pub fn with_kept<R>(
+        &mut self,
+        kept: &mut KeptFactor,
+        f: impl FnOnce(&LinearSolver) -> Result<R>,
+    ) -> Result<R> {
+        let fits = matches!(
+            (&self.symbolic, &kept.0),
+            (SymbolicFactor::SymLu(..), NumericFactor::SymLu(_))
+                | (
+                    SymbolicFactor::Cholesky(_),
+                    NumericFactor::Llt(_) | NumericFactor::Ldlt(_)
+                )
+        );
+        if !fits {
+            return Err(LinalgError::NotFactored);
+        }
+        std::mem::swap(&mut self.numeric, &mut kept.0);
+        let out = f(self);
+        std::mem::swap(&mut self.numeric, &mut kept.0);
+        out
+    }
+
+    /// [`LinearSolver::refine_multi`] for `a^T x = b`: `steps` times
+    /// `x += LU^{-T} (b - a^T x)`.
+    pub fn refine_transpose_multi(
+        &self,
+        a: &SparseMatrix,
+        b: &[f64],
+        x: &mut [f64],
+        ncols: usize,
+        steps: usize,
+    ) -> Result<()> {
+        let n = self.pattern.n;
+        check_len(a.n(), n)?;
+        check_len(n * ncols, b.len())?;
+        check_len(n * ncols, x.len())?;
+        let mut r = vec![0.0; n * ncols];
+        for _ in 0..steps {
+            for c in 0..ncols {
+                let cols = c * n..(c + 1) * n;
+                a.mul_vec_transpose(&x[cols.clone()], &mut r[cols.clone()])?;
+                for (ri, bi) in r[cols.clone()].iter_mut().zip(&b[cols]) {
+                    *ri = bi - *ri;
+                }
+            }
+            self.solve_transpose_multi_in_place(&mut r, ncols)?;
+            for (xi, ri) in x.iter_mut().zip(&r) {
+                *xi += ri;
+            }
+        }
+        Ok(())
     }
 }
 

@@ -99,7 +99,7 @@ pub(crate) struct SymbolicSymLu {
 }
 
 /// Numeric factors and the scratch reused between factorizations.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub(crate) struct NumericSymLu {
     values: Vec<f64>,
     /// Row exchanges within each diagonal block: for the columns `begin[s]..begin[s + 1]`,
@@ -113,6 +113,13 @@ pub(crate) struct NumericSymLu {
     tmp: Vec<f64>,
     tmp_t: Vec<f64>,
     factored: bool,
+}
+
+impl NumericSymLu {
+    /// Bytes of the factors and pivots (the scratch left out).
+    pub(crate) fn bytes(&self) -> usize {
+        8 * (self.values.len() + self.piv.len() + self.piv_inv.len())
+    }
 }
 
 fn mat(values: &[f64], nrows: usize, ncols: usize, stride: usize) -> MatRef<'_, f64> {

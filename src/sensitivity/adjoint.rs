@@ -33,7 +33,7 @@
 use super::*;
 use crate::assembly::{Assembler, Evaluation, Frozen};
 use crate::contact::ContactChoice;
-use crate::linalg::{LinearSolver, SparseMatrix};
+use crate::linalg::{KeptFactor, LinearSolver, SparseMatrix};
 use crate::material::Branch;
 use crate::model::{node_dof, DesignParam, Lifted};
 use crate::response::{Response, ResponseKind};
@@ -56,11 +56,20 @@ struct Stored {
     branches: Vec<Branch>,
     choice: Vec<ContactChoice>,
     constrained: Vec<bool>,
+    /// Newton's last factorization (`--tangent last|refined`), where it was assembled on
+    /// the converged branches (`Converged::factor_matches`).
+    factor: Option<KeptFactor>,
 }
 
 impl Stored {
-    fn new(c: &Converged<'_>) -> Self {
+    /// What the sweep needs of `c`, Newton's last factorization with it if `factor`.
+    fn new(c: &Converged<'_>, factor: bool) -> Self {
+        let factor = (factor && c.factor_matches)
+            .then_some(c.last_factor)
+            .flatten()
+            .and_then(LinearSolver::keep);
         Stored {
+            factor,
             index: c.index,
             time: c.time,
             z: c.z.to_vec(),
@@ -76,6 +85,7 @@ impl Stored {
             + self.branches.len()
             + self.constrained.len()
             + std::mem::size_of::<ContactChoice>() * self.choice.len()
+            + self.factor.as_ref().map_or(0, KeptFactor::bytes)
     }
 }
 
@@ -103,6 +113,8 @@ struct Recorder<'a> {
     stored: Vec<Stored>,
     /// The first user increment whose converged increments are stored.
     keep_from: usize,
+    /// Keep Newton's last factorization with each stored increment.
+    keep_factors: bool,
     /// Per element: the first increment (position) at which a Gauss point of it is plastic
     /// (`usize::MAX`: not yet).
     first_plastic: Vec<usize>,
@@ -140,7 +152,7 @@ impl Observer for Recorder<'_> {
             kinks: self.engine.kinks(c),
         });
         if user_increment_of(c) >= self.keep_from {
-            self.stored.push(Stored::new(c));
+            self.stored.push(Stored::new(c, self.keep_factors));
         }
         self.seconds += t.elapsed().as_secs_f64();
         (self.watch)(c);
@@ -148,12 +160,12 @@ impl Observer for Recorder<'_> {
     }
 }
 
-/// A recomputed span's states.
-struct Keeper(Vec<Stored>);
+/// A recomputed span's states, Newton's last factorizations with them if `.1`.
+struct Keeper(Vec<Stored>, bool);
 
 impl Observer for Keeper {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
-        self.0.push(Stored::new(c));
+        self.0.push(Stored::new(c, self.1));
         Ok(())
     }
 }
@@ -170,6 +182,8 @@ struct Store<'m> {
     last: Vec<Stored>,
     /// Bytes of the resume points.
     resume_bytes: usize,
+    /// Keep Newton's last factorizations.
+    keep_factors: bool,
 }
 
 impl Store<'_> {
@@ -193,7 +207,7 @@ impl Store<'_> {
             keep_states: false,
             time_limit: None,
         };
-        let mut keeper = Keeper(Vec::new());
+        let mut keeper = Keeper(Vec::new(), self.keep_factors);
         self.solver
             .run_span(&span, &opts, &mut keeper, &mut Vec::new())?;
         cost.recompute_seconds += t.elapsed().as_secs_f64();
@@ -217,7 +231,9 @@ pub(super) fn run_adjoint(
     } else {
         ((users - 1) / every) * every
     };
+    let keep_factors = settings.tangent != TangentChoice::Exact;
     let mut rec = Recorder {
+        keep_factors,
         engine: Engine::new(model, &[], settings.clone()),
         params,
         dh0: Vec::new(),
@@ -284,8 +300,10 @@ pub(super) fn run_adjoint(
         segments,
         last: stored,
         resume_bytes,
+        keep_factors,
     };
-    let sweep = Sweep::new(model, params, first_plastic)?;
+    let mut sweep = Sweep::new(model, params, first_plastic)?;
+    sweep.tangent = (settings.tangent, settings.refine_steps);
     let mut cost = SensitivityCost::default();
     let dfdb = sweep.run(&sel, &dh0, &mut cost, &mut store, |m| lights[m].time)?;
     out.cost = cost;
@@ -594,6 +612,14 @@ impl AdState {
 /// derivative parts of that output.
 type Rows = Vec<(usize, [f64; W])>;
 
+/// One increment's transposed solve: its stored state, the tangent at it, and Newton's last
+/// factorization if kept.
+struct Transposed<'x> {
+    s: &'x Stored,
+    k: &'x SparseMatrix,
+    factor: Option<&'x mut KeptFactor>,
+}
+
 /// The terms the solid elements' passes evaluate.
 const SOLIDS: Terms = Terms {
     solids: true,
@@ -644,6 +670,9 @@ struct Sweep<'a> {
     /// and the multiplier of its history is read by nothing before its first plastic
     /// increment, so the local Jacobians leave it out.
     first_plastic: Vec<usize>,
+    /// The tangent of the transposed solves, and the refinement steps of
+    /// [`TangentChoice::Refined`].
+    tangent: (TangentChoice, usize),
 }
 
 impl<'a> Sweep<'a> {
@@ -705,6 +734,7 @@ impl<'a> Sweep<'a> {
         Ok(Sweep {
             outputs: Outputs::new(&asm, model.contacts.len()),
             first_plastic,
+            tangent: (TangentChoice::Exact, 0),
             model,
             params,
             lifted: model.lifted(&[]),
@@ -777,6 +807,7 @@ impl<'a> Sweep<'a> {
                     cost.stored_bytes = cost.stored_bytes.max(bytes);
                 }
             }
+            let mut factor = segment[m - seg_first].factor.take();
             let s = &segment[m - seg_first];
             // the converged state, its tangent on the converged branches
             let frozen = Frozen {
@@ -834,7 +865,12 @@ impl<'a> Sweep<'a> {
                     }
                 }
             }
-            self.solve_transposed(cost, s, &k, &mut rhs, cols.len(), &mut solver)?;
+            let transposed = Transposed {
+                s,
+                k: &k,
+                factor: factor.as_mut(),
+            };
+            self.solve_transposed(cost, transposed, &mut rhs, cols.len(), &mut solver)?;
             for (c, cot) in cots.iter_mut().enumerate() {
                 for (r, l) in cot[out.res()].iter_mut().zip(&rhs[c * n..(c + 1) * n]) {
                     *r -= l;
@@ -928,26 +964,53 @@ impl<'a> Sweep<'a> {
     }
 
     /// `K^T X = RHS` with the tangent `k` at the converged state (prescribed unknowns as
-    /// identity rows), factored anew: the backward sweep keeps no factor of the forward run.
+    /// identity rows): factored anew and refined with double-double residuals
+    /// ([`TangentChoice::Exact`]), or with Newton's last factorization kept by the forward
+    /// run, alone ([`TangentChoice::Last`], the paper's choice: off by the order of Newton's last
+    /// correction) or with refinement steps against the converged tangent
+    /// ([`TangentChoice::Refined`]) — the transposes of what DDM solves with each. Where no
+    /// factorization was kept (Newton's last was of other branches, or a recomputed segment's
+    /// first increment converged without one), the converged tangent is factored, as DDM
+    /// does.
     fn solve_transposed(
         &self,
         cost: &mut SensitivityCost,
-        s: &Stored,
-        k: &SparseMatrix,
+        t: Transposed<'_>,
         rhs: &mut [f64],
         ncols: usize,
         solver: &mut Option<LinearSolver>,
     ) -> Result<(), AnalysisError> {
-        let kd = with_prescribed_rows(k.clone(), &s.constrained);
+        let kd = with_prescribed_rows(t.k.clone(), &t.s.constrained);
         if solver.is_none() {
             *solver = Some(LinearSolver::new(self.asm.pattern.clone())?);
         }
         let ls = solver.as_mut().expect("just made");
-        let t = Instant::now();
+        let (tangent, steps) = self.tangent;
+        if let (Some(kept), false) = (t.factor, tangent == TangentChoice::Exact) {
+            let start = Instant::now();
+            let b = rhs.to_vec();
+            let steps = if tangent == TangentChoice::Refined {
+                steps
+            } else {
+                0
+            };
+            let kept_solve = ls.with_kept(kept, |last| {
+                last.solve_transpose_multi_in_place(rhs, ncols)?;
+                last.refine_transpose_multi(&kd, &b, rhs, ncols, steps)
+            });
+            if kept_solve.is_ok() {
+                cost.solve_columns += ncols * (1 + steps);
+                cost.solve_seconds += start.elapsed().as_secs_f64();
+                return Ok(());
+            }
+            // a factor of another kind than this solver's: factor anew
+            rhs.copy_from_slice(&b);
+        }
+        let start = Instant::now();
         ls.factor(&kd)?;
-        cost.factor_seconds += t.elapsed().as_secs_f64();
+        cost.factor_seconds += start.elapsed().as_secs_f64();
         cost.factorizations += 1;
-        let t = Instant::now();
+        let start = Instant::now();
         let b = rhs.to_vec();
         ls.solve_transpose_multi_in_place(rhs, ncols)?;
         cost.solve_columns += ncols;
@@ -958,7 +1021,7 @@ impl<'a> Sweep<'a> {
             ls.solve_transpose_multi_in_place(r, ncols)
         };
         refine_extended(&kd, true, &b, rhs, ncols, cost, &mut correct)?;
-        cost.solve_seconds += t.elapsed().as_secs_f64();
+        cost.solve_seconds += start.elapsed().as_secs_f64();
         Ok(())
     }
 
