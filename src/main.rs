@@ -676,6 +676,8 @@ fn sensitivity(
                     "refined (Newton's last factorization and two refinement steps against the converged tangent: what is left of the last correction's error is not measured; the default --tangent exact removes it)",
             }
         );
+    }
+    if settings.method.is_inline() {
         let other = c.rest_seconds();
         out!(
             "  where it went: evaluations {:.3} s, factorizations {:.3} s, solves {:.3} s, the rest {:.3} s; the floor (one evaluation and one solve per parameter and increment) {:.3} s: {:.2} times the floor",
@@ -712,6 +714,15 @@ fn sensitivity(
         }
     }
     if settings.method == Method::Adjoint {
+        out!(
+            "  where it went: evaluations {:.3} s ({} local-Jacobian and design passes), factorizations {:.3} s, solves {:.3} s, recomputation {:.3} s, the rest {:.3} s",
+            c.evaluation_seconds,
+            c.partial_evaluations,
+            c.factor_seconds,
+            c.solve_seconds,
+            c.recompute_seconds,
+            c.rest_seconds() - c.recompute_seconds
+        );
         out!(
             "  adjoint: kept {:.1} MiB of forward states ({} checkpoint(s)); recomputed {} increment(s) in {:.3} s ({:.2} of the primal)",
             c.stored_bytes as f64 / (1024.0 * 1024.0),
