@@ -82,6 +82,12 @@ pub struct Frozen<'a> {
     /// The terms of the residual the evaluation adds (all by default). SDM's error anatomy
     /// ([`crate::sensitivity::anatomy`]) evaluates them one at a time.
     pub terms: Terms,
+    /// The caller reads only the outputs of the elements and hitting nodes evaluated (their
+    /// residual rows, history, stress, normal force): the skipped ones' history, branches and
+    /// stress are left as an earlier evaluation wrote them, and contact is not evaluated at all
+    /// when every hitting node is skipped. The adjoint's local Jacobians evaluate a colour of a
+    /// few elements per pass and pay for those alone.
+    pub members_only: bool,
 }
 
 /// What failed during assembly, and where.
@@ -400,7 +406,8 @@ impl Assembler {
         // history carried over, branches as frozen), without a `Local` of its own: a pass
         // over a few elements pays for those alone
         let order: Vec<usize> = (0..ne).filter(|&e| !skipped(e)).collect();
-        for e in (0..ne).filter(|&e| skipped(e)) {
+        let members_only = frozen.is_some_and(|f| f.members_only);
+        for e in (0..ne).filter(|&e| !members_only && skipped(e)) {
             self.write_skipped(hist_old, frozen.and_then(|f| f.gauss), e, out);
         }
         let ne = order.len();
@@ -487,7 +494,10 @@ impl Assembler {
             start = end;
         }
         // contact
-        if !model.contacts.is_empty() {
+        let no_node = frozen
+            .and_then(|f| f.skip_contact)
+            .is_some_and(|s| s.iter().all(|k| *k));
+        if !model.contacts.is_empty() && !(members_only && no_node) {
             let mut local = Vec::new();
             crate::contact::assembly::evaluate(
                 model,

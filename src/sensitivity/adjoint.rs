@@ -1058,6 +1058,7 @@ impl<'a> Sweep<'a> {
                 skip: Some(pass.skip),
                 skip_contact: Some(pass.skip_contact),
                 terms: pass.terms,
+                members_only: true,
                 ..Frozen::default()
             };
             let t = Instant::now();
@@ -1359,6 +1360,7 @@ impl<'a> Sweep<'a> {
                 skip: Some(&skip),
                 skip_contact: Some(&skip_contact),
                 terms,
+                members_only: true,
                 ..Frozen::default()
             };
             let t = Instant::now();
