@@ -497,7 +497,9 @@ impl Assembler {
         let no_node = frozen
             .and_then(|f| f.skip_contact)
             .is_some_and(|s| s.iter().all(|k| *k));
-        if !model.contacts.is_empty() && !(members_only && no_node) {
+        let skip_all = members_only && no_node;
+        let contact = !model.contacts.is_empty() && !skip_all;
+        if contact {
             let mut local = Vec::new();
             crate::contact::assembly::evaluate(
                 model,
