@@ -66,7 +66,9 @@ enum Command {
         /// scene's `[study] beta`, else 1e-6. `auto` (SDM, SDM central): each parameter's step
         /// chosen at every increment from a ladder of probes at the fixed state, and every
         /// derivative given an error bar (twice the sum of the difference from a shadow run at a
-        /// tenth of the step and the round-off expected).
+        /// tenth of the step and the round-off expected); (FDM, FDM central): the same rule on
+        /// reruns at every step of a ladder, the noise from the Newton residual each rerun
+        /// reached.
         #[arg(long)]
         beta: Option<String>,
         /// Tangent of the sensitivity solve (SDM, DDM). `exact`: the tangent at the converged
@@ -562,11 +564,14 @@ fn sensitivity(
             settings.method.name()
         ));
     }
-    if beta_auto && !matches!(settings.method, Method::Sdm | Method::SdmCentral) {
+    if beta_auto && !settings.method.uses_beta() {
         return Err(format!(
-            "--beta auto chooses SDM's steps by probes at the fixed state: use it with --method sdm or sdm-central, not {} (not built for the finite-difference reruns yet)",
+            "--beta auto chooses the step of a difference: use it with --method sdm, sdm-central, fdm or fdm-central, not {}",
             settings.method.name()
         ));
+    }
+    if beta_auto && shard.is_some() {
+        return Err("--shard splits the reruns at one beta: give --beta B, not auto".into());
     }
     if beta_auto && explain {
         return Err("--explain splits the error at one fixed beta: give --beta B, not auto".into());

@@ -53,6 +53,29 @@ pub(super) fn responses_at(
     Ok(out)
 }
 
+/// The relative residual `|R_free| / F_ref` Newton reached at each of `times` in a run (at a
+/// time the run did not take, the largest it reached).
+fn reached_at(res: &Results, times: &[f64]) -> Vec<f64> {
+    let relative = |r: &crate::solver::IncrementRecord| {
+        let last = r.residuals.last().copied().unwrap_or(0.0);
+        if r.reference_force > 0.0 {
+            last / r.reference_force
+        } else {
+            last
+        }
+    };
+    let worst = res.records.iter().map(relative).fold(0.0, f64::max);
+    times
+        .iter()
+        .map(|t| {
+            res.increment_at(*t)
+                .filter(|k| *k >= 1)
+                .and_then(|k| res.records.get(k - 1))
+                .map_or(worst, relative)
+        })
+        .collect()
+}
+
 /// Several in-line engines observing one primal run. An engine that fails (e.g. an SDM
 /// perturbation so large that the perturbed geometry is degenerate) is stopped and its error
 /// kept; the primal run and the other engines go on.
@@ -188,6 +211,164 @@ pub(super) fn fdm_sweep(
     Ok((nominal, out))
 }
 
+/// `--beta auto` for FDM and FDM central (the rule of SDM's `auto`, on reruns): the reruns at every
+/// step of a ladder a decade apart ([`FDM_FORWARD_LADDER`], [`FDM_CENTRAL_LADDER`]); at every
+/// increment and for each parameter the step taken is the larger of the two neighbouring
+/// steps whose differences agree best over the responses sensitive to it (Stepleman &
+/// Winarsky's plateau), and the error bar is twice the sum of the difference
+/// from the next step down (a tenth of the chosen one, already run) and the noise the reruns
+/// actually carry: the relative residual Newton reached in each run at that increment, times
+/// the response's size over the history, over the step (not the tolerance, which the last
+/// quadratic Newton step usually beats by orders). Costs a rerun (two, central) per step of
+/// the ladder and parameter.
+pub fn fdm_auto(
+    model: &Model,
+    params: &[Parameter],
+    central: bool,
+    watch: &mut dyn FnMut(&Converged<'_>),
+) -> Result<(Results, SensitivityResults), AnalysisError> {
+    let ladder: &[f64] = if central {
+        &FDM_CENTRAL_LADDER
+    } else {
+        &FDM_FORWARD_LADDER
+    };
+    let (nominal, base) = fdm_nominal(model, watch)?;
+    let jobs = fdm_jobs(params.len(), ladder.len(), central);
+    let runs = run_reruns(model, params, ladder, &base.times, &jobs, false);
+    // reached[b][k][side]
+    let (np, nb, nr, ni) = (
+        params.len(),
+        ladder.len(),
+        model.responses.len(),
+        base.times.len(),
+    );
+    let mut reached = vec![vec![[None, None]; np]; nb];
+    for (&(b, k, sign), r) in jobs.iter().zip(&runs) {
+        reached[b][k][usize::from(sign < 0.0)] = r.as_ref().ok().map(|r| r.reached.clone());
+    }
+    let sweep = assemble(
+        model,
+        params,
+        ladder,
+        central,
+        &base,
+        &(Vec::new(), 0.0),
+        &jobs,
+        runs,
+    );
+    // [forward, central] per step: the method asked for
+    let probes: Vec<&SensitivityResults> = if central {
+        sweep.iter().skip(1).step_by(2).collect()
+    } else {
+        sweep.iter().collect()
+    };
+    let size: Vec<f64> = (0..nr)
+        .map(|r| base.values.iter().map(|v| v[r].abs()).fold(0.0, f64::max))
+        .collect();
+    let d = |b: usize, i: usize, r: usize, k: usize| probes[b].increments[i].derivatives[r][k];
+    // the noise of step b's difference at increment i, per unit size
+    let noise = |b: usize, i: usize, k: usize| -> f64 {
+        let db = params[k].step(ladder[b]).abs();
+        let rho =
+            |side: usize| -> f64 { (reached[b][k][side].as_ref()).map_or(f64::INFINITY, |v| v[i]) };
+        let other = if central { rho(1) } else { base.reached[i] };
+        (rho(0) + other) / if central { 2.0 * db } else { db }
+    };
+    let mut out = SensitivityResults {
+        method: Some(if central {
+            Method::FdmCentral
+        } else {
+            Method::Fdm
+        }),
+        beta: f64::NAN,
+        parameters: params.iter().map(|p| p.name.clone()).collect(),
+        responses: model.responses.iter().map(|r| r.name.clone()).collect(),
+        primal_seconds: base.primal_seconds,
+        ..Default::default()
+    };
+    for p in &probes {
+        out.cost.wall_seconds += p.cost.wall_seconds;
+        out.cost.primal_reruns += p.cost.primal_reruns;
+    }
+    let failures: Vec<&str> = probes.iter().filter_map(|p| p.failure.as_deref()).collect();
+    for i in 0..ni {
+        let mut inc = IncrementSensitivity {
+            increment: i + 1,
+            time: base.times[i],
+            values: base.values[i].clone(),
+            derivatives: vec![vec![f64::NAN; np]; nr],
+            error_bars: vec![vec![f64::INFINITY; np]; nr],
+            roundoff: vec![vec![false; np]; nr],
+            rerun_substeps: vec![false; np],
+            betas: vec![f64::NAN; np],
+            ..Default::default()
+        };
+        for (k, p) in params.iter().enumerate() {
+            // each sensitive response's largest probe; a probe that failed is NaN
+            let b0 = p.value.abs().max(1.0);
+            let scales: Vec<Option<f64>> = (0..nr)
+                .map(|r| {
+                    let s = (0..nb)
+                        .map(|b| d(b, i, r, k).abs())
+                        .filter(|v| v.is_finite())
+                        .fold(0.0, f64::max);
+                    (s > 0.0 && b0 * s >= 1e-9 * base.values[i][r].abs()).then_some(s)
+                })
+                .collect();
+            let disagreement = |b: usize| {
+                (0..nr)
+                    .filter_map(|r| {
+                        let s = scales[r]?;
+                        let x = (d(b, i, r, k) - d(b + 1, i, r, k)).abs() / s;
+                        Some(if x.is_nan() { f64::INFINITY } else { x })
+                    })
+                    .fold(0.0, f64::max)
+            };
+            let Some(j) = (0..nb - 1)
+                .map(|b| (b, disagreement(b)))
+                .filter(|(_, x)| x.is_finite())
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(b, _)| b)
+                .or_else(|| (0..nb).find(|b| d(*b, i, 0, k).is_finite()))
+            else {
+                continue; // every step failed: NaN, with the failures said
+            };
+            let shadow = if j + 1 < nb {
+                j + 1
+            } else {
+                j.saturating_sub(1)
+            };
+            inc.betas[k] = ladder[j];
+            inc.rerun_substeps[k] = probes[j].increments[i].rerun_substeps[k];
+            for (r, size_r) in size.iter().enumerate() {
+                let v = d(j, i, r, k);
+                inc.derivatives[r][k] = v;
+                inc.roundoff[r][k] = probes[j].increments[i].roundoff[r][k];
+                let gap = (v - d(shadow, i, r, k)).abs();
+                let bar = auto::SAFETY * (gap + noise(j, i, k) * size_r);
+                inc.error_bars[r][k] = if bar.is_nan() { f64::INFINITY } else { bar };
+            }
+        }
+        out.increments.push(inc);
+    }
+    if out
+        .increments
+        .iter()
+        .all(|inc| inc.betas.iter().all(|b| b.is_nan()))
+        && !failures.is_empty()
+    {
+        out.failure = Some(failures.join("; "));
+    }
+    Ok((nominal, out))
+}
+
+/// FDM's `--beta auto` ladder (forward): relative steps a decade apart, from where truncation
+/// dominates to where the reruns' Newton noise does.
+pub const FDM_FORWARD_LADDER: [f64; 7] = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8];
+
+/// FDM central's `--beta auto` ladder.
+pub const FDM_CENTRAL_LADDER: [f64; 6] = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6];
+
 /// The nominal run of an FDM sweep and what every rerun is compared with.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FdmBase {
@@ -197,6 +378,9 @@ pub struct FdmBase {
     pub values: Vec<Vec<f64>>,
     /// Wall time of the nominal run (s).
     pub primal_seconds: f64,
+    /// `[i]`: the relative residual `|R_free| / F_ref` Newton reached at `times[i]`.
+    #[serde(default)]
+    pub reached: Vec<f64>,
 }
 
 fn fdm_nominal(
@@ -209,12 +393,14 @@ fn fdm_nominal(
     let primal_seconds = t0.elapsed().as_secs_f64();
     let times: Vec<f64> = nominal.times[1..].to_vec();
     let values = responses_at(model, &nominal, &times)?;
+    let reached = reached_at(&nominal, &times);
     Ok((
         nominal,
         FdmBase {
             times,
             values,
             primal_seconds,
+            reached,
         },
     ))
 }
@@ -262,6 +448,7 @@ fn run_reruns(
                     .copied();
                 Ok(Rerun {
                     values: responses_at(model, &r, times)?,
+                    reached: reached_at(&r, times),
                     fields: if fields {
                         fields_at_times(&m, &r, times)?
                     } else {
@@ -615,4 +802,7 @@ pub struct Rerun {
     fields: Vec<Vec<crate::fields::Field<f64>>>,
     seconds: f64,
     substep_from: Option<f64>,
+    /// `[i]`: the relative residual Newton reached at the nominal run's `times[i]`.
+    #[serde(default)]
+    reached: Vec<f64>,
 }

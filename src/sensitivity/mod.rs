@@ -186,7 +186,8 @@ pub struct Settings {
     pub explain: bool,
     /// SDM and SDM central: choose each parameter's step at every increment from a ladder of
     /// probes at the fixed state instead of `beta`, and give every derivative an error bar
-    /// (`auto` module docs; `IncrementSensitivity::betas`, `error_bars`).
+    /// (`auto` module docs; `IncrementSensitivity::betas`, `error_bars`). FDM and FDM
+    /// central: the same rule on reruns at every step of a ladder ([`fdm_auto`]'s docs).
     pub beta_auto: bool,
     /// Keep the derivatives of the state's fields (displacement, contact forces and
     /// pressures, stress, equivalent plastic strain) at every increment
@@ -441,6 +442,10 @@ pub fn run_sensitivity_watched(
             return Err(e);
         }
         (res, out)
+    } else if settings.beta_auto {
+        let central = settings.method == Method::FdmCentral;
+        let (res, s) = fdm_auto(model, params, central, watch)?;
+        (res, vec![s])
     } else {
         let central = settings.method == Method::FdmCentral;
         fdm_sweep(

@@ -49,11 +49,21 @@ fn bounded(
 
 /// The share of bounded derivatives per scene and method, and the largest error.
 fn coverage(scene: &str, names: &[&str]) -> Vec<(Method, usize, usize, f64, SensitivityResults)> {
+    coverage_of(scene, names, &[Method::Sdm, Method::SdmCentral])
+}
+
+/// [`coverage`] for the given methods.
+fn coverage_of(
+    scene: &str,
+    names: &[&str],
+    methods: &[Method],
+) -> Vec<(Method, usize, usize, f64, SensitivityResults)> {
     let model = Scene::load(scene).unwrap().build().unwrap();
     let params = common::params(&model, names);
     let ddm = common::sensitivities(&model, &params, Method::Ddm, 0.0);
-    [Method::Sdm, Method::SdmCentral]
-        .into_iter()
+    methods
+        .iter()
+        .copied()
         .map(|method| {
             let s = auto(&model, names, method);
             let (ok, all, worst) = bounded(&model, names, &s, &ddm);
@@ -110,6 +120,62 @@ fn error_bars_on_the_klarbring_oscillator_and_the_j2_cycle() {
         ("uniaxial-j2", vec!["H", "E", "sigma_y"]),
     ] {
         for (method, ok, all, _, _) in coverage(scene, &names) {
+            assert!(
+                ok as f64 >= 0.95 * all as f64,
+                "{scene} {method:?}: {ok} of {all}"
+            );
+        }
+    }
+}
+
+/// `--beta auto` for FDM and FDM central: the same plateau rule on reruns at every step of a
+/// ladder, the error bar from the next step down and the noise of the Newton residual each
+/// rerun actually reached. The 95 % target against DDM on the strip pull-out, the stacked
+/// leaves, the SVK bar and (forward) Jenkins; every chosen step on the method's ladder.
+#[test]
+fn fdm_error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
+    let both = [Method::Fdm, Method::FdmCentral];
+    for (scene, names, methods) in [
+        ("strip-pullout", vec!["mu", "E"], &both[..]),
+        ("stacked-leaves", vec!["E", "mu"], &both[..]),
+        ("uniaxial-svk", vec!["E"], &both[..]),
+        ("jenkins", vec!["mu"], &both[..1]),
+    ] {
+        for (method, ok, all, _, s) in coverage_of(scene, &names, methods) {
+            assert!(all > 0);
+            assert!(
+                ok as f64 >= 0.95 * all as f64,
+                "{scene} {method:?}: {ok} of {all}"
+            );
+            let ladder: &[f64] = if method == Method::FdmCentral {
+                &fricsens::sensitivity::FDM_CENTRAL_LADDER
+            } else {
+                &fricsens::sensitivity::FDM_FORWARD_LADDER
+            };
+            for inc in &s.increments {
+                assert!(
+                    inc.betas.iter().all(|b| ladder.contains(b)),
+                    "{:?}",
+                    inc.betas
+                );
+            }
+        }
+    }
+}
+
+/// Known shortfalls of FDM's bars (run with `--ignored`): forward FDM on the J2 cycle bounds
+/// 166 of 180 (d(stress)/dH at 13 increments, d(alpha)/dH at one), and central FDM on Jenkins
+/// 93 of 98: at increments 16 and 36, where the slide reverses, the reruns at 0.1 and 0.01 of
+/// mu on either side both cross the stick/slip switch and agree with each other on a
+/// derivative of 0 where DDM's is 1, a false plateau that the step below does not expose.
+#[test]
+#[ignore = "a finding: below the 95 % target, see the doc comment"]
+fn fdm_error_bars_on_the_j2_cycle_and_central_jenkins() {
+    for (scene, names, method) in [
+        ("uniaxial-j2", vec!["H", "E", "sigma_y"], Method::Fdm),
+        ("jenkins", vec!["mu"], Method::FdmCentral),
+    ] {
+        for (method, ok, all, _, _) in coverage_of(scene, &names, &[method]) {
             assert!(
                 ok as f64 >= 0.95 * all as f64,
                 "{scene} {method:?}: {ok} of {all}"
