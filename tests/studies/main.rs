@@ -11,4 +11,5 @@ mod common;
 mod adjoint_study;
 mod ccx;
 mod scaling;
+mod shards;
 mod validation;
