@@ -12,4 +12,5 @@ mod adjoint_study;
 mod ccx;
 mod scaling;
 mod shards;
+mod validate_adjoint;
 mod validation;

@@ -246,12 +246,31 @@ pub struct SceneValidation {
     pub tangent: tangent::TangentStudy,
     /// `--beta auto` against DDM ([`auto_step`]).
     pub auto: Vec<auto_step::AutoRow>,
+    /// The adjoint at the last increment, every response, against DDM ([`AdjointCheck`]).
+    pub adjoint: AdjointCheck,
     /// The reference DDM results.
     #[serde(skip)]
     pub ddm: SensitivityResults,
     /// The results of the sweep (SDM and SDM central in line, then the FDM reruns).
     #[serde(skip)]
     pub sweeps: Vec<SensitivityResults>,
+}
+
+/// The adjoint (`Method::Adjoint`) of one scene: every response at the last increment, one
+/// backward sweep for all the parameters, against DDM there.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct AdjointCheck {
+    /// Per parameter: the largest relative error against DDM over the responses sensitive to
+    /// it, at the last increment (the module docs' measure, floored at `floor` times the
+    /// largest DDM sensitivity over the history); NaN where the adjoint failed.
+    pub errors: Vec<f64>,
+    /// The adjoint's wall time (its stored forward states and its backward sweep) over the
+    /// primal's ([`SceneValidation::primal_seconds`]).
+    pub cost_ratio: f64,
+    /// Bytes of the forward states it stored.
+    pub stored_bytes: usize,
+    /// Why it failed, if it did.
+    pub failure: Option<String>,
 }
 
 /// The whole validation.
@@ -582,6 +601,7 @@ pub(crate) fn validate_scene(
     let (_, fdm) = run_fdm_sweep(&model, &params, &fdm_betas, true).map_err(wrap)?;
     let primal_seconds = ddm.primal_seconds.max(1e-9);
     let flagged: Vec<bool> = ddm.increments.iter().map(|i| !i.kinks.is_empty()).collect();
+    let adjoint = adjoint_at_last(&model, &params, &ddm, &exact, opts.floor, primal_seconds);
     let mut errors = Vec::new();
     let sweeps: Vec<SensitivityResults> = inline.into_iter().chain(fdm).collect();
     for s in &sweeps {
@@ -660,6 +680,7 @@ pub(crate) fn validate_scene(
         ledger,
         anatomy,
         auto: auto_step::auto_rows(&ddm, &auto_runs, &params, opts.floor, &flagged),
+        adjoint,
         tangent: tangent::tangent_study(
             &ddm,
             &ddm_last,
@@ -673,6 +694,62 @@ pub(crate) fn validate_scene(
         ddm,
         sweeps,
     })
+}
+
+/// The adjoint of every response at the last increment of `ddm`'s run, for all of `params`
+/// in one backward sweep, against DDM there: per parameter the largest of
+/// `|D_adj - D_ddm| / max(|D_ddm|, floor * max_n |D_ddm(n)|)` over the responses sensitive to
+/// it. A flagged last increment is compared too: the adjoint and DDM's main value both follow
+/// the converged branches. `primal_seconds` is the denominator of the cost.
+pub(crate) fn adjoint_at_last(
+    model: &crate::model::Model,
+    params: &[Parameter],
+    ddm: &SensitivityResults,
+    settings: &Settings,
+    floor: f64,
+    primal_seconds: f64,
+) -> AdjointCheck {
+    let nan = |why: String| AdjointCheck {
+        errors: vec![f64::NAN; params.len()],
+        cost_ratio: f64::NAN,
+        stored_bytes: 0,
+        failure: Some(why),
+    };
+    let Some(last) = ddm.increments.last() else {
+        return nan("no increment".into());
+    };
+    let settings = Settings {
+        method: Method::Adjoint,
+        adjoint_at: vec![last.time],
+        ..settings.clone()
+    };
+    let adj = match crate::sensitivity::run_sensitivity(model, params, &settings) {
+        Ok((_, adj)) => adj,
+        Err(e) => return nan(e.to_string()),
+    };
+    let Some(at) = adj.increment_at(last.time) else {
+        return nan(format!("no increment at t = {}", last.time));
+    };
+    let errors = (0..params.len())
+        .map(|p| {
+            let mut worst: f64 = 0.0;
+            for r in 0..ddm.responses.len() {
+                let Some(scale) = ddm.sensitive_scale(r, p, params[p].value) else {
+                    continue;
+                };
+                let d = last.derivatives[r][p];
+                let e = (at.derivatives[r][p] - d).abs() / d.abs().max(floor * scale);
+                worst = if e.is_nan() { f64::NAN } else { worst.max(e) };
+            }
+            worst
+        })
+        .collect();
+    AdjointCheck {
+        errors,
+        cost_ratio: adj.cost.wall_seconds / primal_seconds,
+        stored_bytes: adj.cost.stored_bytes,
+        failure: None,
+    }
 }
 
 pub(super) fn io(path: &Path) -> impl Fn(std::io::Error) -> ValidateError + '_ {
