@@ -125,8 +125,10 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// Combine the shares of a sharded finite-difference sweep (`fricsens sensitivity
-    /// --shard K/N`) into the unsharded run's sensitivity.csv and sensitivity.json.
+    /// Combine the shares of a sharded run into the unsharded run's outputs: a
+    /// finite-difference sweep (`fricsens sensitivity --shard K/N`: sensitivity.csv and
+    /// sensitivity.json), a validation (`fricsens validate --shard K/N`: the report, its data
+    /// and figures) or a scaling study (`fricsens scaling --shard K/N`).
     Merge {
         /// The shares' partial-K-of-N.json files (every share exactly once).
         #[arg(required = true)]
@@ -153,6 +155,15 @@ enum Command {
         beta_max: f64,
         #[arg(long, default_value_t = 1e-14)]
         beta_min: f64,
+        /// Run share K of N of the validation's independent jobs (each scene, the leaf spring
+        /// without friction, the friction-law comparison, each imported-geometry check, each
+        /// batched-cost measurement) and write OUT/partial-K-of-N.json; `fricsens merge`
+        /// combines the shares into the unsharded run's report.
+        #[arg(long, value_name = "K/N")]
+        shard: Option<String>,
+        /// Elements of the strip of the friction-law comparison; 0 leaves the comparison out.
+        #[arg(long, default_value_t = 100, value_name = "N")]
+        friction_laws: usize,
     },
     /// Compare with CalculiX (ccx): the same mesh, increments and tolerance; time ratio,
     /// forces, and ccx's finite-difference d/d mu (frictionless: d/d E of the first body)
@@ -202,6 +213,11 @@ enum Command {
         /// DIR/scaling.json, replacing their entries, and rewrite the outputs (no measuring).
         #[arg(long, conflicts_with = "rewrite")]
         merge: Vec<PathBuf>,
+        /// Measure share K of N of the sizes (the budgets extrapolate from the share's own
+        /// smaller sizes) and write OUT/partial-K-of-N.json; `fricsens merge` combines the
+        /// shares into the study's outputs.
+        #[arg(long, value_name = "K/N", conflicts_with_all = ["rewrite", "merge"])]
+        shard: Option<String>,
     },
     /// The adjoint's study: cost against the number of parameters (1 to 10,000 element-wise
     /// fields) for DDM, SDM, FDM and the adjoint on the leaf spring and the indentation, where
@@ -950,33 +966,104 @@ fn run(scene_name: &str, out: Option<PathBuf>, vtk: output::VtkOutput) -> Result
     Ok(())
 }
 
+/// `fricsens merge`: the shares of a sharded run, of whichever kind their files say.
+fn merge_any(files: &[PathBuf], out: Option<PathBuf>) -> Result<(), String> {
+    use fricsens::studies::validate::partial::partial_kind;
+    let mut kind: Option<(Option<String>, &PathBuf)> = None;
+    for f in files {
+        let k = partial_kind(f).map_err(|e| e.to_string())?;
+        match &kind {
+            Some((first, file)) if *first != k => {
+                let name =
+                    |k: &Option<String>| k.clone().unwrap_or_else(|| "finite-difference".into());
+                return Err(format!(
+                    "{}: a share of a {} run, {} is of a {} run: merge the shares of one run",
+                    f.display(),
+                    name(&k),
+                    file.display(),
+                    name(first)
+                ));
+            }
+            _ => kind = Some((k, f)),
+        }
+    }
+    let dir = || match &out {
+        Some(d) => d.clone(),
+        None => files[0]
+            .parent()
+            .map(|p| p.to_path_buf())
+            .unwrap_or_else(|| PathBuf::from(".")),
+    };
+    match kind.and_then(|k| k.0).as_deref() {
+        Some(fricsens::studies::validate::PARTIAL_KIND) => {
+            let out = dir();
+            let v = fricsens::studies::validate::merge_shards(files, &out)
+                .map_err(|e| e.to_string())?;
+            print_validation(&v, &out);
+            Ok(())
+        }
+        Some(fricsens::studies::scaling::PARTIAL_KIND) => {
+            let out = dir();
+            let study =
+                fricsens::studies::scaling::merge_shards(files, &out).map_err(|e| e.to_string())?;
+            out!(
+                "{} shares merged: {} sizes measured, {} skipped; written to {}",
+                files.len(),
+                study.rows.len(),
+                study.skipped.len(),
+                out.join("scaling.md").display()
+            );
+            Ok(())
+        }
+        Some(other) => Err(format!(
+            "{}: a partial result of kind `{other}`, which this fricsens does not merge",
+            files[0].display()
+        )),
+        None => merge(files, out),
+    }
+}
+
+fn print_validation(v: &fricsens::studies::validate::Validation, out: &std::path::Path) {
+    for s in &v.scenes {
+        out!(
+            "{:<18} {:>6} unknowns {:>4} increments  primal {:>7.2} s  DDM/primal {:.3}",
+            s.scene,
+            s.unknowns,
+            s.increments,
+            s.primal_seconds,
+            s.ddm_cost_ratio
+        );
+    }
+    let failed = v.oracles.iter().filter(|o| !o.pass).count();
+    out!(
+        "{} oracle checks, {} failed; report written to {} in {:.0} s",
+        v.oracles.len(),
+        failed,
+        out.join("README.md").display(),
+        v.wall_seconds
+    );
+}
+
 fn validate(
     names: &[String],
     out: PathBuf,
     full: bool,
-    beta_max: f64,
-    beta_min: f64,
+    (beta_max, beta_min): (f64, f64),
+    shard: Option<String>,
+    friction_laws: Option<usize>,
 ) -> Result<(), String> {
     use fricsens::studies::validate::{
-        default_scenes, validate_observed, ValidateOptions, ValidateProgress,
+        resolve_scenes, run_shard, validate_observed, ValidateOptions, ValidateProgress,
     };
     if !(beta_max > 0.0 && beta_max < 1.0 && beta_min > 0.0 && beta_min <= beta_max) {
         return Err(format!(
             "--beta-max and --beta-min must satisfy 0 < beta-min <= beta-max < 1, got {beta_max:e} and {beta_min:e}"
         ));
     }
-    let scenes = if names.is_empty() {
-        default_scenes(full)
-    } else {
-        let defaults = default_scenes(full);
-        names
-            .iter()
-            .map(|n| match defaults.iter().find(|s| &s.name == n) {
-                Some(s) => Ok(s.clone()),
-                None => Scene::load(n).map_err(|e| e.to_string()),
-            })
-            .collect::<Result<Vec<_>, _>>()?
-    };
+    let shard = shard
+        .map(|s| fricsens::sensitivity::Shard::parse(&s))
+        .transpose()?;
+    let scenes = resolve_scenes(names, full).map_err(|e| e.to_string())?;
     let mut betas = Vec::new();
     let mut b = beta_max;
     while b >= beta_min * (1.0 - 1e-9) {
@@ -997,8 +1084,20 @@ fn validate(
         } else {
             None
         },
+        friction_laws,
         ..ValidateOptions::default()
     };
+    if let Some(shard) = shard {
+        let path = run_shard(names, full, &scenes, &opts, shard, &mut |_| {})
+            .map_err(|e| e.to_string())?;
+        out!(
+            "share {}/{} of the validation written to {}; combine the shares with `fricsens merge`",
+            shard.index,
+            shard.count,
+            path.display()
+        );
+        return Ok(());
+    }
     let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
         ProgressBar::new(scenes.len() as u64)
     } else {
@@ -1012,24 +1111,7 @@ fn validate(
         ValidateProgress::Report => bar.finish_and_clear(),
     })
     .map_err(|e| e.to_string())?;
-    for s in &v.scenes {
-        out!(
-            "{:<18} {:>6} unknowns {:>4} increments  primal {:>7.2} s  DDM/primal {:.3}",
-            s.scene,
-            s.unknowns,
-            s.increments,
-            s.primal_seconds,
-            s.ddm_cost_ratio
-        );
-    }
-    let failed = v.oracles.iter().filter(|o| !o.pass).count();
-    out!(
-        "{} oracle checks, {} failed; report written to {} in {:.0} s",
-        v.oracles.len(),
-        failed,
-        out.join("README.md").display(),
-        v.wall_seconds
-    );
+    print_validation(&v, &out);
     Ok(())
 }
 
@@ -1128,10 +1210,11 @@ fn scaling(
     quick: bool,
     memory_budget_mib: f64,
     time_budget_seconds: f64,
+    shard: Option<String>,
 ) -> Result<(), String> {
-    use fricsens::studies::scaling::{run_study, StudyOptions};
+    use fricsens::studies::scaling::{run_shard, run_study, StudyOptions};
     let exe = std::env::current_exe().map_err(|e| format!("cannot locate fricsens itself: {e}"))?;
-    let study = run_study(&StudyOptions {
+    let opts = StudyOptions {
         out: out.clone(),
         max_dofs,
         quick,
@@ -1139,8 +1222,19 @@ fn scaling(
         memory_budget_mib,
         time_budget_seconds,
         verbose: true,
-    })
-    .map_err(|e| e.to_string())?;
+    };
+    if let Some(shard) = shard {
+        let shard = fricsens::sensitivity::Shard::parse(&shard)?;
+        let path = run_shard(&opts, shard).map_err(|e| e.to_string())?;
+        out!(
+            "share {}/{} of the scaling study written to {}; combine the shares with `fricsens merge`",
+            shard.index,
+            shard.count,
+            path.display()
+        );
+        return Ok(());
+    }
+    let study = run_study(&opts).map_err(|e| e.to_string())?;
     out!(
         "{} sizes measured, {} skipped, in {:.0} s; written to {}",
         study.rows.len(),
@@ -1416,7 +1510,15 @@ fn main() -> ExitCode {
             time_budget_s,
             rewrite: false,
             merge,
-        } if merge.is_empty() => scaling(out, max_dofs, quick, memory_budget_mib, time_budget_s),
+            shard,
+        } if merge.is_empty() => scaling(
+            out,
+            max_dofs,
+            quick,
+            memory_budget_mib,
+            time_budget_s,
+            shard,
+        ),
         Command::Scaling {
             out,
             merge,
@@ -1439,8 +1541,17 @@ fn main() -> ExitCode {
             full,
             beta_max,
             beta_min,
-        } => validate(&scenes, out, full, beta_max, beta_min),
-        Command::Merge { partials, out } => merge(&partials, out),
+            shard,
+            friction_laws,
+        } => validate(
+            &scenes,
+            out,
+            full,
+            (beta_max, beta_min),
+            shard,
+            (friction_laws > 0).then_some(friction_laws),
+        ),
+        Command::Merge { partials, out } => merge_any(&partials, out),
         Command::Sensitivity {
             scene,
             params,

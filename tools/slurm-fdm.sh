@@ -12,6 +12,8 @@
 #   parallel fricsens sensitivity leaf-spring --method fdm-central --beta 1e-6 \
 #       --shard {}/16 --out out/leaf-fdm ::: $(seq 16) && fricsens merge out/leaf-fdm/partial-*-of-16.json
 #
+# tools/slurm-shards.sh shards any of fricsens' sweeps (validate, scaling, sensitivity).
+#
 #SBATCH --job-name=fricsens-fdm
 #SBATCH --cpus-per-task=2
 #SBATCH --time=02:00:00

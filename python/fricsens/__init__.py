@@ -16,7 +16,8 @@ parameters to responses for ``scipy.optimize`` (value and Jacobian in one run).
 
 Runs release the GIL; ``progress=callable(increment, time)`` is called after each converged
 increment. Errors are :class:`FricsensError` and its subclasses, carrying the library's
-messages.
+messages; an :class:`AnalysisError` also carries ``partial``, what the analysis computed for the
+increments that converged before it stopped (a :class:`Run` or a :class:`Sensitivity`, or None).
 """
 
 from __future__ import annotations
@@ -211,23 +212,14 @@ class Scene:
         return self._inner.to_toml()
 
     def run(self, progress: Progress = None) -> Run:
-        """The primal analysis."""
-        d = self._inner.run(progress)
-        n = d["n_nodes"]
-        times = np.asarray(d["times"], dtype=float)
-        k = len(times)
-        return Run(
-            times=times,
-            responses=list(d["responses"]),
-            values=np.asarray(d["values"], dtype=float).reshape(k, len(d["responses"])),
-            displacements=np.asarray(d["displacements"], dtype=float).reshape(k, n, 3),
-            contact_pressure=np.asarray(d["contact_pressure"], dtype=float).reshape(k, n),
-            contact_pressure_current=np.asarray(
-                d["contact_pressure_current"], dtype=float
-            ).reshape(k, n),
-            contact_state=np.asarray(d["contact_state"], dtype=float).reshape(k, n).astype(int),
-            cost=json.loads(d["cost"]),
-        )
+        """The primal analysis. If it stops, the :class:`AnalysisError` raised carries the
+        increments that converged as ``partial``, a :class:`Run` (None if none did)."""
+        try:
+            d = self._inner.run(progress)
+        except AnalysisError as e:
+            _with_partial(e, _run_from)
+            raise
+        return _run_from(d)
 
     def sensitivity(
         self,
@@ -242,50 +234,87 @@ class Scene:
         by ``method``: ``ddm``, ``sdm``, ``sdm-central``, ``fdm``, ``fdm-central`` or ``adjoint`` (every increment).
         ``beta``: the relative perturbation (None: the study's; ``"auto"`` for SDM);
         ``tangent``: ``exact``, ``last`` or ``refined``; ``fields``: also the derivative of
-        the displacement field."""
+        the displacement field. If the analysis stops, the :class:`AnalysisError` raised
+        carries, for the in-line methods (``ddm``, ``sdm``, ``sdm-central``), the increments
+        that converged as ``partial``, a :class:`Sensitivity` (None for the finite
+        differences and the adjoint, which need the whole history)."""
         if params is None:
             params = self.study_parameters
         elif isinstance(params, str):
             params = [params]
-        d = self._inner.sensitivity(list(params), method, beta, tangent, fields, progress)
-        ni, nr, npar = len(d["times"]), len(d["responses"]), len(d["parameters"])
-        ledger = json.loads(d["cost"])
-        bars = np.asarray(d["error_bars"], dtype=float)
-        betas = np.asarray(d["betas"], dtype=float)
-        kinks = [[Kink(kind=k["kind"], at=k["at"], point=k["point"], distance=k["distance"])
-                  for k in inc] for inc in json.loads(d["kinks"])]
-        out = Sensitivity(
-            method=d["method"],
-            beta=d["beta"],
-            parameters=list(d["parameters"]),
-            responses=list(d["responses"]),
-            increments=np.asarray(d["increments"], dtype=int),
-            times=np.asarray(d["times"], dtype=float),
-            values=np.asarray(d["values"], dtype=float).reshape(ni, nr),
-            derivatives=np.asarray(d["derivatives"], dtype=float).reshape(ni, nr, npar),
-            error_bars=bars.reshape(ni, nr, npar) if bars.size else None,
-            betas=betas.reshape(ni, npar) if betas.size else None,
-            kinks=kinks,
-            one_sided=json.loads(d["one_sided"]),
-            cost=Cost(
-                wall_seconds=ledger["wall_seconds"],
-                residual_evaluations=ledger["residual_evaluations"],
-                factorizations=ledger["factorizations"],
-                solve_columns=ledger["solve_columns"],
-                primal_reruns=ledger["primal_reruns"],
-                evaluation_seconds=ledger["evaluation_seconds"],
-                factor_seconds=ledger["factor_seconds"],
-                solve_seconds=ledger["solve_seconds"],
-                primal_seconds=d["primal_seconds"],
-                ledger=ledger,
-            ),
-        )
-        if fields:
-            n = d["n_nodes"]
-            out.displacement_derivatives = np.asarray(
-                d["displacement_derivatives"], dtype=float
-            ).reshape(ni, npar, n, 3)
-        return out
+        try:
+            d = self._inner.sensitivity(list(params), method, beta, tangent, fields, progress)
+        except AnalysisError as e:
+            _with_partial(e, lambda p: _sensitivity_from(p, fields))
+            raise
+        return _sensitivity_from(d, fields)
+
+
+def _with_partial(e: AnalysisError, convert: Callable[[dict], object]) -> None:
+    """Replace the extension's raw ``partial`` (a dict, or None) by the package's object."""
+    raw = getattr(e, "partial", None)
+    e.partial = None if raw is None else convert(raw)
+
+
+def _run_from(d: dict) -> Run:
+    """A :class:`Run` from the extension's dict."""
+    n = d["n_nodes"]
+    times = np.asarray(d["times"], dtype=float)
+    k = len(times)
+    return Run(
+        times=times,
+        responses=list(d["responses"]),
+        values=np.asarray(d["values"], dtype=float).reshape(k, len(d["responses"])),
+        displacements=np.asarray(d["displacements"], dtype=float).reshape(k, n, 3),
+        contact_pressure=np.asarray(d["contact_pressure"], dtype=float).reshape(k, n),
+        contact_pressure_current=np.asarray(
+            d["contact_pressure_current"], dtype=float
+        ).reshape(k, n),
+        contact_state=np.asarray(d["contact_state"], dtype=float).reshape(k, n).astype(int),
+        cost=json.loads(d["cost"]),
+    )
+
+
+def _sensitivity_from(d: dict, fields: bool) -> Sensitivity:
+    """A :class:`Sensitivity` from the extension's dict."""
+    ni, nr, npar = len(d["times"]), len(d["responses"]), len(d["parameters"])
+    ledger = json.loads(d["cost"])
+    bars = np.asarray(d["error_bars"], dtype=float)
+    betas = np.asarray(d["betas"], dtype=float)
+    kinks = [[Kink(kind=k["kind"], at=k["at"], point=k["point"], distance=k["distance"])
+              for k in inc] for inc in json.loads(d["kinks"])]
+    out = Sensitivity(
+        method=d["method"],
+        beta=d["beta"],
+        parameters=list(d["parameters"]),
+        responses=list(d["responses"]),
+        increments=np.asarray(d["increments"], dtype=int),
+        times=np.asarray(d["times"], dtype=float),
+        values=np.asarray(d["values"], dtype=float).reshape(ni, nr),
+        derivatives=np.asarray(d["derivatives"], dtype=float).reshape(ni, nr, npar),
+        error_bars=bars.reshape(ni, nr, npar) if bars.size else None,
+        betas=betas.reshape(ni, npar) if betas.size else None,
+        kinks=kinks,
+        one_sided=json.loads(d["one_sided"]),
+        cost=Cost(
+            wall_seconds=ledger["wall_seconds"],
+            residual_evaluations=ledger["residual_evaluations"],
+            factorizations=ledger["factorizations"],
+            solve_columns=ledger["solve_columns"],
+            primal_reruns=ledger["primal_reruns"],
+            evaluation_seconds=ledger["evaluation_seconds"],
+            factor_seconds=ledger["factor_seconds"],
+            solve_seconds=ledger["solve_seconds"],
+            primal_seconds=d["primal_seconds"],
+            ledger=ledger,
+        ),
+    )
+    if fields:
+        n = d["n_nodes"]
+        out.displacement_derivatives = np.asarray(
+            d["displacement_derivatives"], dtype=float
+        ).reshape(ni, npar, n, 3)
+    return out
 
 
 class Map:

@@ -5,7 +5,16 @@ from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 class FricsensError(Exception): ...
 class SceneError(FricsensError): ...
 class ParameterError(FricsensError): ...
-class AnalysisError(FricsensError): ...
+class AnalysisError(FricsensError):
+    """An analysis that stopped (the message names the increment and what failed)."""
+
+    partial: Optional[Any]
+    """What the call computed for the increments that converged before it stopped: the dict
+    ``Scene.run`` returns, or the one ``Scene.sensitivity`` returns for the in-line methods
+    (``ddm``, ``sdm``, ``sdm-central``); the ``fricsens`` package turns it into a ``Run`` or
+    a ``Sensitivity``. None where nothing converged, for a failure before the first
+    increment, and for the finite differences and the adjoint (they need the whole
+    history)."""
 
 class Scene:
     @staticmethod

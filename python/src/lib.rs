@@ -9,7 +9,10 @@
 
 use fricsens::model::{node_dofs, Model};
 use fricsens::prelude::*;
-use fricsens::sensitivity::{run_sensitivity_watched, TangentChoice};
+use fricsens::sensitivity::{
+    run_sensitivity_watched, Engine, SensitivityError, SensitivityResults, TangentChoice,
+};
+use fricsens::solver::Results;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
@@ -42,6 +45,24 @@ create_exception!(
 
 fn scene_err(e: impl std::fmt::Display) -> PyErr {
     SceneError::new_err(e.to_string())
+}
+
+/// `AnalysisError` for scene `name`, with `partial` (what the call returns, for the
+/// increments that converged; `None` where none did) as its attribute `partial` (else the
+/// class's `None`).
+fn analysis_err(
+    py: Python<'_>,
+    name: &str,
+    e: &fricsens::solver::AnalysisError,
+    partial: Option<Bound<'_, PyDict>>,
+) -> PyErr {
+    let err = AnalysisError::new_err(format!("{name}: {e}"));
+    if let Some(p) = partial {
+        if let Err(x) = err.value(py).setattr("partial", p) {
+            return x;
+        }
+    }
+    err
 }
 
 /// A scene with design-parameter values set on it.
@@ -91,6 +112,64 @@ fn report(progress: &Option<PyObject>, index: usize, time: f64) {
 }
 
 struct Progress<'a>(&'a Option<PyObject>);
+
+/// The in-line engine (DDM, SDM, SDM central) observing the primal run, then the progress
+/// callback: what `run_sensitivity_watched` does, with the engine's results kept when the
+/// run stops.
+struct Inline<'a, 'p> {
+    engine: Engine<'p>,
+    progress: &'a Option<PyObject>,
+}
+
+impl Observer for Inline<'_, '_> {
+    fn converged(&mut self, c: &Converged<'_>) -> Result<(), fricsens::solver::AnalysisError> {
+        self.engine.converged(c)?;
+        report(self.progress, c.index, c.time);
+        Ok(())
+    }
+}
+
+/// Run the in-line method of `settings`: the primal results and the sensitivities, or the
+/// error with the sensitivities of the increments that converged.
+#[allow(clippy::type_complexity)]
+fn run_inline(
+    model: &Model,
+    params: &[Parameter],
+    settings: &Settings,
+    progress: &Option<PyObject>,
+) -> Result<(Results, SensitivityResults), Box<(fricsens::solver::AnalysisError, SensitivityResults)>>
+{
+    let mut obs = Inline {
+        engine: Engine::new(model, params, settings.clone()),
+        progress,
+    };
+    let run = Solver::new(model).and_then(|mut s| s.run(&RunOptions::default(), &mut obs));
+    let mut sens = obs.engine.results;
+    // the primal run's time without the engine's own work, as the in-line sweep gives it
+    let primal = |wall: f64, s: &SensitivityResults| {
+        let c = &s.cost;
+        wall - (c.wall_seconds + c.floor_seconds + c.anatomy_seconds + c.fields_seconds)
+    };
+    match run {
+        Ok(res) => {
+            sens.primal_seconds = primal(res.cost.wall_seconds, &sens);
+            if let Some(why) = &sens.failure {
+                let e = SensitivityError::Failed {
+                    method: settings.method.name(),
+                    reason: why.clone(),
+                };
+                return Err(Box::new((e.into(), sens)));
+            }
+            Ok((res, sens))
+        }
+        Err(e) => {
+            sens.primal_seconds = e
+                .partial()
+                .map_or(f64::NAN, |p| primal(p.cost.wall_seconds, &sens));
+            Err(Box::new((e, sens)))
+        }
+    }
+}
 
 impl Observer for Progress<'_> {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), fricsens::solver::AnalysisError> {
@@ -193,63 +272,22 @@ impl PyScene {
         progress: Option<PyObject>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let model = self.model()?;
-        let res = py
-            .allow_threads(|| {
-                let mut solver = Solver::new(&model)?;
-                solver.run(&RunOptions::default(), &mut Progress(&progress))
-            })
-            .map_err(|e| AnalysisError::new_err(format!("{}: {e}", self.scene.name)))?;
-        let out = PyDict::new(py);
-        let stored = res.states.len();
-        out.set_item("times", res.times[..stored].to_vec())?;
-        out.set_item(
-            "responses",
-            model
-                .responses
-                .iter()
-                .map(|r| r.name.clone())
-                .collect::<Vec<_>>(),
-        )?;
-        let nr = model.responses.len();
-        let mut values = Vec::with_capacity(stored * nr);
-        for k in 0..stored {
-            for r in 0..nr {
-                values.push(res.response_value(&model, r, k));
+        let res = py.allow_threads(|| {
+            let mut solver = Solver::new(&model)?;
+            solver.run(&RunOptions::default(), &mut Progress(&progress))
+        });
+        match res {
+            Ok(res) => run_dict(py, &model, &res),
+            Err(e) => {
+                // index 0 is the initial state: a partial run has a converged increment more
+                let partial = e
+                    .partial()
+                    .filter(|p| p.states.len() > 1)
+                    .map(|p| run_dict(py, &model, p))
+                    .transpose()?;
+                Err(analysis_err(py, &self.scene.name, &e, partial))
             }
         }
-        out.set_item("values", values)?;
-        let n = model.mesh.n_nodes();
-        let mut disp = Vec::with_capacity(stored * n * 3);
-        for z in &res.states {
-            for i in 0..n {
-                disp.extend_from_slice(&z[node_dofs(i)]);
-            }
-        }
-        out.set_item("displacements", disp)?;
-        out.set_item("n_nodes", n)?;
-        let mut nominal = vec![0.0; stored * n];
-        let mut current = vec![0.0; stored * n];
-        let mut state = vec![-1.0; stored * n];
-        for k in 0..stored {
-            let f = fricsens::output::contact_fields(&model, &res, k);
-            for (name, _, v) in &f.point {
-                let slot = match name.as_str() {
-                    "contact_pressure_nominal" => &mut nominal,
-                    "contact_pressure_current" => &mut current,
-                    "contact_state" => &mut state,
-                    _ => continue,
-                };
-                slot[k * n..(k + 1) * n].copy_from_slice(v);
-            }
-        }
-        out.set_item("contact_pressure", nominal)?;
-        out.set_item("contact_pressure_current", current)?;
-        out.set_item("contact_state", state)?;
-        out.set_item(
-            "cost",
-            serde_json::to_string(&res.cost).expect("serialises"),
-        )?;
-        Ok(out)
     }
 
     /// A sensitivity analysis of every response with respect to `params` by `method` (`ddm`,
@@ -325,85 +363,176 @@ impl PyScene {
             fields,
             ..Settings::default()
         };
-        let (res, sens) = py
-            .allow_threads(|| {
+        let run = py.allow_threads(|| {
+            if method.is_inline() {
+                run_inline(&model, &ps, &settings, &progress).map_err(|b| {
+                    let (e, partial) = *b;
+                    Box::new((e, Some(partial)))
+                })
+            } else {
+                // finite differences need the reruns of the whole history, and the adjoint's
+                // backward sweep starts at the last increment: no partial sensitivities
                 run_sensitivity_watched(&model, &ps, &settings, &mut |c| {
                     report(&progress, c.index, c.time)
                 })
-            })
-            .map_err(|e| AnalysisError::new_err(format!("{}: {e}", self.scene.name)))?;
-        let out = PyDict::new(py);
-        out.set_item("method", method.name())?;
-        out.set_item(
-            "beta",
-            if method == Method::Ddm {
-                None
-            } else {
-                Some(beta)
-            },
-        )?;
-        out.set_item("parameters", sens.parameters.clone())?;
-        out.set_item("responses", sens.responses.clone())?;
-        out.set_item(
-            "increments",
-            sens.increments
-                .iter()
-                .map(|i| i.increment)
-                .collect::<Vec<_>>(),
-        )?;
-        out.set_item(
-            "times",
-            sens.increments.iter().map(|i| i.time).collect::<Vec<_>>(),
-        )?;
-        let values: Vec<f64> = sens
-            .increments
+                .map_err(|e| Box::new((e, None)))
+            }
+        });
+        let sens_out = |sens: &SensitivityResults, primal_wall: f64| {
+            sensitivity_dict(py, &model, sens, primal_wall, beta, fields, ps.len())
+        };
+        match run {
+            Ok((res, sens)) => sens_out(&sens, res.cost.wall_seconds),
+            Err(b) => {
+                let (e, partial) = *b;
+                let primal_wall = e.partial().map_or(f64::NAN, |p| p.cost.wall_seconds);
+                let partial = partial
+                    .filter(|sens| !sens.increments.is_empty())
+                    .map(|sens| sens_out(&sens, primal_wall))
+                    .transpose()?;
+                Err(analysis_err(py, &self.scene.name, &e, partial))
+            }
+        }
+    }
+}
+
+/// What `Scene.sensitivity` returns: flat lists with their shapes, JSON for the records.
+fn sensitivity_dict<'py>(
+    py: Python<'py>,
+    model: &Model,
+    sens: &SensitivityResults,
+    primal_wall: f64,
+    beta: f64,
+    fields: bool,
+    n_params: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let method = sens.method.unwrap_or(Method::Ddm);
+    let out = PyDict::new(py);
+    out.set_item("method", method.name())?;
+    out.set_item(
+        "beta",
+        if method == Method::Ddm {
+            None
+        } else {
+            Some(beta)
+        },
+    )?;
+    out.set_item("parameters", sens.parameters.clone())?;
+    out.set_item("responses", sens.responses.clone())?;
+    out.set_item(
+        "increments",
+        sens.increments
             .iter()
-            .flat_map(|i| i.values.clone())
-            .collect();
-        out.set_item("values", values)?;
-        let derivatives: Vec<f64> = (sens.increments.iter())
-            .flat_map(|i| i.derivatives.iter().flatten().copied())
-            .collect();
-        out.set_item("derivatives", derivatives)?;
-        let bars: Vec<f64> = (sens.increments.iter())
-            .flat_map(|i| i.error_bars.iter().flatten().copied())
-            .collect();
-        out.set_item("error_bars", bars)?;
-        let betas: Vec<f64> = sens
-            .increments
-            .iter()
-            .flat_map(|i| i.betas.clone())
-            .collect();
-        out.set_item("betas", betas)?;
-        let kinks: Vec<_> = sens.increments.iter().map(|i| &i.kinks).collect();
-        out.set_item("kinks", serde_json::to_string(&kinks).expect("serialises"))?;
-        let one_sided: Vec<_> = sens.increments.iter().map(|i| &i.one_sided).collect();
-        out.set_item(
-            "one_sided",
-            serde_json::to_string(&one_sided).expect("serialises"),
-        )?;
-        out.set_item(
-            "cost",
-            serde_json::to_string(&sens.cost).expect("serialises"),
-        )?;
-        out.set_item("primal_seconds", sens.primal_seconds)?;
-        out.set_item("primal_wall_seconds", res.cost.wall_seconds)?;
-        out.set_item("n_nodes", model.mesh.n_nodes())?;
-        if fields {
-            let n = model.mesh.n_nodes();
-            let mut d = Vec::with_capacity(sens.fields.len() * ps.len() * 3 * n);
-            for f in &sens.fields {
-                for p in &f.derivatives {
-                    match p.iter().find(|f| f.name == "displacement") {
-                        Some(u) => d.extend_from_slice(&u.values),
-                        None => d.extend(std::iter::repeat_n(f64::NAN, 3 * n)),
-                    }
+            .map(|i| i.increment)
+            .collect::<Vec<_>>(),
+    )?;
+    out.set_item(
+        "times",
+        sens.increments.iter().map(|i| i.time).collect::<Vec<_>>(),
+    )?;
+    let values: Vec<f64> = sens
+        .increments
+        .iter()
+        .flat_map(|i| i.values.clone())
+        .collect();
+    out.set_item("values", values)?;
+    let derivatives: Vec<f64> = (sens.increments.iter())
+        .flat_map(|i| i.derivatives.iter().flatten().copied())
+        .collect();
+    out.set_item("derivatives", derivatives)?;
+    let bars: Vec<f64> = (sens.increments.iter())
+        .flat_map(|i| i.error_bars.iter().flatten().copied())
+        .collect();
+    out.set_item("error_bars", bars)?;
+    let betas: Vec<f64> = sens
+        .increments
+        .iter()
+        .flat_map(|i| i.betas.clone())
+        .collect();
+    out.set_item("betas", betas)?;
+    let kinks: Vec<_> = sens.increments.iter().map(|i| &i.kinks).collect();
+    out.set_item("kinks", serde_json::to_string(&kinks).expect("serialises"))?;
+    let one_sided: Vec<_> = sens.increments.iter().map(|i| &i.one_sided).collect();
+    out.set_item(
+        "one_sided",
+        serde_json::to_string(&one_sided).expect("serialises"),
+    )?;
+    out.set_item(
+        "cost",
+        serde_json::to_string(&sens.cost).expect("serialises"),
+    )?;
+    out.set_item("primal_seconds", sens.primal_seconds)?;
+    out.set_item("primal_wall_seconds", primal_wall)?;
+    out.set_item("n_nodes", model.mesh.n_nodes())?;
+    if fields {
+        let n = model.mesh.n_nodes();
+        let mut d = Vec::with_capacity(sens.fields.len() * n_params * 3 * n);
+        for f in &sens.fields {
+            for p in &f.derivatives {
+                match p.iter().find(|f| f.name == "displacement") {
+                    Some(u) => d.extend_from_slice(&u.values),
+                    None => d.extend(std::iter::repeat_n(f64::NAN, 3 * n)),
                 }
             }
-            out.set_item("displacement_derivatives", d)?;
         }
-        Ok(out)
+        out.set_item("displacement_derivatives", d)?;
     }
+    Ok(out)
+}
+
+/// What `Scene.run` returns for the results `res` of `model`: flat lists with their shapes.
+fn run_dict<'py>(py: Python<'py>, model: &Model, res: &Results) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    let stored = res.states.len();
+    out.set_item("times", res.times[..stored].to_vec())?;
+    out.set_item(
+        "responses",
+        model
+            .responses
+            .iter()
+            .map(|r| r.name.clone())
+            .collect::<Vec<_>>(),
+    )?;
+    let nr = model.responses.len();
+    let mut values = Vec::with_capacity(stored * nr);
+    for k in 0..stored {
+        for r in 0..nr {
+            values.push(res.response_value(model, r, k));
+        }
+    }
+    out.set_item("values", values)?;
+    let n = model.mesh.n_nodes();
+    let mut disp = Vec::with_capacity(stored * n * 3);
+    for z in &res.states {
+        for i in 0..n {
+            disp.extend_from_slice(&z[node_dofs(i)]);
+        }
+    }
+    out.set_item("displacements", disp)?;
+    out.set_item("n_nodes", n)?;
+    let mut nominal = vec![0.0; stored * n];
+    let mut current = vec![0.0; stored * n];
+    let mut state = vec![-1.0; stored * n];
+    for k in 0..stored {
+        let f = fricsens::output::contact_fields(model, res, k);
+        for (name, _, v) in &f.point {
+            let slot = match name.as_str() {
+                "contact_pressure_nominal" => &mut nominal,
+                "contact_pressure_current" => &mut current,
+                "contact_state" => &mut state,
+                _ => continue,
+            };
+            slot[k * n..(k + 1) * n].copy_from_slice(v);
+        }
+    }
+    out.set_item("contact_pressure", nominal)?;
+    out.set_item("contact_pressure_current", current)?;
+    out.set_item("contact_state", state)?;
+    out.set_item(
+        "cost",
+        serde_json::to_string(&res.cost).expect("serialises"),
+    )?;
+    Ok(out)
 }
 
 /// The built-in scenes: `(name, description)` pairs.
@@ -424,6 +553,9 @@ fn _fricsens(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("FricsensError", py.get_type::<FricsensError>())?;
     m.add("SceneError", py.get_type::<SceneError>())?;
     m.add("ParameterError", py.get_type::<ParameterError>())?;
-    m.add("AnalysisError", py.get_type::<AnalysisError>())?;
+    let analysis = py.get_type::<AnalysisError>();
+    // what an analysis computed before it stopped: set on the instances that have it
+    analysis.setattr("partial", py.None())?;
+    m.add("AnalysisError", analysis)?;
     Ok(())
 }

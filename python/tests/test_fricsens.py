@@ -112,6 +112,58 @@ def test_errors_are_python_exceptions_with_the_librarys_messages(tmp_path):
     assert issubclass(fricsens.AnalysisError, fricsens.FricsensError)
 
 
+def test_a_failed_analysis_carries_the_increments_that_converged():
+    # the J2 cube in large kinematics, strained as the scene does over its first step (10
+    # increments); right after it the prescribed end moves to minus three times the cube's
+    # length, which inverts its element at any step of the second step's one increment, and
+    # no cutback is allowed
+    text = fricsens.Scene.load("uniaxial-j2").to_toml().replace(
+        'kinematics = "small"', 'kinematics = "large"').replace(
+        "amplitude = [[0.0, 0.0], [1.0, 1.0], [3.0, -1.0]]",
+        "amplitude = [[0.0, 0.0], [1.0, 1.0], [1.001, -300.0]]").replace(
+        "max_cutbacks = 10", "max_cutbacks = 0")
+    assert "[1.001, -300.0]" in text and "max_cutbacks = 0" in text
+    second = "[[steps]]\nend = 3.0\nincrements = 20\n"
+    assert second in text
+    failing = fricsens.Scene.from_toml(text.replace(second, "[[steps]]\nend = 2.0\nincrements = 1\n"))
+    # the same scene stopped where the failing one converged last: it runs to its end
+    truncated = fricsens.Scene.from_toml(text.replace(second, ""))
+    whole = truncated.run()
+    assert whole.times[-1] == 1.0 and len(whole.times) == 11
+
+    with pytest.raises(fricsens.AnalysisError, match="det F") as failed:
+        failing.run()
+    partial = failed.value.partial
+    assert isinstance(partial, fricsens.Run)
+    # every converged increment, and the same numbers as the run that did not fail
+    assert np.array_equal(partial.times, whole.times)
+    assert np.array_equal(partial.values, whole.values)
+    assert np.array_equal(partial.displacements, whole.displacements)
+    assert np.array_equal(partial.contact_state, whole.contact_state)
+
+    for method in ("ddm", "sdm", "sdm-central"):
+        ref = truncated.sensitivity(["sigma_y", "H", "E"], method=method, beta=1e-6)
+        with pytest.raises(fricsens.AnalysisError, match="det F") as failed:
+            failing.sensitivity(["sigma_y", "H", "E"], method=method, beta=1e-6)
+        s = failed.value.partial
+        assert isinstance(s, fricsens.Sensitivity), method
+        assert s.method == ref.method and s.parameters == ref.parameters
+        assert np.array_equal(s.increments, ref.increments), method
+        assert np.array_equal(s.times, ref.times), method
+        assert np.array_equal(s.values, ref.values), method
+        assert np.array_equal(s.derivatives, ref.derivatives), method
+    # finite differences need every rerun's whole history: nothing partial to give
+    with pytest.raises(fricsens.AnalysisError) as failed:
+        failing.sensitivity(["E"], method="fdm")
+    assert failed.value.partial is None
+    # an error raised before any increment converged has none either
+    with pytest.raises(fricsens.AnalysisError) as failed:
+        fricsens.Scene.from_toml(text.replace("value = 0.01", "value = -2.0").replace(
+            "[[steps]]\nend = 1.0\nincrements = 10\n", "[[steps]]\nend = 1.0\nincrements = 1\n")
+        ).run()
+    assert failed.value.partial is None
+
+
 def test_runs_release_the_gil_and_report_progress():
     scene = fricsens.Scene.load("leaf-spring-coarse")
     seen = []

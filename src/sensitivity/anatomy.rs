@@ -44,7 +44,7 @@ use num_dual::Dual64;
 pub const TRUNCATION_SCALE: f64 = 10.0;
 
 /// A term of the residual, with a kernel of its own.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Term {
     /// Solid elements whose Gauss points are all elastic at the converged state.
@@ -111,7 +111,7 @@ impl Term {
 
 /// One part of SDM's error that the beta scaling splits: its value at the step, at
 /// [`TRUNCATION_SCALE`] times the step, and the truncation inferred from that.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Split {
     /// The part's error at SDM's step.
     pub value: f64,
@@ -166,7 +166,7 @@ impl Part {
 }
 
 /// SDM's error in one derivative at one increment, split (module docs).
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct ErrorParts {
     /// SDM less DDM.
     pub total: f64,
@@ -199,7 +199,7 @@ impl ErrorParts {
 }
 
 /// The anatomy of SDM's error at one increment.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct IncrementAnatomy {
     /// Increment number.
     pub increment: usize,

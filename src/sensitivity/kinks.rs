@@ -17,7 +17,7 @@ pub(super) fn roundoff_dominated(delta: f64, size: f64, noise: f64) -> bool {
 }
 
 /// The kind of transition a [`Kink`] sits on.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum KinkKind {
     /// A hitting node between open and closed (`at`: its flat hitting-node index).
@@ -46,7 +46,7 @@ impl std::fmt::Display for KinkKind {
 }
 
 /// A point where the converged state sits on a transition.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Kink {
     /// What kind of transition.
     pub kind: KinkKind,
@@ -59,7 +59,7 @@ pub struct Kink {
 }
 
 /// Derivatives `[r][p]` with every flagged point forced onto each side of its transition.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct OneSided {
     /// Elastic / stick / open side.
     pub lower: Vec<Vec<f64>>,

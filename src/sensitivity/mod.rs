@@ -238,7 +238,7 @@ impl Default for Settings {
 }
 
 /// Sensitivities at one converged increment.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct IncrementSensitivity {
     /// Increment number of the nominal run (1-based, counting cut-back sub-increments).
     pub increment: usize,
@@ -273,7 +273,7 @@ pub struct IncrementSensitivity {
 }
 
 /// Work done by a sensitivity computation.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct SensitivityCost {
     /// Wall time of the method's own work, seconds: the in-line engine's time after each
     /// increment (SDM, DDM), or the sum of the reruns' times (FDM; they may run in parallel).
@@ -337,7 +337,7 @@ impl SensitivityCost {
 }
 
 /// Everything a sensitivity run produces.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct SensitivityResults {
     /// The method that produced these results.
     pub method: Option<Method>,

@@ -158,7 +158,7 @@ pub struct Results {
 }
 
 /// Work done by a primal run.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PrimalCost {
     /// Wall time of the whole run (observers included), seconds.
     pub wall_seconds: f64,

@@ -33,7 +33,7 @@ const BETA_SDM: f64 = 1e-6;
 const BETA_FDM: f64 = 1e-6;
 
 /// One law's results.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct LawResult {
     /// The law's name.
     pub law: String,
@@ -56,7 +56,7 @@ pub struct LawResult {
 }
 
 /// The comparison: one [`LawResult`] per shipped law.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct LawComparison {
     /// Strip elements.
     pub elements: usize,

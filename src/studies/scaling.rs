@@ -75,6 +75,9 @@ pub enum ScalingError {
     /// Drawing the figure.
     #[error(transparent)]
     Plot(#[from] PlotError),
+    /// Shares of a sharded study that do not merge, or a partial result that cannot be read.
+    #[error(transparent)]
+    Shard(#[from] crate::studies::validate::partial::ShardError),
     /// No size of any scene was measured.
     #[error("no size was measured (all larger than --max-dofs {max_dofs}, or all failed)")]
     Nothing {
@@ -783,17 +786,250 @@ impl Study {
     }
 }
 
+/// The kind tag of a scaling study's partial result.
+pub const PARTIAL_KIND: &str = "scaling";
+
+/// What the sizes of a sharded study depend on: shares of one study have the same.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ScalingSweep {
+    /// The version of fricsens that ran the share.
+    pub version: String,
+    /// `--quick`.
+    pub quick: bool,
+    /// `--max-dofs`.
+    pub max_dofs: usize,
+    /// `--memory-budget-mib`.
+    pub memory_budget_mib: f64,
+    /// `--time-budget-s`.
+    pub time_budget_seconds: f64,
+    /// The sizes, in order ([`jobs`]).
+    pub jobs: Vec<(ScalingScene, f64)>,
+}
+
+/// What one share of a scaling study wrote (`OUT/partial-K-of-N.json`, kind `scaling`).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct ScalingPartial {
+    /// `scaling`.
+    pub kind: String,
+    /// Which share.
+    pub shard: crate::sensitivity::Shard,
+    /// The study it is a share of.
+    pub sweep: ScalingSweep,
+    /// Machine memory of the share's machine (MiB).
+    pub machine_mib: f64,
+    /// Logical CPUs of the share's process.
+    pub cpus: usize,
+    /// The share's wall time (s).
+    pub wall_seconds: f64,
+    /// `(size, outcome)` for this share's sizes.
+    pub sizes: Vec<(usize, SizeOutcome)>,
+}
+
+/// Measure share `shard` of the study's sizes ([`jobs`]) and write
+/// `opts.out/partial-K-of-N.json`; returns its path. The budgets extrapolate from the share's
+/// own smaller sizes.
+pub fn run_shard(
+    opts: &StudyOptions,
+    shard: crate::sensitivity::Shard,
+) -> Result<PathBuf, ScalingError> {
+    let start = Instant::now();
+    let sizes = run_sizes(opts, Some(shard))?;
+    let p = ScalingPartial {
+        kind: PARTIAL_KIND.into(),
+        shard,
+        sweep: ScalingSweep {
+            version: env!("CARGO_PKG_VERSION").into(),
+            quick: opts.quick,
+            max_dofs: opts.max_dofs,
+            memory_budget_mib: opts.memory_budget_mib,
+            time_budget_seconds: opts.time_budget_seconds,
+            jobs: jobs(opts.quick),
+        },
+        machine_mib: machine_memory_mib().unwrap_or(DEFAULT_MACHINE_MIB),
+        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        wall_seconds: start.elapsed().as_secs_f64(),
+        sizes,
+    };
+    let io = |path: PathBuf| move |source| ScalingError::Io { path, source };
+    std::fs::create_dir_all(&opts.out).map_err(io(opts.out.clone()))?;
+    let path = crate::studies::validate::partial::partial_path(&opts.out, shard);
+    let json = serde_json::to_string_pretty(&p).expect("serialisable");
+    std::fs::write(&path, json).map_err(io(path.clone()))?;
+    Ok(path)
+}
+
+/// Merge the shares of one scaling study (`files`: every `partial-K-of-N.json` once) and write
+/// its outputs into `out`, as [`run_study`] does: the sizes in the study's order, the machine's
+/// memory and CPUs of the shares (which must have the same number of CPUs: the times of
+/// different machines do not make one fit), the wall time the sum of the shares'.
+pub fn merge_shards(files: &[PathBuf], out: &Path) -> Result<Study, ScalingError> {
+    use crate::studies::validate::partial::{self, ShardError};
+    let mut partials = Vec::new();
+    for f in files {
+        let v = partial::read_partial(f, PARTIAL_KIND)?;
+        let p: ScalingPartial = serde_json::from_value(v).map_err(|e| ShardError::Read {
+            path: f.display().to_string(),
+            why: format!("not a partial result of a scaling study: {e}"),
+        })?;
+        partials.push((f.display().to_string(), p));
+    }
+    let (first_file, first) = partials.first().ok_or(ShardError::Empty)?;
+    for (file, p) in &partials {
+        let a = &first.sweep;
+        let b = &p.sweep;
+        let what = if a.version != b.version {
+            Some("fricsens versions".to_string())
+        } else if a.quick != b.quick {
+            Some("--quick".into())
+        } else if a.max_dofs != b.max_dofs {
+            Some("--max-dofs".into())
+        } else if a.memory_budget_mib.to_bits() != b.memory_budget_mib.to_bits() {
+            Some("--memory-budget-mib".into())
+        } else if a.time_budget_seconds.to_bits() != b.time_budget_seconds.to_bits() {
+            Some("--time-budget-s".into())
+        } else if a.jobs != b.jobs {
+            Some("lists of sizes".into())
+        } else if first.cpus != p.cpus {
+            Some(format!("numbers of CPUs ({} and {})", first.cpus, p.cpus))
+        } else {
+            None
+        };
+        if let Some(what) = what {
+            return Err(ShardError::Mismatch {
+                a: first_file.clone(),
+                b: file.clone(),
+                what,
+            }
+            .into());
+        }
+    }
+    partial::check_coverage(
+        &partials
+            .iter()
+            .map(|(f, p)| (p.shard, f.clone()))
+            .collect::<Vec<_>>(),
+    )?;
+    let sweep = first.sweep.clone();
+    let (machine_mib, cpus) = (first.machine_mib, first.cpus);
+    let wall_seconds: f64 = partials.iter().map(|(_, p)| p.wall_seconds).sum();
+    let names: Vec<String> = sweep
+        .jobs
+        .iter()
+        .map(|(s, r)| format!("{} at refinement {r}", s.name()))
+        .collect();
+    // a size's outcome is one measurement or one skip
+    let shares = partials
+        .into_iter()
+        .map(|(_, p)| (p.shard, p.sizes))
+        .collect::<Vec<_>>();
+    let outcomes = partial::collect_jobs(&names, shares)?;
+    let study = study_of(
+        outcomes,
+        sweep.quick,
+        sweep.time_budget_seconds,
+        machine_mib,
+        cpus,
+        wall_seconds,
+    );
+    if study.rows.is_empty() {
+        return Err(ScalingError::Nothing {
+            max_dofs: sweep.max_dofs,
+        });
+    }
+    write_outputs(&study, out)?;
+    Ok(study)
+}
+
 /// Machine memory assumed where `/proc/meminfo` is not available (MiB): 24 GiB.
 pub(crate) const DEFAULT_MACHINE_MIB: f64 = 24.0 * 1024.0;
 
 /// Run the study and write `scaling.csv`, `scaling.svg` and `scaling.md` into `opts.out`.
 pub fn run_study(opts: &StudyOptions) -> Result<Study, ScalingError> {
     let start = Instant::now();
-    let mut rows: Vec<Measurement> = Vec::new();
+    let outcomes = run_sizes(opts, None)?;
+    let study = study_of(
+        outcomes.into_iter().map(|(_, o)| o),
+        opts.quick,
+        opts.time_budget_seconds,
+        machine_memory_mib().unwrap_or(DEFAULT_MACHINE_MIB),
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        start.elapsed().as_secs_f64(),
+    );
+    if study.rows.is_empty() {
+        return Err(ScalingError::Nothing {
+            max_dofs: opts.max_dofs,
+        });
+    }
+    write_outputs(&study, &opts.out)?;
+    Ok(study)
+}
+
+/// The jobs of the study, in its order: every scene's sizes, smallest first. Share `K/N` of
+/// `fricsens scaling --shard K/N` measures those at positions `K - 1` modulo `N`.
+pub fn jobs(quick: bool) -> Vec<(ScalingScene, f64)> {
+    ScalingScene::ALL
+        .iter()
+        .flat_map(|s| s.refinements(quick).iter().map(move |r| (*s, *r)))
+        .collect()
+}
+
+/// A size of the study: measured, or why not.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub enum SizeOutcome {
+    /// Measured.
+    Measured(Measurement),
+    /// Not measured.
+    Skipped(Skipped),
+}
+
+/// The study of some sizes' outcomes (in the order of [`jobs`]), fitted.
+fn study_of(
+    outcomes: impl IntoIterator<Item = SizeOutcome>,
+    quick: bool,
+    time_budget_seconds: f64,
+    machine_mib: f64,
+    cpus: usize,
+    wall_seconds: f64,
+) -> Study {
+    let mut rows = Vec::new();
     let mut skipped = Vec::new();
+    for o in outcomes {
+        match o {
+            SizeOutcome::Measured(m) => rows.push(m),
+            SizeOutcome::Skipped(k) => skipped.push(k),
+        }
+    }
+    Study {
+        fits: Vec::new(),
+        rows,
+        skipped,
+        machine_mib,
+        cpus,
+        wall_seconds,
+        quick,
+        time_budget_seconds: Some(time_budget_seconds),
+    }
+    .fitted()
+}
+
+/// Measure the sizes of [`jobs`] (those of `shard` alone, if given), each with its position.
+/// The budgets extrapolate from the sizes measured before in this run (in a share, from the
+/// share's own), and a size after a failed one of the same scene is skipped.
+fn run_sizes(
+    opts: &StudyOptions,
+    shard: Option<crate::sensitivity::Shard>,
+) -> Result<Vec<(usize, SizeOutcome)>, ScalingError> {
+    let mut rows: Vec<Measurement> = Vec::new();
+    let mut out: Vec<(usize, SizeOutcome)> = Vec::new();
+    let mut j = 0;
     for scene in ScalingScene::ALL {
         let mut failed = false;
         for &r in scene.refinements(opts.quick) {
+            let job = j;
+            j += 1;
+            if shard.is_some_and(|s| !s.takes(job)) {
+                continue;
+            }
             let size = model_size(&scene.scene(r)?.build()?);
             let skip = |reason: String| Skipped {
                 scene,
@@ -802,11 +1038,17 @@ pub fn run_study(opts: &StudyOptions) -> Result<Study, ScalingError> {
                 reason,
             };
             if size.dofs > opts.max_dofs {
-                skipped.push(skip(format!("more than --max-dofs {}", opts.max_dofs)));
+                out.push((
+                    job,
+                    SizeOutcome::Skipped(skip(format!("more than --max-dofs {}", opts.max_dofs))),
+                ));
                 continue;
             }
             if failed {
-                skipped.push(skip("a smaller size of this scene failed".into()));
+                out.push((
+                    job,
+                    SizeOutcome::Skipped(skip("a smaller size of this scene failed".into())),
+                ));
                 continue;
             }
             // extrapolate memory and time from the last two sizes of this scene, with the
@@ -823,19 +1065,22 @@ pub fn run_study(opts: &StudyOptions) -> Result<Study, ScalingError> {
             };
             if let Some(mib) = predict(&|m| m.peak_mib) {
                 if mib > opts.memory_budget_mib {
-                    skipped.push(skip(format!(
+                    out.push((
+                        job,
+                        SizeOutcome::Skipped(skip(format!(
                         "peak memory extrapolated to {mib:.0} MiB, above the budget of {:.0} MiB",
                         opts.memory_budget_mib
-                    )));
+                    ))),
+                    ));
                     continue;
                 }
             }
             if let Some(secs) = predict(&|m| Some(m.wall_seconds())) {
                 if secs > opts.time_budget_seconds {
-                    skipped.push(skip(format!(
+                    out.push((job, SizeOutcome::Skipped(skip(format!(
                         "wall time extrapolated to {secs:.0} s, above the budget of {:.0} s per size",
                         opts.time_budget_seconds
-                    )));
+                    )))));
                     continue;
                 }
             }
@@ -854,6 +1099,7 @@ pub fn run_study(opts: &StudyOptions) -> Result<Study, ScalingError> {
                 ),
                 None => measure(scene, r),
             };
+            let before = rows.len();
             match m {
                 Ok(m) => {
                     if opts.verbose {
@@ -880,30 +1126,16 @@ pub fn run_study(opts: &StudyOptions) -> Result<Study, ScalingError> {
                             size.dofs
                         );
                     }
-                    skipped.push(skip(format!("failed: {e}")));
+                    out.push((job, SizeOutcome::Skipped(skip(format!("failed: {e}")))));
                     failed = true;
                 }
             }
+            if rows.len() > before {
+                out.push((job, SizeOutcome::Measured(rows[before].clone())));
+            }
         }
     }
-    if rows.is_empty() {
-        return Err(ScalingError::Nothing {
-            max_dofs: opts.max_dofs,
-        });
-    }
-    let study = Study {
-        fits: Vec::new(),
-        rows,
-        skipped,
-        machine_mib: machine_memory_mib().unwrap_or(DEFAULT_MACHINE_MIB),
-        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
-        wall_seconds: start.elapsed().as_secs_f64(),
-        quick: opts.quick,
-        time_budget_seconds: Some(opts.time_budget_seconds),
-    }
-    .fitted();
-    write_outputs(&study, &opts.out)?;
-    Ok(study)
+    Ok(out)
 }
 
 impl Study {

@@ -11,4 +11,6 @@ mod common;
 mod adjoint_study;
 mod ccx;
 mod scaling;
+mod shards;
+mod validate_adjoint;
 mod validation;

@@ -8,7 +8,7 @@ use crate::sensitivity::{Method, SensitivityResults};
 use std::fmt::Write;
 
 /// One row of the anatomy table.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct AnatomyRow {
     /// Scene name.
     pub scene: String,
@@ -38,7 +38,7 @@ pub struct AnatomyRow {
 }
 
 /// The dominant part's split by the beta scaling.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct DominantSplit {
     /// Truncation over the denominator.
     pub truncation: f64,

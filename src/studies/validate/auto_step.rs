@@ -7,7 +7,7 @@ use crate::design::Parameter;
 use std::fmt::Write;
 
 /// One row of the table.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct AutoRow {
     /// `sdm` or `sdm-central`.
     pub method: String,

@@ -327,9 +327,15 @@ pub fn morph_against_scale(meshes: &Path) -> Result<Vec<OracleRow>, ImportedErro
     )])
 }
 
-/// Every imported-geometry check, if `meshes` holds the scenes (else none).
+/// Whether `meshes` holds the imported-geometry scenes.
+pub fn present(meshes: &Path) -> bool {
+    meshes.join("hertz-cylinders.toml").exists()
+}
+
+/// Every imported-geometry check, if `meshes` holds the scenes (else none). The validation
+/// runs them as jobs of their own (`Job::Imported`), in this order.
 pub fn imported_oracles(meshes: &Path) -> Result<Vec<OracleRow>, ImportedError> {
-    if !meshes.join("hertz-cylinders.toml").exists() {
+    if !present(meshes) {
         return Ok(Vec::new());
     }
     let mut rows = hertz_cylinders(meshes, false)?;

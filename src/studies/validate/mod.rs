@@ -29,6 +29,7 @@ pub mod anatomy;
 pub mod auto_step;
 mod figures;
 pub mod imported;
+pub mod partial;
 mod report;
 pub mod tangent;
 pub mod taylor;
@@ -105,6 +106,9 @@ pub enum ValidateError {
     /// The friction-law comparison failed.
     #[error(transparent)]
     Laws(#[from] crate::studies::compare_laws::CompareLawsError),
+    /// Shares of a sharded run that do not merge, or a partial result that cannot be read.
+    #[error(transparent)]
+    Shard(#[from] partial::ShardError),
     #[error("{path}: {source}")]
     /// A report file could not be written.
     Io {
@@ -151,7 +155,7 @@ pub fn default_scenes(full: bool) -> Vec<Scene> {
 }
 
 /// Error of one method at one beta for one parameter.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct ErrorRow {
     /// Scene name.
     pub scene: String,
@@ -176,7 +180,7 @@ pub struct ErrorRow {
 }
 
 /// A closed-form check.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct OracleRow {
     /// Scene name.
     pub scene: String,
@@ -195,7 +199,7 @@ pub struct OracleRow {
 }
 
 /// Everything validated for one scene.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct SceneValidation {
     /// Scene name.
     pub scene: String,
@@ -242,6 +246,8 @@ pub struct SceneValidation {
     pub tangent: tangent::TangentStudy,
     /// `--beta auto` against DDM ([`auto_step`]).
     pub auto: Vec<auto_step::AutoRow>,
+    /// The adjoint at the last increment, every response, against DDM ([`AdjointCheck`]).
+    pub adjoint: AdjointCheck,
     /// The reference DDM results.
     #[serde(skip)]
     pub ddm: SensitivityResults,
@@ -250,8 +256,25 @@ pub struct SceneValidation {
     pub sweeps: Vec<SensitivityResults>,
 }
 
+/// The adjoint (`Method::Adjoint`) of one scene: every response at the last increment, one
+/// backward sweep for all the parameters, against DDM there.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct AdjointCheck {
+    /// Per parameter: the largest relative error against DDM over the responses sensitive to
+    /// it, at the last increment (the module docs' measure, floored at `floor` times the
+    /// largest DDM sensitivity over the history); NaN where the adjoint failed.
+    pub errors: Vec<f64>,
+    /// The adjoint's wall time (its stored forward states and its backward sweep) over the
+    /// primal's ([`SceneValidation::primal_seconds`]).
+    pub cost_ratio: f64,
+    /// Bytes of the forward states it stored.
+    pub stored_bytes: usize,
+    /// Why it failed, if it did.
+    pub failure: Option<String>,
+}
+
 /// The whole validation.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Validation {
     /// Per-scene results.
     pub scenes: Vec<SceneValidation>,
@@ -288,7 +311,7 @@ pub(crate) const LEAF_BATCH: [&str; 10] = [
 /// Sensitivity cost of many parameters batched through one primal run: the pseudo-loads of
 /// both SDM and DDM (one `Dual64` evaluation per parameter) go in one multi-column solve per
 /// increment.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct BatchedCost {
     /// Scene.
     pub scene: String,
@@ -578,6 +601,7 @@ pub(crate) fn validate_scene(
     let (_, fdm) = run_fdm_sweep(&model, &params, &fdm_betas, true).map_err(wrap)?;
     let primal_seconds = ddm.primal_seconds.max(1e-9);
     let flagged: Vec<bool> = ddm.increments.iter().map(|i| !i.kinks.is_empty()).collect();
+    let adjoint = adjoint_at_last(&model, &params, &ddm, &exact, opts.floor, primal_seconds);
     let mut errors = Vec::new();
     let sweeps: Vec<SensitivityResults> = inline.into_iter().chain(fdm).collect();
     for s in &sweeps {
@@ -656,6 +680,7 @@ pub(crate) fn validate_scene(
         ledger,
         anatomy,
         auto: auto_step::auto_rows(&ddm, &auto_runs, &params, opts.floor, &flagged),
+        adjoint,
         tangent: tangent::tangent_study(
             &ddm,
             &ddm_last,
@@ -669,6 +694,62 @@ pub(crate) fn validate_scene(
         ddm,
         sweeps,
     })
+}
+
+/// The adjoint of every response at the last increment of `ddm`'s run, for all of `params`
+/// in one backward sweep, against DDM there: per parameter the largest of
+/// `|D_adj - D_ddm| / max(|D_ddm|, floor * max_n |D_ddm(n)|)` over the responses sensitive to
+/// it. A flagged last increment is compared too: the adjoint and DDM's main value both follow
+/// the converged branches. `primal_seconds` is the denominator of the cost.
+pub(crate) fn adjoint_at_last(
+    model: &crate::model::Model,
+    params: &[Parameter],
+    ddm: &SensitivityResults,
+    settings: &Settings,
+    floor: f64,
+    primal_seconds: f64,
+) -> AdjointCheck {
+    let nan = |why: String| AdjointCheck {
+        errors: vec![f64::NAN; params.len()],
+        cost_ratio: f64::NAN,
+        stored_bytes: 0,
+        failure: Some(why),
+    };
+    let Some(last) = ddm.increments.last() else {
+        return nan("no increment".into());
+    };
+    let settings = Settings {
+        method: Method::Adjoint,
+        adjoint_at: vec![last.time],
+        ..settings.clone()
+    };
+    let adj = match crate::sensitivity::run_sensitivity(model, params, &settings) {
+        Ok((_, adj)) => adj,
+        Err(e) => return nan(e.to_string()),
+    };
+    let Some(at) = adj.increment_at(last.time) else {
+        return nan(format!("no increment at t = {}", last.time));
+    };
+    let errors = (0..params.len())
+        .map(|p| {
+            let mut worst: f64 = 0.0;
+            for r in 0..ddm.responses.len() {
+                let Some(scale) = ddm.sensitive_scale(r, p, params[p].value) else {
+                    continue;
+                };
+                let d = last.derivatives[r][p];
+                let e = (at.derivatives[r][p] - d).abs() / d.abs().max(floor * scale);
+                worst = if e.is_nan() { f64::NAN } else { worst.max(e) };
+            }
+            worst
+        })
+        .collect();
+    AdjointCheck {
+        errors,
+        cost_ratio: adj.cost.wall_seconds / primal_seconds,
+        stored_bytes: adj.cost.stored_bytes,
+        failure: None,
+    }
 }
 
 pub(super) fn io(path: &Path) -> impl Fn(std::io::Error) -> ValidateError + '_ {
@@ -722,8 +803,177 @@ pub enum ValidateProgress<'a> {
         /// Its name.
         name: &'a str,
     },
-    /// Every scene is done; the report is being written.
+    /// Every scene is done; the rest (the friction laws, the batched cost, ...) and the report.
     Report,
+}
+
+/// One independent job of a validation run: what a share of `fricsens validate --shard K/N`
+/// runs ([`run_shard`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Job {
+    /// Every method on scene `i` of the list.
+    Scene(usize),
+    /// The leaf spring without friction (the second curve of figure 7).
+    LeafSpringMu0,
+    /// The friction laws on the strip of this many elements ([`crate::studies::compare_laws`]).
+    FrictionLaws(usize),
+    /// One imported-geometry check ([`imported`]) on the folder's scenes.
+    Imported(ImportedCheck, PathBuf),
+    /// The leaf spring's ten batched parameters through one primal run ([`BatchedCost`]).
+    Batched,
+    /// The same on [`refined_leaf_spring`].
+    BatchedRefined,
+}
+
+/// The imported-geometry checks, each a job of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImportedCheck {
+    /// [`imported::hertz_cylinders`], as written.
+    HertzCylinders,
+    /// The same with the contact pair's roles swapped.
+    HertzCylindersReversed,
+    /// [`imported::lame_sphere`].
+    LameSphere,
+    /// [`imported::morph_against_scale`].
+    MorphAgainstScale,
+}
+
+impl Job {
+    /// A name for messages and for the partial result's list of jobs.
+    pub fn name(&self, scenes: &[Scene]) -> String {
+        match self {
+            Job::Scene(i) => format!("scene {}", scenes[*i].name),
+            Job::LeafSpringMu0 => "leaf-spring without friction".into(),
+            Job::FrictionLaws(n) => format!("friction laws on {n} elements"),
+            Job::Imported(c, dir) => format!("imported {c:?} in {}", dir.display()),
+            Job::Batched => "batched cost, leaf-spring".into(),
+            Job::BatchedRefined => "batched cost, refined leaf-spring".into(),
+        }
+    }
+}
+
+/// The jobs of a validation run, in the order the unsharded run takes them: every scene,
+/// then the rest.
+pub fn plan(scenes: &[Scene], opts: &ValidateOptions) -> Vec<Job> {
+    let mut jobs: Vec<Job> = (0..scenes.len()).map(Job::Scene).collect();
+    let leaf = scenes.iter().any(|s| s.name == "leaf-spring");
+    if leaf {
+        jobs.push(Job::LeafSpringMu0);
+    }
+    if let Some(n) = opts.friction_laws {
+        jobs.push(Job::FrictionLaws(n));
+    }
+    if let Some(dir) = &opts.imported {
+        if imported::present(dir) {
+            for c in [
+                ImportedCheck::HertzCylinders,
+                ImportedCheck::HertzCylindersReversed,
+                ImportedCheck::LameSphere,
+                ImportedCheck::MorphAgainstScale,
+            ] {
+                jobs.push(Job::Imported(c, dir.clone()));
+            }
+        }
+    }
+    if leaf {
+        jobs.push(Job::Batched);
+        if opts.refined_batch {
+            jobs.push(Job::BatchedRefined);
+        }
+    }
+    jobs
+}
+
+/// What a [`Job`] gives.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub enum JobOutput {
+    /// [`Job::Scene`]: the scene's validation, its DDM reference and its sweep (taken out of
+    /// the validation, which does not serialise them).
+    Scene {
+        /// Everything but the two below.
+        validation: Box<SceneValidation>,
+        /// [`SceneValidation::ddm`].
+        ddm: Box<SensitivityResults>,
+        /// [`SceneValidation::sweeps`].
+        sweeps: Vec<SensitivityResults>,
+    },
+    /// [`Job::LeafSpringMu0`]: `(t, block force)` per increment, if the run converged.
+    LeafSpringMu0 {
+        /// The curve.
+        curve: Option<Vec<(f64, f64)>>,
+    },
+    /// [`Job::FrictionLaws`].
+    FrictionLaws(crate::studies::compare_laws::LawComparison),
+    /// [`Job::Imported`].
+    Imported(Vec<OracleRow>),
+    /// [`Job::Batched`] and [`Job::BatchedRefined`].
+    Batched(BatchedCost),
+}
+
+/// Run one job.
+pub fn run_job(
+    scenes: &[Scene],
+    opts: &ValidateOptions,
+    job: &Job,
+) -> Result<JobOutput, ValidateError> {
+    let leaf = || scenes.iter().find(|s| s.name == "leaf-spring");
+    Ok(match job {
+        Job::Scene(i) => {
+            let mut v = validate_scene(&scenes[*i], opts)?;
+            let ddm = Box::new(std::mem::take(&mut v.ddm));
+            let sweeps = std::mem::take(&mut v.sweeps);
+            JobOutput::Scene {
+                validation: Box::new(v),
+                ddm,
+                sweeps,
+            }
+        }
+        Job::LeafSpringMu0 => JobOutput::LeafSpringMu0 {
+            curve: leaf().and_then(leaf_spring_mu0),
+        },
+        Job::FrictionLaws(n) => {
+            JobOutput::FrictionLaws(crate::studies::compare_laws::compare_laws(*n)?)
+        }
+        Job::Imported(c, dir) => JobOutput::Imported(match c {
+            ImportedCheck::HertzCylinders => imported::hertz_cylinders(dir, false)?,
+            ImportedCheck::HertzCylindersReversed => imported::hertz_cylinders(dir, true)?,
+            ImportedCheck::LameSphere => imported::lame_sphere(dir)?,
+            ImportedCheck::MorphAgainstScale => imported::morph_against_scale(dir)?,
+        }),
+        Job::Batched => JobOutput::Batched(batched_cost(
+            leaf().expect("planned with the leaf spring"),
+            opts.figure_beta,
+        )?),
+        Job::BatchedRefined => {
+            JobOutput::Batched(batched_cost(&refined_leaf_spring(), opts.figure_beta)?)
+        }
+    })
+}
+
+/// The leaf spring without friction, for figure 7: `(t, block force)` per increment.
+fn leaf_spring_mu0(s: &Scene) -> Option<Vec<(f64, f64)>> {
+    let mut s = s.clone();
+    for c in &mut s.contacts {
+        c.friction = None;
+    }
+    s.study.params.retain(|p| p != "mu");
+    let model = s.build().ok()?;
+    let mut solver = crate::solver::Solver::new(&model).ok()?;
+    let res = solver
+        .run(
+            &crate::solver::RunOptions::default(),
+            &mut crate::solver::NoObserver,
+        )
+        .ok()?;
+    let r = model
+        .responses
+        .iter()
+        .position(|r| r.name == "block-force")?;
+    Some(
+        (1..res.times.len())
+            .map(|k| (res.times[k], res.response_value(&model, r, k)))
+            .collect(),
+    )
 }
 
 /// [`validate`], telling `progress` where it is (the command line draws a progress bar with
@@ -734,6 +984,39 @@ pub fn validate_observed(
     progress: &mut dyn FnMut(ValidateProgress<'_>),
 ) -> Result<Validation, ValidateError> {
     let start = std::time::Instant::now();
+    std::fs::create_dir_all(&opts.out).map_err(io(&opts.out))?;
+    let jobs = plan(scenes, opts);
+    let mut outputs = Vec::with_capacity(jobs.len());
+    let mut reported = false;
+    for job in &jobs {
+        match job {
+            Job::Scene(index) => progress(ValidateProgress::Scene {
+                index: *index,
+                of: scenes.len(),
+                name: &scenes[*index].name,
+            }),
+            _ if !reported => {
+                reported = true;
+                progress(ValidateProgress::Report);
+            }
+            _ => {}
+        }
+        outputs.push(run_job(scenes, opts, job)?);
+    }
+    if !reported {
+        progress(ValidateProgress::Report);
+    }
+    finish(scenes, opts, outputs, start.elapsed().as_secs_f64())
+}
+
+/// Write the report from the outputs of every job of [`plan`], in its order: the end of the
+/// unsharded run and the whole of a merge. `wall_seconds`: the jobs' time.
+fn finish(
+    scenes: &[Scene],
+    opts: &ValidateOptions,
+    outputs: Vec<JobOutput>,
+    wall_seconds: f64,
+) -> Result<Validation, ValidateError> {
     let data = opts.out.join("data");
     let figs = opts.out.join("figures");
     for d in [&opts.out, &data, &figs] {
@@ -741,64 +1024,38 @@ pub fn validate_observed(
     }
     let mut out = Vec::new();
     let mut oracle_rows = Vec::new();
-    for (index, scene) in scenes.iter().enumerate() {
-        progress(ValidateProgress::Scene {
-            index,
-            of: scenes.len(),
-            name: &scene.name,
-        });
-        let v = validate_scene(scene, opts)?;
-        oracle_rows.extend(oracles(&v));
-        write_scene_data(&v, &data, opts.figure_beta)?;
-        out.push(v);
-    }
-    progress(ValidateProgress::Report);
-    // the leaf spring without friction, for figure 7
-    let leaf_mu0 = out.iter().find(|v| v.scene == "leaf-spring").and_then(|_| {
-        let s = scenes.iter().find(|s| s.name == "leaf-spring")?;
-        let mut s = s.clone();
-        for c in &mut s.contacts {
-            c.friction = None;
-        }
-        s.study.params.retain(|p| p != "mu");
-        let model = s.build().ok()?;
-        let mut solver = crate::solver::Solver::new(&model).ok()?;
-        let res = solver
-            .run(
-                &crate::solver::RunOptions::default(),
-                &mut crate::solver::NoObserver,
-            )
-            .ok()?;
-        let r = model
-            .responses
-            .iter()
-            .position(|r| r.name == "block-force")?;
-        Some(
-            (1..res.times.len())
-                .map(|k| (res.times[k], res.response_value(&model, r, k)))
-                .collect::<Vec<_>>(),
-        )
-    });
-    let laws = match opts.friction_laws {
-        Some(elements) => {
-            let c = crate::studies::compare_laws::compare_laws(elements)?;
-            c.write_figures(&figs)?;
-            let json = serde_json::to_string_pretty(&c).expect("serialisable");
-            write(&data.join("friction-laws.json"), &json)?;
-            Some(c)
-        }
-        None => None,
-    };
-    let imported = match &opts.imported {
-        Some(dir) => imported::imported_oracles(dir)?,
-        None => Vec::new(),
-    };
+    let mut leaf_mu0 = None;
+    let mut laws = None;
+    let mut imported = Vec::new();
     let mut batched = Vec::new();
-    if let Some(s) = scenes.iter().find(|s| s.name == "leaf-spring") {
-        batched.push(batched_cost(s, opts.figure_beta)?);
-        if opts.refined_batch {
-            batched.push(batched_cost(&refined_leaf_spring(), opts.figure_beta)?);
+    for o in outputs {
+        match o {
+            JobOutput::Scene {
+                validation,
+                ddm,
+                sweeps,
+            } => {
+                let mut v = *validation;
+                v.ddm = *ddm;
+                v.sweeps = sweeps;
+                oracle_rows.extend(oracles(&v));
+                write_scene_data(&v, &data, opts.figure_beta)?;
+                out.push(v);
+            }
+            JobOutput::LeafSpringMu0 { curve } => leaf_mu0 = curve,
+            JobOutput::FrictionLaws(c) => {
+                c.write_figures(&figs)?;
+                let json = serde_json::to_string_pretty(&c).expect("serialisable");
+                write(&data.join("friction-laws.json"), &json)?;
+                laws = Some(c);
+            }
+            JobOutput::Imported(rows) => imported.extend(rows),
+            JobOutput::Batched(b) => batched.push(b),
         }
+    }
+    // figure 7's second curve belongs with a validated leaf spring
+    if !out.iter().any(|v| v.scene == "leaf-spring") {
+        leaf_mu0 = None;
     }
     let validation = Validation {
         scenes: out,
@@ -806,7 +1063,7 @@ pub fn validate_observed(
         imported,
         betas: opts.betas.clone(),
         floor: opts.floor,
-        wall_seconds: start.elapsed().as_secs_f64(),
+        wall_seconds,
         batched,
     };
     // the indentation's pressure profile after sliding, for figures 4 and 5 and the report
@@ -837,4 +1094,274 @@ pub fn validate_observed(
         ),
     )?;
     Ok(validation)
+}
+
+/// The scenes of a validation run: `names` (built-in names or TOML files; a name of
+/// [`default_scenes`] takes that scene, e.g. the leaf spring on its validation mesh), or the
+/// default scenes when `names` is empty. `full` as in [`default_scenes`].
+pub fn resolve_scenes(names: &[String], full: bool) -> Result<Vec<Scene>, SceneError> {
+    let defaults = default_scenes(full);
+    if names.is_empty() {
+        return Ok(defaults);
+    }
+    names
+        .iter()
+        .map(|n| match defaults.iter().find(|s| &s.name == n) {
+            Some(s) => Ok(s.clone()),
+            None => Scene::load(n),
+        })
+        .collect()
+}
+
+/// Everything the jobs of a sharded validation run depend on: shares of one run have the same
+/// ([`merge_shards`] checks it, naming what differs).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ValidateSweep {
+    /// The version of fricsens that ran the share.
+    pub version: String,
+    /// The scenes as named on the command line ([`resolve_scenes`]; empty: the defaults).
+    pub names: Vec<String>,
+    /// `--full`.
+    pub full: bool,
+    /// Each scene's name and its definition as TOML ([`Scene::to_toml`]).
+    pub scenes: Vec<(String, String)>,
+    /// [`ValidateOptions::betas`].
+    pub betas: Vec<f64>,
+    /// [`ValidateOptions::floor`].
+    pub floor: f64,
+    /// [`ValidateOptions::figure_beta`].
+    pub figure_beta: f64,
+    /// [`ValidateOptions::reduced_fdm`].
+    pub reduced_fdm: Vec<String>,
+    /// [`ValidateOptions::friction_laws`].
+    pub friction_laws: Option<usize>,
+    /// [`ValidateOptions::refined_batch`].
+    pub refined_batch: bool,
+    /// [`ValidateOptions::imported`].
+    pub imported: Option<PathBuf>,
+    /// The names of the jobs ([`plan`], [`Job::name`]).
+    pub jobs: Vec<String>,
+}
+
+impl ValidateSweep {
+    /// The sweep of `scenes` (resolved from `names` and `full`) with `opts`.
+    pub fn new(names: &[String], full: bool, scenes: &[Scene], opts: &ValidateOptions) -> Self {
+        ValidateSweep {
+            version: env!("CARGO_PKG_VERSION").into(),
+            names: names.to_vec(),
+            full,
+            scenes: scenes
+                .iter()
+                .map(|s| (s.name.clone(), s.to_toml().unwrap_or_default()))
+                .collect(),
+            betas: opts.betas.clone(),
+            floor: opts.floor,
+            figure_beta: opts.figure_beta,
+            reduced_fdm: opts.reduced_fdm.clone(),
+            friction_laws: opts.friction_laws,
+            refined_batch: opts.refined_batch,
+            imported: opts.imported.clone(),
+            jobs: plan(scenes, opts).iter().map(|j| j.name(scenes)).collect(),
+        }
+    }
+
+    /// The first thing in which `other` differs from this sweep.
+    fn differs(&self, other: &ValidateSweep) -> Option<String> {
+        let bits = |v: &[f64]| v.iter().map(|b| b.to_bits()).collect::<Vec<_>>();
+        if self.version != other.version {
+            return Some(format!(
+                "fricsens versions ({} and {})",
+                self.version, other.version
+            ));
+        }
+        if self.names != other.names || self.full != other.full {
+            return Some("scenes (as named on the command line, and --full)".into());
+        }
+        for ((a, ta), (b, tb)) in self.scenes.iter().zip(&other.scenes) {
+            if a != b {
+                return Some(format!("scenes ({a} and {b})"));
+            }
+            if ta != tb {
+                return Some(format!("definitions of scene '{a}'"));
+            }
+        }
+        if self.scenes.len() != other.scenes.len() {
+            return Some("numbers of scenes".into());
+        }
+        if bits(&self.betas) != bits(&other.betas) {
+            return Some("betas".into());
+        }
+        if self.floor.to_bits() != other.floor.to_bits() {
+            return Some("error floors".into());
+        }
+        if self.figure_beta.to_bits() != other.figure_beta.to_bits() {
+            return Some("figure betas".into());
+        }
+        if self.reduced_fdm != other.reduced_fdm {
+            return Some("scenes whose FDM sweep is thinned (--full)".into());
+        }
+        if self.friction_laws != other.friction_laws {
+            return Some("friction-law comparisons".into());
+        }
+        if self.refined_batch != other.refined_batch {
+            return Some("batched-cost measurements".into());
+        }
+        if self.imported != other.imported {
+            return Some("imported-geometry folders".into());
+        }
+        if self.jobs != other.jobs {
+            return Some("lists of jobs".into());
+        }
+        None
+    }
+
+    /// The options of the run, writing into `out`.
+    pub fn options(&self, out: PathBuf) -> ValidateOptions {
+        ValidateOptions {
+            out,
+            betas: self.betas.clone(),
+            floor: self.floor,
+            figure_beta: self.figure_beta,
+            reduced_fdm: self.reduced_fdm.clone(),
+            friction_laws: self.friction_laws,
+            refined_batch: self.refined_batch,
+            imported: self.imported.clone(),
+        }
+    }
+}
+
+/// What one share of a validation run wrote (`OUT/partial-K-of-N.json`, kind `validate`).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct ValidatePartial {
+    /// `validate`.
+    pub kind: String,
+    /// Which share.
+    pub shard: Shard,
+    /// The run it is a share of.
+    pub sweep: ValidateSweep,
+    /// The share's wall time (s).
+    pub wall_seconds: f64,
+    /// `(job, its output)` for this share's jobs, the outputs in [`partial::to_exact_json`]'s
+    /// form.
+    pub jobs: Vec<(usize, serde_json::Value)>,
+}
+
+use crate::sensitivity::Shard;
+
+/// The kind tag of a validation run's partial result.
+pub const PARTIAL_KIND: &str = "validate";
+
+/// Run share `shard` of the validation of `scenes` (resolved from `names` and `full` by
+/// [`resolve_scenes`], which the merge repeats) and write `opts.out/partial-K-of-N.json`;
+/// returns its path. `progress` sees each job's name as it starts.
+pub fn run_shard(
+    names: &[String],
+    full: bool,
+    scenes: &[Scene],
+    opts: &ValidateOptions,
+    shard: Shard,
+    progress: &mut dyn FnMut(&str),
+) -> Result<PathBuf, ValidateError> {
+    let start = std::time::Instant::now();
+    std::fs::create_dir_all(&opts.out).map_err(io(&opts.out))?;
+    let sweep = ValidateSweep::new(names, full, scenes, opts);
+    let mut jobs = Vec::new();
+    for (j, job) in plan(scenes, opts).iter().enumerate() {
+        if !shard.takes(j) {
+            continue;
+        }
+        progress(&sweep.jobs[j]);
+        let out = run_job(scenes, opts, job)?;
+        let value = partial::to_exact_json(&out).map_err(|why| partial::ShardError::Read {
+            path: sweep.jobs[j].clone(),
+            why: format!("cannot be written: {why}"),
+        })?;
+        jobs.push((j, value));
+    }
+    let p = ValidatePartial {
+        kind: PARTIAL_KIND.into(),
+        shard,
+        sweep,
+        wall_seconds: start.elapsed().as_secs_f64(),
+        jobs,
+    };
+    let path = partial::partial_path(&opts.out, shard);
+    let json = serde_json::to_string(&p).expect("serialisable");
+    write(&path, &json)?;
+    Ok(path)
+}
+
+/// Merge the shares of one validation run (`files`: every `partial-K-of-N.json` once) and
+/// write the report into `out`: the unsharded run's `data/*.csv`, `data/validation.json`,
+/// figures and `README.md` (its timings aside: `wall_seconds` is the sum of the shares').
+pub fn merge_shards(files: &[PathBuf], out: &Path) -> Result<Validation, ValidateError> {
+    let mut partials = Vec::new();
+    for f in files {
+        let v = partial::read_partial(f, PARTIAL_KIND)?;
+        let p: ValidatePartial =
+            serde_json::from_value(v).map_err(|e| partial::ShardError::Read {
+                path: f.display().to_string(),
+                why: format!("not a partial result of a validation run: {e}"),
+            })?;
+        partials.push((f.display().to_string(), p));
+    }
+    let (first_file, first) = partials.first().ok_or(partial::ShardError::Empty)?;
+    for (file, p) in &partials {
+        if let Some(what) = first.sweep.differs(&p.sweep) {
+            return Err(partial::ShardError::Mismatch {
+                a: first_file.clone(),
+                b: file.clone(),
+                what,
+            }
+            .into());
+        }
+    }
+    partial::check_coverage(
+        &partials
+            .iter()
+            .map(|(f, p)| (p.shard, f.clone()))
+            .collect::<Vec<_>>(),
+    )?;
+    let sweep = first.sweep.clone();
+    let scenes = resolve_scenes(&sweep.names, sweep.full)?;
+    for (s, (name, toml)) in scenes.iter().zip(&sweep.scenes) {
+        if &s.name != name || &s.to_toml().unwrap_or_default() != toml {
+            return Err(partial::ShardError::SceneChanged(name.clone()).into());
+        }
+    }
+    if scenes.len() != sweep.scenes.len() {
+        return Err(partial::ShardError::SceneChanged(
+            sweep.scenes.last().map(|s| s.0.clone()).unwrap_or_default(),
+        )
+        .into());
+    }
+    let opts = sweep.options(out.to_path_buf());
+    if plan(&scenes, &opts)
+        .iter()
+        .map(|j| j.name(&scenes))
+        .ne(sweep.jobs.iter().cloned())
+    {
+        return Err(partial::ShardError::Mismatch {
+            a: first_file.clone(),
+            b: "this merge".into(),
+            what: "lists of jobs".into(),
+        }
+        .into());
+    }
+    let wall_seconds: f64 = partials.iter().map(|(_, p)| p.wall_seconds).sum();
+    let mut shares = Vec::new();
+    for (file, p) in partials {
+        let mut jobs = Vec::new();
+        for (j, value) in p.jobs {
+            let o: JobOutput =
+                partial::from_exact_json(value).map_err(|why| partial::ShardError::Read {
+                    path: file.clone(),
+                    why: format!("job {j}: {why}"),
+                })?;
+            jobs.push((j, o));
+        }
+        shares.push((p.shard, jobs));
+    }
+    let outputs = partial::collect_jobs(&sweep.jobs, shares)?;
+    finish(&scenes, &opts, outputs, wall_seconds)
 }

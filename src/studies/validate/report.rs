@@ -276,9 +276,9 @@ pub(super) fn report(
     let _ = writeln!(s, "Sensitivity wall time for all of a scene's parameters over the primal analysis, at beta = {:.0e} (SDM and DDM share the primal run; FDM is reruns). DDM, SDM and SDM central solve with the tangent at the converged state (the default, `--tangent exact`), to a relative residual of {:.0e}: by GMRES preconditioned with Newton's last factorization (a few solves per increment), with a factorization of their own only where GMRES does not get there in {} steps, then refined with double-double residuals to 1e-13 of the solution, so that DDM is exact to about that and SDM's error is its own; \"last factor\" (`--tangent last`) solves with Newton's last factorization alone (the paper's choice: no solve beyond one triangular solve), and its error against the reference is the price in accuracy, its time against DDM's the price of exactness. SDM's errors include its own forward-difference error at this beta, shown beside SDM with the converged tangent; the largest error over a scene's parameters is shown. The floor is one residual evaluation and one triangular solve per parameter and increment; the updates of the history after the solve skip the elements whose Gauss points are all elastic.\n", opts.figure_beta, crate::sensitivity::KRYLOV_TOL, crate::sensitivity::KRYLOV_MAX_ITER);
     let _ = writeln!(
         s,
-        "| scene | parameters | DDM | DDM, last factor (error) | SDM (error) | SDM, last factor (error) | SDM central | FDM | FDM central |"
+        "| scene | parameters | DDM | DDM, last factor (error) | SDM (error) | SDM, last factor (error) | SDM central | FDM | FDM central | adjoint (last increment, every response) (error) |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
     for v in &val.scenes {
         let cost = |m: Method| {
             v.errors
@@ -304,9 +304,17 @@ pub(super) fn report(
         } else {
             format!("{:.1e}", sdm_errors.iter().copied().fold(0.0f64, f64::max))
         };
+        let adjoint = match &v.adjoint.failure {
+            Some(_) => "failed".to_string(),
+            None => format!(
+                "{:.3} ({:.1e})",
+                v.adjoint.cost_ratio,
+                v.adjoint.errors.iter().copied().fold(0.0f64, f64::max)
+            ),
+        };
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3} | {:.3} ({:.1e}) | {} ({}) | {:.3} ({:.1e}) | {} | {} | {} |",
+            "| {} | {} | {:.3} | {:.3} ({:.1e}) | {} ({}) | {:.3} ({:.1e}) | {} | {} | {} | {} |",
             v.scene,
             v.params.len(),
             v.ddm_cost_ratio,
@@ -318,9 +326,11 @@ pub(super) fn report(
             v.sdm_last_errors.iter().copied().fold(0.0f64, f64::max),
             cost(Method::SdmCentral),
             cost(Method::Fdm),
-            cost(Method::FdmCentral)
+            cost(Method::FdmCentral),
+            adjoint
         );
     }
+    let _ = writeln!(s, "\nThe adjoint column: `--method adjoint --at last`, every response at the last increment in one backward sweep for all the parameters (its forward run stores every converged increment; its time is the storing and the sweep), and its largest error against DDM there over the responses and parameters, relative as above (a flagged last increment included: both follow the converged branches). It gives no history, so it has no place in the beta sweeps.");
     for b in &val.batched {
         let _ = writeln!(
             s,
@@ -522,6 +532,44 @@ pub(super) fn findings(
         per_param(Some(Method::Fdm)),
         per_param(Some(Method::FdmCentral)),
     );
+    // the adjoint at the last increment
+    let adjoint: Vec<&SceneValidation> = val
+        .scenes
+        .iter()
+        .filter(|v| v.adjoint.failure.is_none() && !v.adjoint.errors.is_empty())
+        .collect();
+    if !adjoint.is_empty() {
+        let worst = adjoint
+            .iter()
+            .map(|v| {
+                (
+                    v.adjoint.errors.iter().copied().fold(0.0f64, f64::max),
+                    v.scene.as_str(),
+                )
+            })
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .expect("not empty");
+        let failed: Vec<&str> = val
+            .scenes
+            .iter()
+            .filter(|v| v.adjoint.failure.is_some())
+            .map(|v| v.scene.as_str())
+            .collect();
+        let _ = writeln!(
+            s,
+            "**Adjoint.** Every response at the last increment, all of a scene's parameters in one backward sweep: its largest error against DDM over {} scenes is {:.1e} ({}); its cost over the primal analysis, for all the parameters, has a median of {:.3} (against DDM's {:.3}).{}\n",
+            adjoint.len(),
+            worst.0,
+            worst.1,
+            median(adjoint.iter().map(|v| v.adjoint.cost_ratio).collect()),
+            median(adjoint.iter().map(|v| v.ddm_cost_ratio).collect()),
+            if failed.is_empty() {
+                String::new()
+            } else {
+                format!(" It failed on {}.", failed.join(", "))
+            }
+        );
+    }
     let pass = val.oracles.iter().filter(|o| o.pass).count();
     let worst = val
         .oracles

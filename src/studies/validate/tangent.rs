@@ -15,7 +15,7 @@ use crate::design::Parameter;
 use crate::solver::Results;
 
 /// One increment of the tangent study.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct TangentIncrement {
     /// Increment number.
     pub increment: usize,
@@ -30,7 +30,7 @@ pub struct TangentIncrement {
 }
 
 /// The tangent study of one scene.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct TangentStudy {
     /// Per unflagged increment.
     pub increments: Vec<TangentIncrement>,

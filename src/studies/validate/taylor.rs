@@ -19,7 +19,7 @@ use crate::sensitivity::{Method, SensitivityResults};
 pub const TAYLOR_BETAS: [f64; 4] = [1e-1, 1e-2, 1e-3, 1e-4];
 
 /// The Taylor test of one parameter of one scene.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct TaylorRow {
     /// Scene name.
     pub scene: String,
@@ -50,7 +50,7 @@ pub struct TaylorRow {
 }
 
 /// The Taylor remainders with one method's derivative.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct MethodTaylor {
     /// The method (`sdm`, `sdm-central`, `fdm-central`).
     pub method: String,
