@@ -232,7 +232,7 @@ class Scene:
     ) -> Sensitivity:
         """Every response's derivative with respect to ``params`` (default: the study's)
         by ``method``: ``ddm``, ``sdm``, ``sdm-central``, ``fdm``, ``fdm-central`` or ``adjoint`` (every increment).
-        ``beta``: the relative perturbation (None: the study's; ``"auto"`` for SDM);
+        ``beta``: the relative perturbation (None: the study's; ``"auto"`` for SDM and FDM);
         ``tangent``: ``exact``, ``last`` or ``refined``; ``fields``: also the derivative of
         the displacement field. If the analysis stops, the :class:`AnalysisError` raised
         carries, for the in-line methods (``ddm``, ``sdm``, ``sdm-central``), the increments

@@ -291,7 +291,7 @@ impl PyScene {
     }
 
     /// A sensitivity analysis of every response with respect to `params` by `method` (`ddm`,
-    /// `sdm`, `sdm-central`, `fdm`, `fdm-central`); `beta` a relative step, `"auto"` (SDM), or
+    /// `sdm`, `sdm-central`, `fdm`, `fdm-central`); `beta` a relative step, `"auto"` (SDM, FDM), or
     /// `None` for the study's; `tangent` `exact`, `last` or `refined`; `fields` keeps the
     /// derivatives of the displacement field.
     #[pyo3(signature = (params, method = "ddm", beta = None, tangent = "exact", fields = false, progress = None))]
@@ -344,9 +344,9 @@ impl PyScene {
                 "beta must lie in (0, 1), got {beta}"
             )));
         }
-        if beta_auto && !matches!(method, Method::Sdm | Method::SdmCentral) {
+        if beta_auto && !method.uses_beta() {
             return Err(FricsensError::new_err(
-                "beta=\"auto\" chooses SDM's steps: use it with method sdm or sdm-central",
+                "beta=\"auto\" chooses the step of a difference: use it with method sdm, sdm-central, fdm or fdm-central",
             ));
         }
         if fields && method == Method::Adjoint {

@@ -87,6 +87,17 @@ def test_python_equals_the_command_line_bit_for_bit(tmp_path, lateral_scene, met
     assert np.array_equal(s.derivatives, derivatives)
 
 
+@pytest.mark.parametrize("method", ["sdm", "fdm"])
+def test_auto_steps_and_error_bars_equal_the_command_line(tmp_path, method):
+    # beta="auto": the steps chosen per increment and parameter and the error bars, as the CLI
+    cli("sensitivity", "jenkins", "--method", method, "--beta", "auto", "--out", str(tmp_path))
+    ref = json.loads((tmp_path / "sensitivity.json").read_text())
+    s = fricsens.Scene.load("jenkins").sensitivity(ref["parameters"], method=method, beta="auto")
+    assert np.array_equal(s.derivatives, np.array([i["derivatives"] for i in ref["increments"]]))
+    assert np.array_equal(s.error_bars, np.array([i["error_bars"] for i in ref["increments"]]))
+    assert np.array_equal(s.betas, np.array([i["betas"] for i in ref["increments"]]))
+
+
 def test_errors_are_python_exceptions_with_the_librarys_messages(tmp_path):
     with pytest.raises(fricsens.SceneError, match="no-such-scene"):
         fricsens.Scene.load("no-such-scene")
