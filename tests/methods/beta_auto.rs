@@ -47,6 +47,25 @@ fn bounded(
     (ok, all, worst)
 }
 
+/// Every step `s` chose lies on `method`'s ladder, one per parameter.
+fn on_the_ladder(s: &SensitivityResults, method: Method, np: usize) {
+    use fricsens::sensitivity as m;
+    let ladder: &[f64] = match method {
+        Method::Sdm => &m::FORWARD_LADDER,
+        Method::SdmCentral => &m::CENTRAL_LADDER,
+        Method::Fdm => &m::FDM_FORWARD_LADDER,
+        _ => &m::FDM_CENTRAL_LADDER,
+    };
+    for inc in &s.increments {
+        assert_eq!(inc.betas.len(), np);
+        assert!(
+            inc.betas.iter().all(|b| ladder.contains(b)),
+            "{:?}",
+            inc.betas
+        );
+    }
+}
+
 /// The share of bounded derivatives per scene and method, and the largest error.
 fn coverage(scene: &str, names: &[&str]) -> Vec<(Method, usize, usize, f64, SensitivityResults)> {
     coverage_of(scene, names, &[Method::Sdm, Method::SdmCentral])
@@ -89,19 +108,7 @@ fn error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
                 "{scene} {method:?}: {ok} of {all}"
             );
             // every step chosen lies on the method's ladder, one per parameter
-            for inc in &s.increments {
-                assert_eq!(inc.betas.len(), names.len());
-                let ladder: &[f64] = if method == Method::SdmCentral {
-                    &fricsens::sensitivity::CENTRAL_LADDER
-                } else {
-                    &fricsens::sensitivity::FORWARD_LADDER
-                };
-                assert!(
-                    inc.betas.iter().all(|b| ladder.contains(b)),
-                    "{:?}",
-                    inc.betas
-                );
-            }
+            on_the_ladder(&s, method, names.len());
         }
     }
 }
@@ -147,18 +154,7 @@ fn fdm_error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
                 ok as f64 >= 0.95 * all as f64,
                 "{scene} {method:?}: {ok} of {all}"
             );
-            let ladder: &[f64] = if method == Method::FdmCentral {
-                &fricsens::sensitivity::FDM_CENTRAL_LADDER
-            } else {
-                &fricsens::sensitivity::FDM_FORWARD_LADDER
-            };
-            for inc in &s.increments {
-                assert!(
-                    inc.betas.iter().all(|b| ladder.contains(b)),
-                    "{:?}",
-                    inc.betas
-                );
-            }
+            on_the_ladder(&s, method, names.len());
         }
     }
 }
