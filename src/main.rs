@@ -649,8 +649,12 @@ fn sensitivity(
         fricsens::output::write_sensitivity_vtk(&dir, &model, &res, &sens)
             .map_err(|e| e.to_string())?;
     }
-    let maps = fricsens::output::write_parameter_fields_vtk(&dir, &model, &res, &sens, &params)
-        .map_err(|e| e.to_string())?;
+    let maps = if vtk {
+        fricsens::output::write_parameter_fields_vtk(&dir, &model, &res, &sens, &params)
+            .map_err(|e| e.to_string())?
+    } else {
+        Vec::new()
+    };
     if !maps.is_empty() {
         out!(
             "field parameters: d(response)/d(field) drawn on the mesh in {} file(s), {}",
