@@ -10,7 +10,7 @@
 use fricsens::model::{node_dofs, Model};
 use fricsens::prelude::*;
 use fricsens::sensitivity::{
-    run_sensitivity_watched, Engine, SensitivityError, SensitivityResults, TangentChoice,
+    run_inline_keeping, run_sensitivity_watched, SensitivityResults, TangentChoice,
 };
 use fricsens::solver::Results;
 use pyo3::create_exception;
@@ -112,64 +112,6 @@ fn report(progress: &Option<PyObject>, index: usize, time: f64) {
 }
 
 struct Progress<'a>(&'a Option<PyObject>);
-
-/// The in-line engine (DDM, SDM, SDM central) observing the primal run, then the progress
-/// callback: what `run_sensitivity_watched` does, with the engine's results kept when the
-/// run stops.
-struct Inline<'a, 'p> {
-    engine: Engine<'p>,
-    progress: &'a Option<PyObject>,
-}
-
-impl Observer for Inline<'_, '_> {
-    fn converged(&mut self, c: &Converged<'_>) -> Result<(), fricsens::solver::AnalysisError> {
-        self.engine.converged(c)?;
-        report(self.progress, c.index, c.time);
-        Ok(())
-    }
-}
-
-/// Run the in-line method of `settings`: the primal results and the sensitivities, or the
-/// error with the sensitivities of the increments that converged.
-#[allow(clippy::type_complexity)]
-fn run_inline(
-    model: &Model,
-    params: &[Parameter],
-    settings: &Settings,
-    progress: &Option<PyObject>,
-) -> Result<(Results, SensitivityResults), Box<(fricsens::solver::AnalysisError, SensitivityResults)>>
-{
-    let mut obs = Inline {
-        engine: Engine::new(model, params, settings.clone()),
-        progress,
-    };
-    let run = Solver::new(model).and_then(|mut s| s.run(&RunOptions::default(), &mut obs));
-    let mut sens = obs.engine.results;
-    // the primal run's time without the engine's own work, as the in-line sweep gives it
-    let primal = |wall: f64, s: &SensitivityResults| {
-        let c = &s.cost;
-        wall - (c.wall_seconds + c.floor_seconds + c.anatomy_seconds + c.fields_seconds)
-    };
-    match run {
-        Ok(res) => {
-            sens.primal_seconds = primal(res.cost.wall_seconds, &sens);
-            if let Some(why) = &sens.failure {
-                let e = SensitivityError::Failed {
-                    method: settings.method.name(),
-                    reason: why.clone(),
-                };
-                return Err(Box::new((e.into(), sens)));
-            }
-            Ok((res, sens))
-        }
-        Err(e) => {
-            sens.primal_seconds = e
-                .partial()
-                .map_or(f64::NAN, |p| primal(p.cost.wall_seconds, &sens));
-            Err(Box::new((e, sens)))
-        }
-    }
-}
 
 impl Observer for Progress<'_> {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), fricsens::solver::AnalysisError> {
@@ -365,7 +307,10 @@ impl PyScene {
         };
         let run = py.allow_threads(|| {
             if method.is_inline() {
-                run_inline(&model, &ps, &settings, &progress).map_err(|b| {
+                run_inline_keeping(&model, &ps, &settings, &mut |c| {
+                    report(&progress, c.index, c.time)
+                })
+                .map_err(|b| {
                     let (e, partial) = *b;
                     Box::new((e, Some(partial)))
                 })

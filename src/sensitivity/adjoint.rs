@@ -187,7 +187,8 @@ struct Store<'m> {
 }
 
 impl Store<'_> {
-    /// The states of segment `k` (positions `segments[k].1..`), and the bytes they take.
+    /// The states of segment `k` (positions from `segments[k].1`): the forward run's for the
+    /// last, recomputed from its resume point for the others.
     fn fetch(
         &mut self,
         k: usize,
@@ -302,8 +303,8 @@ pub(super) fn run_adjoint(
         resume_bytes,
         keep_factors,
     };
-    let mut sweep = Sweep::new(model, params, first_plastic)?;
-    sweep.tangent = (settings.tangent, settings.refine_steps);
+    let tangent = (settings.tangent, settings.refine_steps);
+    let sweep = Sweep::new(model, params, first_plastic, tangent)?;
     let mut cost = SensitivityCost::default();
     let dfdb = sweep.run(&sel, &dh0, &mut cost, &mut store, |m| lights[m].time)?;
     out.cost = cost;
@@ -680,6 +681,7 @@ impl<'a> Sweep<'a> {
         model: &'a Model,
         params: &'a [Parameter],
         first_plastic: Vec<usize>,
+        tangent: (TangentChoice, usize),
     ) -> Result<Self, AnalysisError> {
         let asm = Assembler::new(model, &[])?;
         let dofs = &asm.dofs;
@@ -734,7 +736,7 @@ impl<'a> Sweep<'a> {
         Ok(Sweep {
             outputs: Outputs::new(&asm, model.contacts.len()),
             first_plastic,
-            tangent: (TangentChoice::Exact, 0),
+            tangent,
             model,
             params,
             lifted: model.lifted(&[]),

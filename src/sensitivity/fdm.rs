@@ -138,10 +138,7 @@ pub(super) fn inline_sweep(
     let inline: f64 = engines
         .engines
         .iter()
-        .map(|e| {
-            let c = &e.results.cost;
-            c.wall_seconds + c.floor_seconds + c.anatomy_seconds + c.fields_seconds
-        })
+        .map(|e| own_seconds(&e.results))
         .sum();
     let out = engines
         .engines
@@ -153,6 +150,50 @@ pub(super) fn inline_sweep(
         })
         .collect();
     Ok((res, out, engines.errors))
+}
+
+/// An in-line engine's own time in a primal run it observed: its work, its floor probes, its
+/// anatomy and fields.
+fn own_seconds(s: &SensitivityResults) -> f64 {
+    let c = &s.cost;
+    c.wall_seconds + c.floor_seconds + c.anatomy_seconds + c.fields_seconds
+}
+
+/// One in-line method (DDM, SDM, SDM central) as [`run_sensitivity_watched`] runs it, but
+/// keeping what it computed when the analysis stops: on failure, the error with the
+/// sensitivities of the increments that converged (the engine's failure stops the run at once,
+/// with the same error). The Python package's partial results.
+#[allow(clippy::type_complexity)]
+pub fn run_inline_keeping(
+    model: &Model,
+    params: &[Parameter],
+    settings: &Settings,
+    watch: &mut dyn FnMut(&Converged<'_>),
+) -> Result<(Results, SensitivityResults), Box<(AnalysisError, SensitivityResults)>> {
+    let mut engine = Engine::new(model, params, settings.clone());
+    let run = Solver::new(model)
+        .and_then(|mut s| s.run(&RunOptions::default(), &mut Watched(&mut engine, watch)));
+    let mut sens = engine.results;
+    let primal = |wall: f64, s: &SensitivityResults| wall - own_seconds(s);
+    match run {
+        Ok(res) => {
+            sens.primal_seconds = primal(res.cost.wall_seconds, &sens);
+            if let Some(why) = &sens.failure {
+                let e = SensitivityError::Failed {
+                    method: settings.method.name(),
+                    reason: why.clone(),
+                };
+                return Err(Box::new((e.into(), sens)));
+            }
+            Ok((res, sens))
+        }
+        Err(e) => {
+            sens.primal_seconds = e
+                .partial()
+                .map_or(f64::NAN, |p| primal(p.cost.wall_seconds, &sens));
+            Err(Box::new((e, sens)))
+        }
+    }
 }
 
 /// Finite differences at several perturbation sizes from one nominal run: the reruns at
