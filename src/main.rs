@@ -99,6 +99,13 @@ enum Command {
         /// anatomy.csv.
         #[arg(long)]
         explain: bool,
+        /// SDM and SDM central: the refined SDM for shape parameters. Each node's rigid
+        /// rotation is differentiated exactly (the perturbed unknowns turned with the
+        /// material, the tangent times that turn taken out of the difference), only the
+        /// deformation by the difference: the truncation no longer grows with refinement
+        /// where elements rotate (the semi-analytical inaccuracy of shape sensitivities).
+        #[arg(long)]
+        rigid_modes: bool,
         /// Also write vtk/ for ParaView: per increment, the primal fields and, for every
         /// parameter, the derivatives of the displacement, contact force and pressure,
         /// friction force, stress and equivalent plastic strain fields (`d(FIELD)/d(PARAM)`),
@@ -347,6 +354,7 @@ struct InlineArgs {
     tangent: TangentArg,
     krylov: bool,
     explain: bool,
+    rigid_modes: bool,
     vtk: bool,
     shard: Option<String>,
     at: Vec<String>,
@@ -481,6 +489,7 @@ fn sensitivity(
         tangent,
         krylov,
         explain,
+        rigid_modes,
         vtk,
         shard,
         at,
@@ -541,8 +550,21 @@ fn sensitivity(
         // the adjoint's --vtk draws the field parameters' derivatives alone
         fields: vtk && !matches!(method, MethodArg::Adjoint),
         adjoint_checkpoint: checkpoint.unwrap_or(0),
+        rigid_modes,
         ..Settings::default()
     };
+    if rigid_modes && !matches!(settings.method, Method::Sdm | Method::SdmCentral) {
+        return Err(format!(
+            "--rigid-modes refines SDM's difference: use it with --method sdm or sdm-central, not {}",
+            settings.method.name()
+        ));
+    }
+    if rigid_modes && explain {
+        return Err(
+            "--explain splits plain SDM's error (which --rigid-modes is there to remove): drop one of them"
+                .into(),
+        );
+    }
     if checkpoint.is_some() && settings.method != Method::Adjoint {
         return Err(format!(
             "--checkpoint sets the adjoint's checkpoints: use it with --method adjoint, not {}",
@@ -1564,6 +1586,7 @@ fn main() -> ExitCode {
             tangent,
             no_krylov,
             explain,
+            rigid_modes,
             vtk,
             shard,
             at,
@@ -1578,6 +1601,7 @@ fn main() -> ExitCode {
                 tangent,
                 krylov: !no_krylov,
                 explain,
+                rigid_modes,
                 vtk,
                 shard,
                 at,

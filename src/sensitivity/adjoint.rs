@@ -532,7 +532,7 @@ fn parts(x: &Ad) -> [f64; W] {
 
 /// Greedy colouring of `items` (each a list of the unknowns it touches) so that no two items
 /// of a colour share one: `colour[i]`, and the number of colours.
-fn colour(items: &[Vec<usize>], n: usize) -> (Vec<usize>, usize) {
+pub(super) fn colour(items: &[Vec<usize>], n: usize) -> (Vec<usize>, usize) {
     let mut taken: Vec<Vec<usize>> = vec![Vec::new(); n];
     let mut colours = vec![0; items.len()];
     let mut count = 0;

@@ -482,6 +482,7 @@ impl Observer for Engine<'_> {
                 // the anatomy differences at one fixed beta on the converged branches
                 if self.settings.explain
                     && !self.settings.beta_auto
+                    && !self.settings.rigid_modes
                     && self.settings.freeze_branches
                 {
                     // the anatomy's work is kept out of the method's cost

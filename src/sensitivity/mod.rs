@@ -61,6 +61,7 @@ mod engine;
 mod fdm;
 pub mod fields;
 mod kinks;
+pub mod rigid;
 mod sdm;
 
 pub use crate::design::{Parameter, ParameterError};
@@ -181,8 +182,8 @@ pub struct Settings {
     /// of the residual, the response's own difference and what the history carries in
     /// ([`anatomy`]; `SensitivityResults::anatomy`). Its work is timed apart
     /// (`SensitivityCost::anatomy_seconds`) and kept out of the method's cost. Only at a fixed
-    /// `beta` with `freeze_branches` (what the anatomy differences against): ignored with
-    /// `beta_auto` or free branches.
+    /// `beta` with `freeze_branches` (what the anatomy differences against) and plain SDM:
+    /// ignored with `beta_auto`, free branches or `rigid_modes`.
     pub explain: bool,
     /// SDM and SDM central: choose each parameter's step at every increment from a ladder of
     /// probes at the fixed state instead of `beta`, and give every derivative an error bar
@@ -204,6 +205,12 @@ pub struct Settings {
     /// recompute each segment between two of them from the first when the backward sweep
     /// reaches it (bit for bit the forward run's states); 0: keep every increment.
     pub adjoint_checkpoint: usize,
+    /// SDM and SDM central, shape parameters: the refined SDM, which differentiates the
+    /// rigid-body part of every node's motion exactly and differences only the rest (the
+    /// [`rigid`] module docs): its truncation no longer grows with mesh refinement under
+    /// large element rotations. Costs one product with the converged tangent per moving
+    /// parameter and increment.
+    pub rigid_modes: bool,
 }
 
 /// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
@@ -233,6 +240,7 @@ impl Default for Settings {
             fields: false,
             adjoint_at: Vec::new(),
             adjoint_checkpoint: 0,
+            rigid_modes: false,
         }
     }
 }

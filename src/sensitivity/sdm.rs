@@ -2,12 +2,14 @@
 //! at the fixed converged state (forward or central), evaluated only where the perturbation
 //! reaches.
 
+use super::rigid;
 use super::*;
 use crate::assembly::{Evaluation, Frozen};
 use crate::material::Branch;
 use crate::model::Lifted;
 use crate::scalar::Scalar;
 use crate::solver::{AnalysisError, Converged};
+use crate::terms::Terms;
 use std::time::Instant;
 
 impl Engine<'_> {
@@ -185,6 +187,37 @@ impl Engine<'_> {
         Ok(k)
     }
 
+    /// The relative noise of parameter `k`'s unbalance (machine precision times the forces
+    /// that cancel in it, the reference force of Newton's criterion, over the unbalance), and
+    /// the round-off flag where the perturbed parameter itself lost its digits (`b + db`
+    /// keeps fewer than `ROUNDOFF_DIGITS` digits of `db`).
+    #[allow(clippy::too_many_arguments)]
+    fn unbalance_noise(
+        &self,
+        c: &Converged<'_>,
+        k: usize,
+        db: f64,
+        central: bool,
+        rhs: &[f64],
+        noise: &mut [f64],
+        roundoff: &mut [Vec<bool>],
+    ) {
+        let n = c.z.len();
+        let db_eff = if central { 2.0 * db } else { db };
+        let unbalance = (0..n)
+            .map(|i| (rhs[k * n + i] * db_eff).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if unbalance != 0.0 {
+            noise[k] = f64::EPSILON * c.record.reference_force / unbalance;
+        }
+        if roundoff_dominated(db, self.params[k].value, f64::EPSILON) {
+            for row in roundoff.iter_mut() {
+                row[k] = true;
+            }
+        }
+    }
+
     /// SDM (forward or central) for all parameters, parameter `k` perturbed by `betas[k]`
     /// (relative, [`crate::design::Parameter::step`]).
     pub(super) fn sdm(
@@ -230,7 +263,68 @@ impl Engine<'_> {
                 self.lifted_at(c, k, db),
                 central.then(|| self.lifted_at(c, k, -db)),
             ));
+        }
+        // refined SDM: the solid elements' part of every moving parameter's difference with
+        // the rigid rotations differentiated exactly (`rigid` module docs)
+        let mut solid: Vec<Option<Vec<f64>>> = vec![None; np];
+        if self.settings.rigid_modes {
+            let moving: Vec<rigid::Moving<'_>> = (0..np)
+                .filter_map(|k| {
+                    let db = self.params[k].step(betas[k]);
+                    let (plus, minus) = (&designs[k].0, designs[k].1.as_ref());
+                    let velocity = match minus {
+                        Some(m) => rigid::velocity(plus, m, 2.0 * db),
+                        None => rigid::velocity(plus, c.lifted, db),
+                    }?;
+                    Some(rigid::Moving {
+                        k,
+                        db,
+                        plus,
+                        minus,
+                        velocity,
+                        dzc: &dzc[k],
+                    })
+                })
+                .collect();
+            let base = frozen.copied().unwrap_or_default();
+            let parts = self.solid_differences(c, &base, &moving)?;
+            for (m, part) in moving.iter().zip(parts) {
+                solid[m.k] = Some(part);
+            }
+        }
+        let rest = Frozen {
+            terms: Terms {
+                solids: false,
+                ..Terms::ALL
+            },
+            ..frozen.copied().unwrap_or_default()
+        };
+        for k in 0..np {
+            let db = self.params[k].step(betas[k]);
             let (lifted_p, lifted_m) = &designs[k];
+            if let Some(part) = &solid[k] {
+                // the springs, contact and loads differenced as plain SDM does
+                self.perturbed(c, k, db, lifted_p, &dzc[k], Some(&rest), &mut ev_p)?;
+                let base = match lifted_m {
+                    Some(lifted_m) => {
+                        self.perturbed(c, k, -db, lifted_m, &dzc[k], Some(&rest), &mut ev_m)?;
+                        &ev_m
+                    }
+                    None => {
+                        let (lifted, z, hist) = (c.lifted, c.z, c.hist_prev);
+                        self.evaluate(c, lifted, z, hist, Some(&rest), None, &mut ev_0)?;
+                        &ev_0
+                    }
+                };
+                let span = if central { 2.0 * db } else { db };
+                for i in (0..n).filter(|&i| !c.constrained[i]) {
+                    rhs[k * n + i] = -((ev_p.residual[i] - base.residual[i]) / span + part[i]);
+                }
+                // (the explicit part of the responses is left at zero: the noise bound below
+                // then takes the whole derivative as carried by dz, the larger bound)
+                self.unbalance_noise(c, k, db, central, &rhs, &mut unbalance_noise, &mut roundoff);
+                continue;
+            }
             // Leave out the elements the perturbation does not reach: their residual is the
             // same in both evaluations of the difference, so it cancels exactly (and its
             // round-off with it). Friction and contact-stiffness parameters then evaluate the
@@ -280,21 +374,7 @@ impl Engine<'_> {
                 };
                 rhs[k * n + i] = -d;
             }
-            let db_eff = if central { 2.0 * db } else { db };
-            let unbalance = (0..n)
-                .map(|i| (rhs[k * n + i] * db_eff).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            if unbalance != 0.0 {
-                unbalance_noise[k] = f64::EPSILON * c.record.reference_force / unbalance;
-            }
-            // the perturbed parameter itself lost its digits (b + db keeps fewer than
-            // ROUNDOFF_DIGITS digits of db)
-            if roundoff_dominated(db, self.params[k].value, f64::EPSILON) {
-                for row in roundoff.iter_mut() {
-                    row[k] = true;
-                }
-            }
+            self.unbalance_noise(c, k, db, central, &rhs, &mut unbalance_noise, &mut roundoff);
         }
         self.solve(c, &mut rhs, np)?;
         let mut dresp = vec![vec![0.0; np]; nr];

@@ -17,6 +17,7 @@ mod field_params;
 mod fields;
 mod methods;
 mod plastic_cantilever;
+mod rigid_modes;
 mod roundoff;
 mod sensitivity_elastic;
 mod sensitivity_kinks;

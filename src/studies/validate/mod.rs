@@ -30,6 +30,7 @@ pub mod auto_step;
 mod figures;
 pub mod imported;
 pub mod partial;
+pub mod refinement;
 mod report;
 pub mod tangent;
 pub mod taylor;
@@ -291,6 +292,10 @@ pub struct Validation {
     /// Ten parameters of the leaf spring through one primal run, on its mesh and on the mesh
     /// refined twice along and through the leaves (when the leaf spring is validated).
     pub batched: Vec<BatchedCost>,
+    /// The shape-parameter benchmark and the refined SDM ([`refinement`]), with the leaf
+    /// spring (the full validation).
+    #[serde(default)]
+    pub refinement: Option<refinement::RefinementStudy>,
 }
 
 /// The leaf spring's ten design parameters of the batched cost measurement: friction,
@@ -823,6 +828,8 @@ pub enum Job {
     Batched,
     /// The same on [`refined_leaf_spring`].
     BatchedRefined,
+    /// The shape-parameter benchmark and the refined SDM ([`refinement`]).
+    Refinement,
 }
 
 /// The imported-geometry checks, each a job of its own.
@@ -848,6 +855,7 @@ impl Job {
             Job::Imported(c, dir) => format!("imported {c:?} in {}", dir.display()),
             Job::Batched => "batched cost, leaf-spring".into(),
             Job::BatchedRefined => "batched cost, refined leaf-spring".into(),
+            Job::Refinement => "shape parameters: cantilever refinement, refined SDM".into(),
         }
     }
 }
@@ -880,6 +888,7 @@ pub fn plan(scenes: &[Scene], opts: &ValidateOptions) -> Vec<Job> {
         if opts.refined_batch {
             jobs.push(Job::BatchedRefined);
         }
+        jobs.push(Job::Refinement);
     }
     jobs
 }
@@ -908,6 +917,8 @@ pub enum JobOutput {
     Imported(Vec<OracleRow>),
     /// [`Job::Batched`] and [`Job::BatchedRefined`].
     Batched(BatchedCost),
+    /// [`Job::Refinement`].
+    Refinement(refinement::RefinementStudy),
 }
 
 /// Run one job.
@@ -947,6 +958,11 @@ pub fn run_job(
         Job::BatchedRefined => {
             JobOutput::Batched(batched_cost(&refined_leaf_spring(), opts.figure_beta)?)
         }
+        Job::Refinement => JobOutput::Refinement(refinement::refinement_study(
+            leaf(),
+            &opts.betas,
+            opts.floor,
+        )?),
     })
 }
 
@@ -1028,6 +1044,7 @@ fn finish(
     let mut laws = None;
     let mut imported = Vec::new();
     let mut batched = Vec::new();
+    let mut shape = None;
     for o in outputs {
         match o {
             JobOutput::Scene {
@@ -1051,6 +1068,13 @@ fn finish(
             }
             JobOutput::Imported(rows) => imported.extend(rows),
             JobOutput::Batched(b) => batched.push(b),
+            JobOutput::Refinement(r) => {
+                crate::studies::plot::write_svg(
+                    &refinement::figure(&r),
+                    &figs.join(refinement::FIGURE),
+                )?;
+                shape = Some(r);
+            }
         }
     }
     // figure 7's second curve belongs with a validated leaf spring
@@ -1065,6 +1089,7 @@ fn finish(
         floor: opts.floor,
         wall_seconds,
         batched,
+        refinement: shape,
     };
     // the indentation's pressure profile after sliding, for figures 4 and 5 and the report
     let indentation = validation

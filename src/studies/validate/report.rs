@@ -250,6 +250,9 @@ pub(super) fn report(
     let rows: Vec<&super::anatomy::AnatomyRow> =
         val.scenes.iter().flat_map(|v| &v.anatomy).collect();
     super::anatomy::write_anatomy(&mut s, &rows, opts.figure_beta);
+    if let Some(r) = &val.refinement {
+        super::refinement::write_refinement(&mut s, r);
+    }
     let tangents: Vec<(&str, &super::tangent::TangentStudy)> = val
         .scenes
         .iter()
