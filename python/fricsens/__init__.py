@@ -228,13 +228,15 @@ class Scene:
         beta: Union[float, str, None] = None,
         tangent: str = "exact",
         fields: bool = False,
+        rigid_modes: bool = False,
         progress: Progress = None,
     ) -> Sensitivity:
         """Every response's derivative with respect to ``params`` (default: the study's)
         by ``method``: ``ddm``, ``sdm``, ``sdm-central``, ``fdm``, ``fdm-central`` or ``adjoint`` (every increment).
         ``beta``: the relative perturbation (None: the study's; ``"auto"`` for SDM and FDM);
         ``tangent``: ``exact``, ``last`` or ``refined``; ``fields``: also the derivative of
-        the displacement field. If the analysis stops, the :class:`AnalysisError` raised
+        the displacement field; ``rigid_modes``: the refined SDM for shape parameters (``sdm``,
+        ``sdm-central``; each element's rigid rotation differentiated exactly). If the analysis stops, the :class:`AnalysisError` raised
         carries, for the in-line methods (``ddm``, ``sdm``, ``sdm-central``), the increments
         that converged as ``partial``, a :class:`Sensitivity` (None for the finite
         differences and the adjoint, which need the whole history)."""
@@ -243,7 +245,9 @@ class Scene:
         elif isinstance(params, str):
             params = [params]
         try:
-            d = self._inner.sensitivity(list(params), method, beta, tangent, fields, progress)
+            d = self._inner.sensitivity(
+                list(params), method, beta, tangent, fields, rigid_modes, progress
+            )
         except AnalysisError as e:
             _with_partial(e, lambda p: _sensitivity_from(p, fields))
             raise

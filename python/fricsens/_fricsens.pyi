@@ -42,6 +42,7 @@ class Scene:
         beta: Union[float, str, None] = None,
         tangent: str = "exact",
         fields: bool = False,
+        rigid_modes: bool = False,
         progress: Optional[Callable[[int, float], None]] = None,
     ) -> Dict[str, Any]: ...
 

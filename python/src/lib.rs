@@ -235,8 +235,9 @@ impl PyScene {
     /// A sensitivity analysis of every response with respect to `params` by `method` (`ddm`,
     /// `sdm`, `sdm-central`, `fdm`, `fdm-central`); `beta` a relative step, `"auto"` (SDM, FDM), or
     /// `None` for the study's; `tangent` `exact`, `last` or `refined`; `fields` keeps the
-    /// derivatives of the displacement field.
-    #[pyo3(signature = (params, method = "ddm", beta = None, tangent = "exact", fields = false, progress = None))]
+    /// derivatives of the displacement field; `rigid_modes` the refined SDM for shape
+    /// parameters (`--rigid-modes`).
+    #[pyo3(signature = (params, method = "ddm", beta = None, tangent = "exact", fields = false, rigid_modes = false, progress = None))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity<'py>(
         &self,
@@ -246,6 +247,7 @@ impl PyScene {
         beta: Option<Bound<'py, PyAny>>,
         tangent: &str,
         fields: bool,
+        rigid_modes: bool,
         progress: Option<PyObject>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let model = self.model()?;
@@ -291,6 +293,11 @@ impl PyScene {
                 "beta=\"auto\" chooses the step of a difference: use it with method sdm, sdm-central, fdm or fdm-central",
             ));
         }
+        if rigid_modes && !matches!(method, Method::Sdm | Method::SdmCentral) {
+            return Err(FricsensError::new_err(
+                "rigid_modes=True refines SDM's difference: use it with method sdm or sdm-central",
+            ));
+        }
         if fields && method == Method::Adjoint {
             return Err(FricsensError::new_err(
                 "fields=True: the adjoint's field derivatives are not built yet",
@@ -303,6 +310,7 @@ impl PyScene {
             tangent,
             beta_auto,
             fields,
+            rigid_modes,
             ..Settings::default()
         };
         let run = py.allow_threads(|| {
