@@ -85,7 +85,7 @@ pub(super) fn write_auto(s: &mut String, rows: &[SceneRow<'_>]) {
     let _ = writeln!(s, "\n### Choosing the step: `--beta auto`\n");
     let _ = writeln!(
         s,
-        "`--beta auto` chooses each parameter's step at every increment from a ladder of SDM probes at the fixed state (1e-2 to 1e-10 forward, 1e-1 to 1e-7 central: the plateau where neighbouring probes agree best) and gives every derivative an error bar: twice the sum of the difference from a shadow run at a tenth of each step and the round-off SDM expects. The target: the bar bounds the true error (against DDM) for at least 95 % of the derivatives (unflagged increments, responses sensitive to the parameter), and the largest error is within a factor 10 of the sweep's best fixed beta.\n"
+        "`--beta auto` chooses each parameter's step at every increment from a ladder of SDM probes at the fixed state (1e-1 to 1e-10 forward, 1e-1 to 1e-7 central: the largest pair of neighbouring probes that agree to the round-off they expect, where their differences stop shrinking, else the pair that agrees best; a response whose probe is within its round-off of zero, a derivative that is zero, is left out of the choice) and gives every derivative an error bar: twice the sum of the difference from a shadow run at a tenth of each step and the round-off SDM expects. The target: the bar bounds the true error (against DDM) for at least 95 % of the derivatives (unflagged increments, responses sensitive to the parameter), and the largest error is within a factor 10 of the sweep's best fixed beta.\n"
     );
     let _ = writeln!(
         s,
