@@ -564,7 +564,7 @@ pub(crate) fn validate_scene(
         });
     }
     let (primal, mut inline) = run_inline_sweep(&model, &params, &settings).map_err(wrap)?;
-    let auto_runs = inline.split_off(inline.len() - 2);
+    let mut auto_runs = inline.split_off(inline.len() - 2);
     let ddm_refined = inline.pop().expect("pushed last");
     let explained: Vec<&SensitivityResults> =
         inline.iter().filter(|s| !s.anatomy.is_empty()).collect();
@@ -580,6 +580,20 @@ pub(crate) fn validate_scene(
             }
             .into(),
         ));
+    }
+    // FDM and FDM central with --beta auto: reruns at every step of their ladders (left out
+    // where the sweep's FDM is reduced, as it is there for the same cost)
+    if !opts.reduced_fdm.contains(&scene.name) {
+        for method in [Method::Fdm, Method::FdmCentral] {
+            let settings = Settings {
+                method,
+                beta_auto: true,
+                ..exact.clone()
+            };
+            let (_, run) =
+                crate::sensitivity::run_sensitivity(&model, &params, &settings).map_err(wrap)?;
+            auto_runs.push(run);
+        }
     }
     let fdm_betas: Vec<f64> = if opts.reduced_fdm.contains(&scene.name) {
         opts.betas

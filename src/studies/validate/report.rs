@@ -263,11 +263,9 @@ pub(super) fn report(
         .iter()
         .flat_map(|v| {
             v.auto.iter().map(move |r| {
-                let m = if r.method == Method::SdmCentral.name() {
-                    Method::SdmCentral
-                } else {
-                    Method::Sdm
-                };
+                let m = (Method::ALL.into_iter())
+                    .find(|m| m.name() == r.method)
+                    .unwrap_or(Method::Sdm);
                 (v.scene.as_str(), r, best(v, m, &r.param))
             })
         })
