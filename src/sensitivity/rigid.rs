@@ -37,7 +37,7 @@
 //! colour sharing a node (eight on a structured hexahedral mesh): per colour one evaluation of
 //! the colour's tangent at the converged state (its residual is the forward difference's
 //! nominal), and per moving parameter one (forward) or two (central) evaluations of the
-//! colour's elements. The springs, contact and loads are differenced as plain SDM does. Every
+//! colour's elements; a colour none of whose elements the parameter reaches is left out. The springs, contact and loads are differenced as plain SDM does. Every
 //! evaluation reuses the element kernels and their tangent; no derivative is written by hand.
 //! The truncation left is that of the element's deformation under a relative stretch
 //! `db |grad V|`: it still grows where a refinement makes the stretched elements smaller at a
@@ -187,7 +187,23 @@ impl Engine<'_> {
         let mut ev_m = Evaluation::<f64>::new(c.assembler, ne);
         let mut w = vec![0.0; n];
         let mut kw = vec![0.0; n];
+        // the elements each parameter leaves unreached (`None`: none, or no restriction): a
+        // colour none of whose elements a parameter reaches adds exactly nothing to its
+        // difference (no node of it moves, so `w` is zero there too) and is left out
+        let unreached: Vec<Option<Vec<bool>>> = moving
+            .iter()
+            .map(|m| {
+                let reach = super::engine::Reach::between(m.plus, c.lifted);
+                (frozen.gauss).and_then(|g| self.unreached(c, m.k, &reach, m.dzc, g, false))
+            })
+            .collect();
         for members in &rot.colours {
+            let reached: Vec<bool> = (unreached.iter())
+                .map(|u| u.as_ref().is_none_or(|u| members.iter().any(|&e| !u[e])))
+                .collect();
+            if !reached.contains(&true) {
+                continue;
+            }
             let mut skip = vec![true; ne];
             for &e in members {
                 skip[e] = false;
@@ -213,7 +229,10 @@ impl Engine<'_> {
                 Some(&mut tangent),
                 &mut ev_0,
             )?;
-            for (m, d) in moving.iter().zip(out.iter_mut()) {
+            for ((m, d), _) in (moving.iter().zip(out.iter_mut()))
+                .zip(&reached)
+                .filter(|(_, r)| **r)
+            {
                 w.iter_mut().for_each(|x| *x = 0.0);
                 for &e in members {
                     let Some(q) = &rot.rotation[e] else { continue };
@@ -238,8 +257,11 @@ impl Engine<'_> {
                     d[i] += (ev_p.residual[i] - base.residual[i]) / span - kw[i];
                 }
             }
-            let central = moving.iter().filter(|m| m.minus.is_some()).count();
-            self.results.cost.partial_evaluations += 1 + moving.len() + central;
+            let evaluated = (moving.iter().zip(&reached))
+                .filter(|(_, r)| **r)
+                .map(|(m, _)| if m.minus.is_some() { 2 } else { 1 })
+                .sum::<usize>();
+            self.results.cost.partial_evaluations += 1 + evaluated;
         }
         Ok(out)
     }
