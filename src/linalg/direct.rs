@@ -460,18 +460,36 @@ impl LinearSolver {
         ncols: usize,
         steps: usize,
     ) -> Result<f64> {
+        self.refine_oriented(a, false, b, x, ncols, steps)
+    }
+
+    /// [`LinearSolver::refine_multi`] for `a x = b`, or for `a^T x = b` with the transposed
+    /// solves where `transpose`.
+    fn refine_oriented(
+        &self,
+        a: &SparseMatrix,
+        transpose: bool,
+        b: &[f64],
+        x: &mut [f64],
+        ncols: usize,
+        steps: usize,
+    ) -> Result<f64> {
         let n = self.pattern.n;
         check_len(a.n(), n)?;
         check_len(n * ncols, b.len())?;
         check_len(n * ncols, x.len())?;
         let mut r = vec![0.0; n * ncols];
-        let mut res = worst(&residuals(a, b, x, &mut r, ncols)?);
+        let mut res = worst(&residuals_of(a, transpose, b, x, &mut r, ncols)?);
         for _ in 0..steps {
-            self.solve_multi_in_place(&mut r, ncols)?;
+            if transpose {
+                self.solve_transpose_multi_in_place(&mut r, ncols)?;
+            } else {
+                self.solve_multi_in_place(&mut r, ncols)?;
+            }
             for (xi, ri) in x.iter_mut().zip(&r) {
                 *xi += ri;
             }
-            res = worst(&residuals(a, b, x, &mut r, ncols)?);
+            res = worst(&residuals_of(a, transpose, b, x, &mut r, ncols)?);
         }
         Ok(res)
     }
@@ -539,7 +557,7 @@ impl LinearSolver {
     }
 
     /// [`LinearSolver::refine_multi`] for `a^T x = b`: `steps` times
-    /// `x += LU^{-T} (b - a^T x)`.
+    /// `x += LU^{-T} (b - a^T x)`. Returns the largest relative residual over the columns.
     pub fn refine_transpose_multi(
         &self,
         a: &SparseMatrix,
@@ -547,26 +565,8 @@ impl LinearSolver {
         x: &mut [f64],
         ncols: usize,
         steps: usize,
-    ) -> Result<()> {
-        let n = self.pattern.n;
-        check_len(a.n(), n)?;
-        check_len(n * ncols, b.len())?;
-        check_len(n * ncols, x.len())?;
-        let mut r = vec![0.0; n * ncols];
-        for _ in 0..steps {
-            for c in 0..ncols {
-                let cols = c * n..(c + 1) * n;
-                a.mul_vec_transpose(&x[cols.clone()], &mut r[cols.clone()])?;
-                for (ri, bi) in r[cols.clone()].iter_mut().zip(&b[cols]) {
-                    *ri = bi - *ri;
-                }
-            }
-            self.solve_transpose_multi_in_place(&mut r, ncols)?;
-            for (xi, ri) in x.iter_mut().zip(&r) {
-                *xi += ri;
-            }
-        }
-        Ok(())
+    ) -> Result<f64> {
+        self.refine_oriented(a, true, b, x, ncols, steps)
     }
 }
 

@@ -312,12 +312,28 @@ pub(super) fn residuals(
     r: &mut [f64],
     ncols: usize,
 ) -> Result<Vec<f64>> {
+    residuals_of(a, false, b, x, r, ncols)
+}
+
+/// [`residuals`] of `a x = b`, or of `a^T x = b` where `transpose`.
+pub(super) fn residuals_of(
+    a: &SparseMatrix,
+    transpose: bool,
+    b: &[f64],
+    x: &[f64],
+    r: &mut [f64],
+    ncols: usize,
+) -> Result<Vec<f64>> {
     let n = a.n();
     (0..ncols)
         .map(|c| {
             let (xc, bc) = (&x[c * n..(c + 1) * n], &b[c * n..(c + 1) * n]);
             let rc = &mut r[c * n..(c + 1) * n];
-            a.mul_vec(xc, rc)?;
+            if transpose {
+                a.mul_vec_transpose(xc, rc)?;
+            } else {
+                a.mul_vec(xc, rc)?;
+            }
             let (mut rr, mut bb) = (0.0, 0.0);
             for (ri, &bi) in rc.iter_mut().zip(bc) {
                 *ri = bi - *ri;

@@ -187,6 +187,7 @@ impl Engine<'_> {
         let mut ev_m = Evaluation::<f64>::new(c.assembler, ne);
         let mut w = vec![0.0; n];
         let mut kw = vec![0.0; n];
+        let mut shift = vec![0.0; n];
         // the elements each parameter leaves unreached (`None`: none, or no restriction): a
         // colour none of whose elements a parameter reaches adds exactly nothing to its
         // difference (no node of it moves, so `w` is zero there too) and is left out
@@ -243,7 +244,9 @@ impl Engine<'_> {
                         }
                     }
                 }
-                let shift: Vec<f64> = m.dzc.iter().zip(&w).map(|(a, b)| a + b).collect();
+                for ((s, a), b) in shift.iter_mut().zip(m.dzc).zip(&w) {
+                    *s = a + b;
+                }
                 self.perturbed(c, m.k, m.db, m.plus, &shift, Some(&pass), &mut ev_p)?;
                 let (base, span) = match m.minus {
                     Some(minus) => {

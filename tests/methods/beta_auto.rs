@@ -16,15 +16,13 @@ fn auto(model: &Model, names: &[&str], method: Method) -> SensitivityResults {
 }
 
 /// Over the unflagged increments and the responses sensitive to each parameter: how many
-/// derivatives the error bar bounds, out of how many, and the largest relative error (as the
-/// report measures it, floor 1e-3).
+/// derivatives the error bar bounds (none where `s` has no bars), out of how many, and the
+/// largest relative error (as the report measures it, floor 1e-3).
 fn bounded(
-    model: &Model,
-    names: &[&str],
+    params: &[Parameter],
     s: &SensitivityResults,
     ddm: &SensitivityResults,
 ) -> (usize, usize, f64) {
-    let params = common::params(model, names);
     let (mut ok, mut all, mut worst) = (0, 0, 0.0f64);
     for r in 0..s.responses.len() {
         for (k, p) in params.iter().enumerate() {
@@ -37,7 +35,8 @@ fn bounded(
                 }
                 let e = (a.derivatives[r][k] - d.derivatives[r][k]).abs();
                 all += 1;
-                if a.error_bars[r][k] >= e {
+                let bar = a.error_bars.get(r).and_then(|row| row.get(k));
+                if bar.is_some_and(|b| *b >= e) {
                     ok += 1;
                 }
                 worst = worst.max(e / d.derivatives[r][k].abs().max(1e-3 * scale));
@@ -67,11 +66,6 @@ fn on_the_ladder(s: &SensitivityResults, method: Method, np: usize) {
 }
 
 /// The share of bounded derivatives per scene and method, and the largest error.
-fn coverage(scene: &str, names: &[&str]) -> Vec<(Method, usize, usize, f64, SensitivityResults)> {
-    coverage_of(scene, names, &[Method::Sdm, Method::SdmCentral])
-}
-
-/// [`coverage`] for the given methods.
 fn coverage_of(
     scene: &str,
     names: &[&str],
@@ -85,54 +79,59 @@ fn coverage_of(
         .copied()
         .map(|method| {
             let s = auto(&model, names, method);
-            let (ok, all, worst) = bounded(&model, names, &s, &ddm);
+            let (ok, all, worst) = bounded(&params, &s, &ddm);
             eprintln!("{scene} {method:?}: {ok}/{all} bounded, worst {worst:.1e}");
             (method, ok, all, worst, s)
         })
         .collect()
 }
 
-#[test]
-fn error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
-    // the target, per scene and method, against DDM (which is exact to 1e-13)
-    for (scene, names) in [
-        ("leaf-spring-coarse", vec!["upper.length.x", "mu"]),
-        ("strip-pullout", vec!["mu", "E"]),
-        ("jenkins", vec!["mu"]),
-        ("stacked-leaves", vec!["E", "mu"]),
-    ] {
-        for (method, ok, all, _, s) in coverage(scene, &names) {
+/// The target on each scene and method: the bars bound at least 95 % of the
+/// derivatives, against DDM (exact to 1e-13), and every step chosen lies on the method's
+/// ladder, one per parameter.
+fn meets_the_target(cases: &[(&str, Vec<&str>, &[Method])]) {
+    for (scene, names, methods) in cases {
+        for (method, ok, all, _, s) in coverage_of(scene, names, methods) {
             assert!(all > 0);
             assert!(
                 ok as f64 >= 0.95 * all as f64,
                 "{scene} {method:?}: {ok} of {all}"
             );
-            // every step chosen lies on the method's ladder, one per parameter
             on_the_ladder(&s, method, names.len());
         }
     }
 }
 
+const SDM_BOTH: [Method; 2] = [Method::Sdm, Method::SdmCentral];
+const FDM_BOTH: [Method; 2] = [Method::Fdm, Method::FdmCentral];
+
+#[test]
+fn error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
+    meets_the_target(&[
+        (
+            "leaf-spring-coarse",
+            vec!["upper.length.x", "mu"],
+            &SDM_BOTH,
+        ),
+        ("strip-pullout", vec!["mu", "E"], &SDM_BOTH),
+        ("jenkins", vec!["mu"], &SDM_BOTH),
+        ("stacked-leaves", vec!["E", "mu"], &SDM_BOTH),
+    ]);
+}
+
 /// Known shortfalls of the target (run with `--ignored`): SDM and SDM central on the Klarbring
-/// oscillator bound 142 of 150 each (an error in the reaction's own difference that does not
-/// change between the step and a tenth of it, so the shadow run does not see it, and the
-/// reference force understates the forces that cancel in the reaction), and forward SDM on
-/// the J2 cycle 165 of 180 (the equivalent plastic strain's derivatives, 1e-8 of the stress's, err by up to
-/// three times their bars).
+/// oscillator bound 142 of 150 each (at the slip-to-stick increment, t = 3.1, the derivative
+/// depends on the step for every difference method, a near-kink DDM's kink test does not
+/// flag; the chosen step and its shadow agree there while both are 2.7e-6 off DDM, and stick
+/// carries it on), and forward SDM on the J2 cycle's E and H (the equivalent plastic strain's
+/// derivatives, 1e-8 of the stress's, err by up to three times their bars).
 #[test]
 #[ignore = "a finding: below the 95 % target, see the doc comment"]
 fn error_bars_on_the_klarbring_oscillator_and_the_j2_cycle() {
-    for (scene, names) in [
-        ("klarbring-2dof", vec!["mu"]),
-        ("uniaxial-j2", vec!["H", "E", "sigma_y"]),
-    ] {
-        for (method, ok, all, _, _) in coverage(scene, &names) {
-            assert!(
-                ok as f64 >= 0.95 * all as f64,
-                "{scene} {method:?}: {ok} of {all}"
-            );
-        }
-    }
+    meets_the_target(&[
+        ("klarbring-2dof", vec!["mu"], &SDM_BOTH),
+        ("uniaxial-j2", vec!["H", "E", "sigma_y"], &SDM_BOTH),
+    ]);
 }
 
 /// `--beta auto` for FDM and FDM central: the same plateau rule on reruns at every step of a
@@ -141,22 +140,12 @@ fn error_bars_on_the_klarbring_oscillator_and_the_j2_cycle() {
 /// leaves, the SVK bar and (forward) Jenkins; every chosen step on the method's ladder.
 #[test]
 fn fdm_error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
-    let both = [Method::Fdm, Method::FdmCentral];
-    for (scene, names, methods) in [
-        ("strip-pullout", vec!["mu", "E"], &both[..]),
-        ("stacked-leaves", vec!["E", "mu"], &both[..]),
-        ("uniaxial-svk", vec!["E"], &both[..]),
-        ("jenkins", vec!["mu"], &both[..1]),
-    ] {
-        for (method, ok, all, _, s) in coverage_of(scene, &names, methods) {
-            assert!(all > 0);
-            assert!(
-                ok as f64 >= 0.95 * all as f64,
-                "{scene} {method:?}: {ok} of {all}"
-            );
-            on_the_ladder(&s, method, names.len());
-        }
-    }
+    meets_the_target(&[
+        ("strip-pullout", vec!["mu", "E"], &FDM_BOTH),
+        ("stacked-leaves", vec!["E", "mu"], &FDM_BOTH),
+        ("uniaxial-svk", vec!["E"], &FDM_BOTH),
+        ("jenkins", vec!["mu"], &FDM_BOTH[..1]),
+    ]);
 }
 
 /// Known shortfalls of FDM's bars (run with `--ignored`): forward FDM on the J2 cycle bounds
@@ -167,38 +156,10 @@ fn fdm_error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
 #[test]
 #[ignore = "a finding: below the 95 % target, see the doc comment"]
 fn fdm_error_bars_on_the_j2_cycle_and_central_jenkins() {
-    for (scene, names, method) in [
-        ("uniaxial-j2", vec!["H", "E", "sigma_y"], Method::Fdm),
-        ("jenkins", vec!["mu"], Method::FdmCentral),
-    ] {
-        for (method, ok, all, _, _) in coverage_of(scene, &names, &[method]) {
-            assert!(
-                ok as f64 >= 0.95 * all as f64,
-                "{scene} {method:?}: {ok} of {all}"
-            );
-        }
-    }
-}
-
-/// The largest relative error of `s` against `ddm` (floor 1e-3 of each derivative's
-/// largest value), over the unflagged increments and the responses sensitive to each
-/// parameter, as the report measures it.
-fn worst_error(params: &[Parameter], s: &SensitivityResults, ddm: &SensitivityResults) -> f64 {
-    let mut worst = 0.0f64;
-    for r in 0..s.responses.len() {
-        for (k, p) in params.iter().enumerate() {
-            let Some(scale) = ddm.sensitive_scale(r, k, p.value) else {
-                continue;
-            };
-            for (a, d) in s.increments.iter().zip(&ddm.increments) {
-                if d.kinks.is_empty() {
-                    let e = (a.derivatives[r][k] - d.derivatives[r][k]).abs();
-                    worst = worst.max(e / d.derivatives[r][k].abs().max(1e-3 * scale));
-                }
-            }
-        }
-    }
-    worst
+    meets_the_target(&[
+        ("uniaxial-j2", vec!["H", "E", "sigma_y"], &FDM_BOTH[..1]),
+        ("jenkins", vec!["mu"], &FDM_BOTH[1..]),
+    ]);
 }
 
 #[test]
@@ -237,9 +198,9 @@ fn the_chosen_steps_reach_the_sweeps_best_error_within_a_factor_10() {
             });
             let (_, runs) = run_inline_sweep(&model, &params, &settings).unwrap();
             let best = (runs[1..runs.len() - 1].iter())
-                .map(|s| worst_error(&params, s, &runs[0]))
+                .map(|s| bounded(&params, s, &runs[0]).2)
                 .fold(f64::INFINITY, f64::min);
-            let auto = worst_error(&params, &runs[runs.len() - 1], &runs[0]);
+            let auto = bounded(&params, &runs[runs.len() - 1], &runs[0]).2;
             eprintln!("{scene} {method:?}: auto {auto:.1e}, best {best:.1e}");
             assert!(
                 auto <= 10.0 * best,

@@ -12,5 +12,4 @@ mod adjoint_study;
 mod ccx;
 mod scaling;
 mod shards;
-mod validate_adjoint;
 mod validation;

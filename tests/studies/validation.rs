@@ -1,5 +1,6 @@
 //! A reduced validation run (a few betas, the small scenes): the harness agrees with the
-//! independent methods and the closed forms, and writes the report.
+//! independent methods and the closed forms, the adjoint in its tables with DDM, and it writes
+//! the report.
 
 use crate::common::scratch_path;
 
@@ -86,6 +87,26 @@ fn reduced_validation_agrees_and_writes_the_report() {
     assert!(report.contains("| stacked-leaves | mu |"));
     assert!(report.contains("## Friction laws compared"));
     assert!(report.contains("| pressure-dependent | ground.n |"));
+    // the adjoint in the comparison tables: every response at the last increment of each
+    // scene, by one backward sweep, against DDM (an independent method: forward, per
+    // parameter), and its row in the report's cost table
+    for s in &v.scenes {
+        let a = &s.adjoint;
+        assert!(a.failure.is_none(), "{}: {:?}", s.scene, a.failure);
+        assert_eq!(a.errors.len(), s.params.len(), "{}", s.scene);
+        for (p, e) in s.params.iter().zip(&a.errors) {
+            // the README's claim: the adjoint equals DDM to 1e-10 of each sensitivity's scale
+            assert!(
+                *e <= 1e-10,
+                "{}: d/d {p}: adjoint against DDM {e:e}",
+                s.scene
+            );
+        }
+        assert!(a.cost_ratio.is_finite() && a.cost_ratio > 0.0);
+        assert!(a.stored_bytes > 0, "{}", s.scene);
+    }
+    assert!(report.contains("| adjoint (last increment, every response) (error) |"));
+    assert!(report.contains("**Adjoint.** Every response at the last increment"));
     let _ = std::fs::remove_dir_all(&out);
 }
 
