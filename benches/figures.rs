@@ -25,7 +25,7 @@ use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuSymbolicParams, NumericL
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::Par;
 use fricsens::assembly::{Assembler, Evaluation};
-use fricsens::element::hex8::Hex8Formulation;
+use fricsens::element::Formulation;
 use fricsens::linalg::{LinearSolver, SolverOptions, SparseMatrix};
 use fricsens::material::MaterialLaw;
 use fricsens::model::DesignParam;
@@ -81,8 +81,8 @@ fn ad_time<S: Scalar, M: MaterialLaw>(base: &Element<f64>, m: &M) -> (Duration, 
 
 fn element_table<M: MaterialLaw>(name: &str, m: &M, plastic: bool) {
     for (fname, form) in [
-        ("full", Hex8Formulation::Full),
-        ("im", Hex8Formulation::IncompatibleModes),
+        ("full", Formulation::Full),
+        ("im", Formulation::IncompatibleModes),
     ] {
         let np = m.params().len();
         let mut base = Element::new(form, m.params(), m.history_len(), plastic);
@@ -100,7 +100,7 @@ fn element_table<M: MaterialLaw>(name: &str, m: &M, plastic: bool) {
         };
         let (ad1, e1) = ad_time::<Dual64, M>(&base, m);
         let (ad8, e8) = ad_time::<DualSVec64<8>, M>(&base, m);
-        let (adw, ew, wname) = if form == Hex8Formulation::IncompatibleModes {
+        let (adw, ew, wname) = if form == Formulation::IncompatibleModes {
             let (t, e) = ad_time::<DualSVec64<33>, M>(&base, m);
             (t, e, "dsvec33")
         } else {

@@ -17,7 +17,7 @@ mod common;
 
 use common::{ad_tangent, j2, relative_difference, svk, Element};
 use criterion::{criterion_group, criterion_main, Criterion};
-use fricsens::element::hex8::Hex8Formulation;
+use fricsens::element::Formulation;
 use fricsens::material::{Branch, MaterialLaw};
 use fricsens::scalar::Scalar;
 use num_dual::{Dual64, DualSVec64};
@@ -65,8 +65,8 @@ fn ad<S: Scalar, M: MaterialLaw>(
 
 fn case<M: MaterialLaw>(c: &mut Criterion, mat_name: &str, material: &M, plastic: bool) {
     for (form_name, formulation) in [
-        ("full", Hex8Formulation::Full),
-        ("im", Hex8Formulation::IncompatibleModes),
+        ("full", Formulation::Full),
+        ("im", Formulation::IncompatibleModes),
     ] {
         let np = material.params().len();
         let mut base = Element::new(
@@ -100,7 +100,7 @@ fn case<M: MaterialLaw>(c: &mut Criterion, mat_name: &str, material: &M, plastic
         }
         ad::<Dual64, M>(&mut g, "ad-tangent/dual64", &base, material, &reference);
         ad::<DualSVec64<8>, M>(&mut g, "ad-tangent/dsvec8", &base, material, &reference);
-        if formulation == Hex8Formulation::IncompatibleModes {
+        if formulation == Formulation::IncompatibleModes {
             ad::<DualSVec64<33>, M>(&mut g, "ad-tangent/dsvec33", &base, material, &reference)
         } else {
             ad::<DualSVec64<24>, M>(&mut g, "ad-tangent/dsvec24", &base, material, &reference)

@@ -413,7 +413,14 @@ impl Assembler {
         let ne = order.len();
         let mut locals: Vec<Local<S>> = Vec::new();
         // element tangents of one chunk, allocated once per evaluation (not per element)
-        let stride = MAX_DOFS * MAX_DOFS;
+        // the largest element of this evaluation sets the tangent slots' size
+        let max_dofs = order
+            .iter()
+            .map(|&e| self.element_dofs(e).len())
+            .max()
+            .unwrap_or(0);
+        debug_assert!(max_dofs <= MAX_DOFS);
+        let stride = max_dofs.max(1) * max_dofs.max(1);
         let mut kbuf: Vec<S> = if want_k {
             vec![S::zero(); CHUNK.min(ne) * stride]
         } else {

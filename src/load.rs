@@ -82,6 +82,18 @@ impl PressureLoad {
                         }
                     }
                 }
+                family => {
+                    let mut xf = [Vector3::<S>::zeros(); crate::element::face::MAX_FACE_NODES];
+                    for (xa, &n) in xf.iter_mut().zip(face.nodes) {
+                        *xa = x[n];
+                    }
+                    let f = family.normal_weights(&xf[..face.nodes.len()]);
+                    for (&n, fa) in face.nodes.iter().zip(&f) {
+                        for c in 0..3 {
+                            residual[node_dof(n, c)] += p * fa[c];
+                        }
+                    }
+                }
             }
         }
     }

@@ -5,7 +5,7 @@
 //! any design parameter replaced by a value of that type (seeded dual for DDM, perturbed `f64`
 //! for SDM), so that every kernel sees its parameters as `S`.
 
-use crate::element::{ElementFamily, Hex8Formulation, Kinematics, Shape, SpringSet};
+use crate::element::{ElementFamily, Formulation, FormulationError, Kinematics, Shape, SpringSet};
 pub use crate::load::Amplitude;
 pub use crate::material::Material;
 use crate::mesh::{BlockGeometry, Mesh, MeshError};
@@ -24,13 +24,16 @@ pub struct Body {
     pub material: Material,
     /// Small or large deformation.
     pub kinematics: Kinematics,
-    /// Hex8 element formulation (full integration, incompatible modes, F-bar).
-    pub formulation: Hex8Formulation,
+    /// Element formulation (full or reduced integration, incompatible modes, F-bar, ...),
+    /// or `None` for the standard one of the body's shape
+    /// ([`crate::element::family`]'s table).
+    pub formulation: Option<Formulation>,
 }
 
 impl Body {
-    /// The element family of the body's elements in `mesh`.
-    pub fn family(&self, mesh: &Mesh) -> ElementFamily {
+    /// The element family of the body's elements in `mesh`, or a typed error when the
+    /// body's shape does not take its formulation.
+    pub fn family(&self, mesh: &Mesh) -> Result<ElementFamily, FormulationError> {
         ElementFamily::new(mesh.groups[self.group].shape, self.formulation)
     }
 }
@@ -409,6 +412,16 @@ impl<S: Scalar> Lifted<S> {
 }
 
 impl Model {
+    /// Whether every body's shape takes the body's formulation (a typed error naming the
+    /// body otherwise).
+    pub fn check_families(&self) -> Result<(), (String, FormulationError)> {
+        self.bodies.iter().try_for_each(|b| {
+            b.family(&self.mesh)
+                .map(|_| ())
+                .map_err(|e| (b.name.clone(), e))
+        })
+    }
+
     /// Whether every body's material and every contact pair's friction law have admissible
     /// parameter values (a design set from outside the scene file, e.g. from Python).
     pub fn check_laws(&self) -> Result<(), crate::law::ParamError> {
@@ -484,7 +497,12 @@ impl Model {
         let mut hist = 0;
         for (b, body) in self.bodies.iter().enumerate() {
             let nh = body.material.history_len();
-            let family = body.family(&self.mesh);
+            // a formulation the shape does not take is refused where the model is made
+            // (`Model::check_families`); numbered here as the shape's standard one
+            let shape = self.mesh.groups[body.group].shape;
+            let family = body
+                .family(&self.mesh)
+                .unwrap_or(ElementFamily::standard(shape));
             for e in self.mesh.group_elements(body.group) {
                 element_body[e] = b;
                 element_family[e] = Some(family);
@@ -503,7 +521,7 @@ impl Model {
             // a discrete shape gives its spring family; a solid one a continuum family, whose
             // evaluation with a stiffness is a typed failure (ElementFailure::Section)
             let shape = self.mesh.groups[set.group].shape;
-            let family = ElementFamily::new(shape, Hex8Formulation::Full);
+            let family = ElementFamily::standard(shape);
             for e in self.mesh.group_elements(set.group) {
                 element_springs[e] = s;
                 element_family[e] = Some(family);

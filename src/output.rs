@@ -203,7 +203,7 @@ pub fn write_vtu(
     let mut offsets = Vec::with_capacity(ne);
     let mut types = Vec::with_capacity(ne);
     for (shape, c) in model.mesh.elements() {
-        connectivity.extend(c.iter().map(|v| *v as u64));
+        connectivity.extend(shape.vtk_order().iter().map(|&k| c[k] as u64));
         offsets.push(connectivity.len() as u64);
         types.push(shape.vtk_cell());
     }

@@ -4,10 +4,8 @@
 //! Each binary uses a part of this module only.
 #![allow(dead_code)]
 
-use fricsens::element::hex8::{
-    self, generalised_nodes, ElementFailure, Hex8Formulation, Hex8Input, Hex8Output, Kinematics,
-    NODE_XI,
-};
+use fricsens::element::hex8::{self, generalised_nodes, Hex8Input, Hex8Output, NODE_XI};
+use fricsens::element::{ElementFailure, Formulation, Kinematics};
 use fricsens::material::{Branch, J2Plasticity, MaterialLaw, StVenantKirchhoff};
 use fricsens::mesh::Axis;
 use fricsens::model::Model;
@@ -43,7 +41,7 @@ fn displacement_gradient(plastic: bool) -> Matrix3<f64> {
 
 /// One hex8 element and its buffers, in scalar type `S`.
 pub struct Element<S: Scalar> {
-    pub formulation: Hex8Formulation,
+    pub formulation: Formulation,
     pub x_ref: [Vector3<S>; 8],
     /// `n_gen` generalised displacements (nodes, then incompatible modes).
     pub dofs: Vec<Vector3<S>>,
@@ -60,7 +58,7 @@ impl Element<f64> {
     /// small incompatible-mode amplitudes), `history_len` history scalars per Gauss point (zero:
     /// a virgin state).
     pub fn new(
-        formulation: Hex8Formulation,
+        formulation: Formulation,
         params: &[f64],
         history_len: usize,
         plastic: bool,

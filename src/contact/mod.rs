@@ -337,12 +337,15 @@ pub enum StoredAnchor<S> {
 
 /// The four nodes of target face `f`, for the kernel's one face geometry, the bilinear quad
 /// ([`TargetGeom::Quad`]). A face family with a geometry of its own (tri3, quad8) adds its arm
-/// here and its projection in [`geometry`]; the compiler lists every place that must learn it.
+/// here and its projection in [`geometry`]. The pair's set-up refuses target faces of other
+/// families ([`setup::SetupError::TargetFamily`]); were one to reach here, its first node
+/// four times is a collapsed quad, which the projection refuses as a typed error.
 pub fn quad_nodes(faces: &FaceSet, f: usize) -> [usize; 4] {
     let face = faces.face(f);
     match face.family {
         // a quad4 face of a FaceSet has four nodes (FaceSet::push checks)
         FaceFamily::Quad4 => [face.nodes[0], face.nodes[1], face.nodes[2], face.nodes[3]],
+        _ => [face.nodes[0]; 4],
     }
 }
 

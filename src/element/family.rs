@@ -4,8 +4,10 @@
 //! element: its nodes, Gauss points and internal unknowns, and its evaluation (internal
 //! force, tangent, history update, branches) for any scalar `S` and material law `M`.
 //!
-//! Two kinds of family: continuum ones (hex8), whose section is a body's material law at
-//! Gauss points ([`ElementFamily::evaluate`]), and discrete ones (the springs `Spring1`,
+//! Two kinds of family: solids (hex8, hex20, tet4, tet10, wedge6, wedge15, each with its
+//! formulations), whose section is a body's material law at Gauss points
+//! ([`ElementFamily::evaluate`], one continuum kernel for all: [`super::continuum`]), and
+//! discrete ones (the springs `Spring1`,
 //! `Spring2`), whose section is a constant stiffness and which have no Gauss point, history or
 //! branch ([`ElementFamily::evaluate_discrete`]). Either is an element of the mesh, numbered,
 //! assembled and differentiated in the same loop.
@@ -18,93 +20,152 @@
 //! and monomorphised per `(S, M)`, as the materials are ([`crate::with_material!`]).
 //!
 //! ## Registering a family
-//! One file in `element/` with the family's tables and kernels (as [`super::hex8`]), a
-//! [`super::Shape`] variant if its shape is new, a variant of [`ElementFamily`] and one arm in
-//! each of its `match`es here; raise the `MAX_*` bounds if it is the largest. The bounds size
+//! A solid shape: one file in `element/` with its tables, interpolation and Gauss rules (as
+//! [`super::tet`]), a [`super::Shape`] variant, and its rows in [`ElementFamily::new`]'s table
+//! and `ElementFamily::solid`; raise the `MAX_*` bounds if it is the largest. The bounds size
 //! the stack scratch of the assembly's element loop, which therefore allocates nothing.
+//!
+//! ## Formulations per shape
+//! | shape | standard (a body that names none) | also |
+//! |---|---|---|
+//! | hex8 | incompatible modes | full, f-bar |
+//! | hex20 | reduced (2x2x2) | full (3x3x3), f-bar |
+//! | tet4 | full (1 point) | - |
+//! | tet10 | full (4 points) | high-order (14 points), f-bar |
+//! | wedge6 | full (3x2) | f-bar |
+//! | wedge15 | full (3x3) | f-bar |
 
-use super::hex8::{self, ElementFailure, Hex8Formulation, Hex8Input, Hex8Output, Kinematics};
-use super::{spring, Shape};
-use crate::material::{Branch, MaterialLaw};
+use super::continuum::{ElementFailure, Formulation, Kinematics, Solid};
+pub use super::continuum::{ElementInput, ElementOutput};
+use super::{hex20, hex8, spring, tet, wedge, Shape};
+use crate::material::MaterialLaw;
 use crate::scalar::Scalar;
 use nalgebra::{Matrix3, Vector3};
 
-/// Most nodes of any registered family.
-pub(crate) const MAX_NODES: usize = 8;
-/// Most Gauss points of any registered family.
-pub(crate) const MAX_GAUSS: usize = 8;
-/// Most generalised nodes (nodes plus groups of three internal unknowns) of any family.
-pub(crate) const MAX_GEN: usize = hex8::MAX_GEN;
-/// Most element unknowns of any registered family.
-pub(crate) const MAX_DOFS: usize = 3 * MAX_GEN;
+pub(crate) use super::continuum::{MAX_DOFS, MAX_GAUSS, MAX_GEN, MAX_NODES};
 
 /// An element family: a shape and how it is integrated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum ElementFamily {
-    /// Eight-node hexahedron: plain, incompatible modes or F-bar ([`super::hex8`]).
-    Hex8(Hex8Formulation),
+    /// A solid of a shape, integrated as its formulation says ([`super::continuum`]).
+    Solid(Shape, Formulation),
     /// A linear spring from a `point1` element's node to the ground ([`super::spring`]).
     Spring1,
     /// A linear spring between the two nodes of a `line2` element ([`super::spring`]).
     Spring2,
 }
 
-/// Everything one element evaluation needs besides its unknowns (the slice form of
-/// [`Hex8Input`], whatever the family).
-pub struct ElementInput<'a, S: Scalar, M: MaterialLaw> {
-    /// Reference coordinates of the nodes, in the shape's node order.
-    pub x_ref: &'a [Vector3<S>],
-    /// Unknowns: the nodal displacements, then the internal unknowns in groups of three.
-    pub dofs: &'a [Vector3<S>],
-    /// Strain measure.
-    pub kinematics: Kinematics,
-    /// The material law.
-    pub material: &'a M,
-    /// Material parameters lifted to `S`.
-    pub params: &'a [S],
-    /// Committed history, `n_gauss * material.history_len()` scalars.
-    pub hist_old: &'a [S],
-    /// Branch per Gauss point to impose (SDM's frozen evaluation), or `None`.
-    pub frozen: Option<&'a [Branch]>,
+/// A formulation a shape does not take.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{shape} elements take {allowed}, not {formulation}")]
+pub struct FormulationError {
+    /// The shape's name.
+    pub shape: &'static str,
+    /// The formulation asked for.
+    pub formulation: &'static str,
+    /// The formulations the shape takes.
+    pub allowed: String,
 }
 
-/// What one element evaluation returns (the slice form of [`Hex8Output`]).
-pub struct ElementOutput<'a, S: Scalar> {
-    /// Internal force, `n_dofs` entries (node-major, component-minor).
-    pub force: &'a mut [S],
-    /// Tangent, row-major `n_dofs^2`, if wanted.
-    pub tangent: Option<&'a mut [S]>,
-    /// Updated history, `n_gauss * history_len` scalars.
-    pub hist_new: &'a mut [S],
-    /// Branch taken at each Gauss point (`n_gauss` entries).
-    pub branches: &'a mut [Branch],
-    /// Trial yield ratio at each Gauss point (`n_gauss` entries).
-    pub yield_ratio: &'a mut [f64],
-    /// Volume-averaged Cauchy stress.
-    pub cauchy: Matrix3<S>,
-    /// Smallest det F over the Gauss points (real part).
-    pub min_det_f: f64,
+/// The formulations a solid shape takes, its standard one first (the table in the module
+/// docs); none for a discrete shape.
+fn formulations(shape: Shape) -> &'static [Formulation] {
+    use Formulation::*;
+    match shape {
+        Shape::Hex8 => &[IncompatibleModes, Full, FBar],
+        Shape::Hex20 => &[Reduced, Full, FBar],
+        Shape::Tet4 => &[Full],
+        Shape::Tet10 => &[Full, HighOrder, FBar],
+        Shape::Wedge6 | Shape::Wedge15 => &[Full, FBar],
+        Shape::Point1 | Shape::Line2 => &[],
+    }
 }
 
 impl ElementFamily {
-    /// The family of an element of shape `shape` integrated with `formulation` (the hex8
-    /// formulations; a shape with formulations of its own will take them here). The discrete
-    /// shapes give the springs, which have no formulation.
-    pub fn new(shape: Shape, formulation: Hex8Formulation) -> Self {
+    /// The family of an element of shape `shape` integrated with `formulation`, or with the
+    /// shape's standard formulation if `None` (the table in the module docs). A discrete
+    /// shape gives its spring, which has no formulation. A formulation the shape does not
+    /// take is a typed error.
+    pub fn new(shape: Shape, formulation: Option<Formulation>) -> Result<Self, FormulationError> {
         match shape {
-            Shape::Hex8 => ElementFamily::Hex8(formulation),
-            Shape::Point1 => ElementFamily::Spring1,
-            Shape::Line2 => ElementFamily::Spring2,
+            Shape::Point1 => return Ok(ElementFamily::Spring1),
+            Shape::Line2 => return Ok(ElementFamily::Spring2),
+            _ => {}
         }
+        let allowed = formulations(shape);
+        let f = formulation.unwrap_or(allowed[0]);
+        if !allowed.contains(&f) {
+            return Err(FormulationError {
+                shape: shape.name(),
+                formulation: f.name(),
+                allowed: allowed
+                    .iter()
+                    .map(|f| f.name())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            });
+        }
+        Ok(ElementFamily::Solid(shape, f))
+    }
+
+    /// The family of `shape` with its standard formulation (a discrete shape's spring).
+    pub fn standard(shape: Shape) -> Self {
+        match (shape, formulations(shape).first()) {
+            (Shape::Point1, _) => ElementFamily::Spring1,
+            (Shape::Line2, _) | (_, None) => ElementFamily::Spring2,
+            (_, Some(f)) => ElementFamily::Solid(shape, *f),
+        }
+    }
+
+    /// Every solid family (each shape with each formulation it takes).
+    pub fn solids() -> impl Iterator<Item = ElementFamily> {
+        Shape::SOLIDS.into_iter().flat_map(|s| {
+            formulations(s)
+                .iter()
+                .map(move |f| ElementFamily::Solid(s, *f))
+        })
+    }
+
+    /// The tables the continuum kernel integrates (`None` for a discrete family).
+    pub(crate) fn solid(self) -> Option<Solid<'static>> {
+        let ElementFamily::Solid(shape, f) = self else {
+            return None;
+        };
+        let fbar = f == Formulation::FBar;
+        let (interpolation, rule) = match (shape, f) {
+            (Shape::Hex8, _) => return Some(hex8::solid(f)),
+            (Shape::Hex20, Formulation::Reduced) => (&hex20::INTERPOLATION, &hex8::GAUSS_2X2X2),
+            (Shape::Hex20, _) => (&hex20::INTERPOLATION, &hex20::GAUSS_3X3X3),
+            (Shape::Tet4, _) => (&tet::INTERPOLATION4, &tet::GAUSS_1),
+            (Shape::Tet10, Formulation::HighOrder) => (&tet::INTERPOLATION10, &tet::GAUSS_14),
+            (Shape::Tet10, _) => (&tet::INTERPOLATION10, &tet::GAUSS_4),
+            (Shape::Wedge6, _) => (&wedge::INTERPOLATION6, &wedge::GAUSS_3X2),
+            (Shape::Wedge15, _) => (&wedge::INTERPOLATION15, &wedge::GAUSS_3X3),
+            (Shape::Point1 | Shape::Line2, _) => return None,
+        };
+        Some(Solid {
+            interpolation,
+            rule,
+            enhanced: false,
+            fbar,
+        })
     }
 
     /// The element's shape.
     pub fn shape(self) -> Shape {
         match self {
-            ElementFamily::Hex8(_) => Shape::Hex8,
+            ElementFamily::Solid(s, _) => s,
             ElementFamily::Spring1 => Shape::Point1,
             ElementFamily::Spring2 => Shape::Line2,
+        }
+    }
+
+    /// The solid's formulation (`None` for a discrete family).
+    pub fn formulation(self) -> Option<Formulation> {
+        match self {
+            ElementFamily::Solid(_, f) => Some(f),
+            ElementFamily::Spring1 | ElementFamily::Spring2 => None,
         }
     }
 
@@ -112,10 +173,7 @@ impl ElementFamily {
     /// ([`ElementFamily::evaluate_discrete`]) instead of a material law at Gauss points
     /// ([`ElementFamily::evaluate`]).
     pub fn is_discrete(self) -> bool {
-        match self {
-            ElementFamily::Hex8(_) => false,
-            ElementFamily::Spring1 | ElementFamily::Spring2 => true,
-        }
+        !matches!(self, ElementFamily::Solid(..))
     }
 
     /// Number of nodes.
@@ -125,18 +183,12 @@ impl ElementFamily {
 
     /// Number of Gauss points (each carries a material history and a branch).
     pub fn n_gauss(self) -> usize {
-        match self {
-            ElementFamily::Hex8(_) => 8,
-            ElementFamily::Spring1 | ElementFamily::Spring2 => 0,
-        }
+        self.solid().map_or(0, |s| s.rule.len())
     }
 
     /// Number of element-internal unknowns (a multiple of three).
     pub fn internal_dofs(self) -> usize {
-        match self {
-            ElementFamily::Hex8(f) => f.internal_dofs(),
-            ElementFamily::Spring1 | ElementFamily::Spring2 => 0,
-        }
+        self.formulation().map_or(0, Formulation::internal_dofs)
     }
 
     /// Number of element unknowns: three per node and the internal ones.
@@ -147,58 +199,20 @@ impl ElementFamily {
     /// Whether its Gauss points see the strain of the element's own displacements alone
     /// ([`ElementFamily::gauss_strains`] can give it).
     pub fn has_pointwise_strain(self) -> bool {
-        match self {
-            ElementFamily::Hex8(f) => f != Hex8Formulation::FBar,
-            ElementFamily::Spring1 | ElementFamily::Spring2 => true,
-        }
+        self.formulation() != Some(Formulation::FBar)
     }
 
     /// Evaluate internal force (and the tangent if asked), the updated history and the
-    /// branch of every Gauss point of a continuum family (a discrete one is a typed failure:
-    /// it has no material, see [`ElementFamily::evaluate_discrete`]).
+    /// branch of every Gauss point of a solid (a discrete family is a typed failure: it has
+    /// no material, see [`ElementFamily::evaluate_discrete`]).
     pub fn evaluate<S: Scalar, M: MaterialLaw>(
         self,
         input: &ElementInput<'_, S, M>,
         out: &mut ElementOutput<'_, S>,
     ) -> Result<(), ElementFailure> {
-        match self {
-            ElementFamily::Hex8(formulation) => {
-                let x_ref = nodes8(input.x_ref)?;
-                let frozen: Option<&[Branch; 8]> = match input.frozen {
-                    Some(f) => Some(f.try_into().map_err(|_| ElementFailure::Layout {
-                        what: "frozen branches",
-                        expected: 8,
-                        got: f.len(),
-                    })?),
-                    None => None,
-                };
-                let h8 = Hex8Input {
-                    x_ref,
-                    dofs: input.dofs,
-                    kinematics: input.kinematics,
-                    formulation,
-                    material: input.material,
-                    params: input.params,
-                    hist_old: input.hist_old,
-                    frozen,
-                };
-                let mut o = Hex8Output {
-                    force: &mut *out.force,
-                    tangent: out.tangent.as_deref_mut(),
-                    hist_new: &mut *out.hist_new,
-                    branches: [Branch::Elastic; 8],
-                    yield_ratio: [-1.0; 8],
-                    cauchy: Matrix3::zeros(),
-                    min_det_f: f64::INFINITY,
-                };
-                let r = hex8::evaluate(&h8, &mut o);
-                out.branches[..8].copy_from_slice(&o.branches);
-                out.yield_ratio[..8].copy_from_slice(&o.yield_ratio);
-                out.cauchy = o.cauchy;
-                out.min_det_f = o.min_det_f;
-                r
-            }
-            ElementFamily::Spring1 | ElementFamily::Spring2 => Err(ElementFailure::Section {
+        match self.solid() {
+            Some(solid) => solid.evaluate(input, out),
+            None => Err(ElementFailure::Section {
                 family: self.name(),
                 expected: "a stiffness",
                 got: "a material",
@@ -207,8 +221,8 @@ impl ElementFamily {
     }
 
     /// Evaluate a discrete family: internal force (and the tangent if asked) of a spring with
-    /// stiffness `k` and nodal displacements `dofs`. A continuum family is a typed failure
-    /// (its section is a material, see [`ElementFamily::evaluate`]).
+    /// stiffness `k` and nodal displacements `dofs`. A solid is a typed failure (its section
+    /// is a material, see [`ElementFamily::evaluate`]).
     pub fn evaluate_discrete<S: Scalar>(
         self,
         k: &Matrix3<S>,
@@ -219,7 +233,7 @@ impl ElementFamily {
             ElementFamily::Spring1 | ElementFamily::Spring2 => {
                 spring::evaluate(k, dofs, out.force, out.tangent.as_deref_mut())
             }
-            ElementFamily::Hex8(_) => Err(ElementFailure::Section {
+            ElementFamily::Solid(..) => Err(ElementFailure::Section {
                 family: self.name(),
                 expected: "a material",
                 got: "a stiffness",
@@ -227,12 +241,23 @@ impl ElementFamily {
         }
     }
 
-    /// Short name (`hex8`, `hex8-incompatible-modes`, `hex8-f-bar`, `spring1`, `spring2`).
+    /// Short name: the shape's, followed by the formulation where the shape takes more than
+    /// one and it is not the plain full rule (`hex8`, `hex8-incompatible-modes`,
+    /// `hex20-reduced`, `tet10-f-bar`, `spring1`, ...).
     pub fn name(self) -> &'static str {
+        use Formulation::*;
         match self {
-            ElementFamily::Hex8(Hex8Formulation::Full) => "hex8",
-            ElementFamily::Hex8(Hex8Formulation::IncompatibleModes) => "hex8-incompatible-modes",
-            ElementFamily::Hex8(Hex8Formulation::FBar) => "hex8-f-bar",
+            ElementFamily::Solid(shape, f) => match (shape, f) {
+                (Shape::Hex8, IncompatibleModes) => "hex8-incompatible-modes",
+                (Shape::Hex8, FBar) => "hex8-f-bar",
+                (Shape::Hex20, Reduced) => "hex20-reduced",
+                (Shape::Hex20, FBar) => "hex20-f-bar",
+                (Shape::Tet10, HighOrder) => "tet10-high-order",
+                (Shape::Tet10, FBar) => "tet10-f-bar",
+                (Shape::Wedge6, FBar) => "wedge6-f-bar",
+                (Shape::Wedge15, FBar) => "wedge15-f-bar",
+                (s, _) => s.name(),
+            },
             ElementFamily::Spring1 => "spring1",
             ElementFamily::Spring2 => "spring2",
         }
@@ -248,35 +273,30 @@ impl ElementFamily {
         kinematics: Kinematics,
         out: &mut [Matrix3<S>],
     ) -> Result<bool, ElementFailure> {
-        match self {
-            ElementFamily::Hex8(formulation) => {
-                match hex8::gauss_strains(nodes8(x_ref)?, dofs, kinematics, formulation)? {
-                    Some(e) => {
-                        out[..8].copy_from_slice(&e);
-                        Ok(true)
-                    }
-                    None => Ok(false),
-                }
-            }
+        match self.solid() {
+            Some(solid) => solid.gauss_strains(x_ref, dofs, kinematics, out),
             // no Gauss point, nothing to write
-            ElementFamily::Spring1 | ElementFamily::Spring2 => Ok(true),
+            None => Ok(true),
+        }
+    }
+
+    /// The shape functions (the first `n_nodes` entries) at every Gauss point and its
+    /// reference volume weight; none for a discrete family.
+    pub fn quadrature(
+        self,
+        x_ref: &[Vector3<f64>],
+    ) -> Result<Vec<([f64; MAX_NODES], f64)>, ElementFailure> {
+        match self.solid() {
+            Some(solid) => solid.quadrature(x_ref),
+            None => Ok(Vec::new()),
         }
     }
 
     /// Element volume in the reference configuration.
     pub fn reference_volume<S: Scalar>(self, x_ref: &[Vector3<S>]) -> Result<S, ElementFailure> {
-        match self {
-            ElementFamily::Hex8(_) => hex8::reference_volume(nodes8(x_ref)?),
-            ElementFamily::Spring1 | ElementFamily::Spring2 => Ok(S::zero()),
+        match self.solid() {
+            Some(solid) => solid.reference_volume(x_ref),
+            None => Ok(S::zero()),
         }
     }
-}
-
-/// The eight reference nodes of a hex8 as an array (a typed failure for any other count).
-fn nodes8<S: Scalar>(x: &[Vector3<S>]) -> Result<&[Vector3<S>; 8], ElementFailure> {
-    x.try_into().map_err(|_| ElementFailure::Layout {
-        what: "nodes",
-        expected: 8,
-        got: x.len(),
-    })
 }

@@ -1,14 +1,22 @@
-//! Element kernels: element shapes and face families ([`shape`]), element families evaluated
-//! generically over the scalar ([`family`]), the hex8 continuum element and linear springs (discrete families).
+//! Element kernels: element shapes ([`shape`]) and face families ([`face`]), element families
+//! evaluated generically over the scalar ([`family`]) by one continuum kernel ([`continuum`])
+//! with each shape's tables ([`hex8`], [`hex20`], [`tet`], [`wedge`]), and linear springs
+//! (discrete families).
 
+pub mod continuum;
+pub mod face;
 pub mod family;
+pub mod hex20;
 pub mod hex8;
 pub mod shape;
 pub mod spring;
+pub mod tet;
+pub mod wedge;
 
-pub use family::{ElementFamily, ElementInput, ElementOutput};
-pub use hex8::{ElementFailure, Hex8Formulation, Kinematics};
-pub use shape::{FaceFamily, FaceTopology, Shape, ShapeError};
+pub use continuum::{ElementFailure, Formulation, Kinematics};
+pub use face::FaceFamily;
+pub use family::{ElementFamily, ElementInput, ElementOutput, FormulationError};
+pub use shape::{FaceTopology, Shape, ShapeError};
 pub use spring::SpringSet;
 
 /// Unknowns per node (three displacement components).

@@ -7,7 +7,7 @@
 //! A spring has no Gauss point, history or branch, and its stiffness is its section: the
 //! [`SpringSet`] of its element group, as a material is a body's.
 
-use super::hex8::ElementFailure;
+use super::continuum::ElementFailure;
 use crate::scalar::Scalar;
 use nalgebra::{Matrix3, Vector3};
 

@@ -955,6 +955,7 @@ mod tests {
     fn big_endian_binary_reads_like_little_endian() {
         let mut m = Mesh::default();
         m.add_block(BlockSpec {
+            element: crate::element::Shape::Hex8,
             name: "b".into(),
             origin: [0.1, 0.2, 0.3],
             x: Axis::uniform(1.3, 2),

@@ -103,12 +103,16 @@ impl Axis {
     }
 }
 
-/// A structured brick of hex8 elements.
+/// A structured brick of solid elements: a grid of hexahedral cells, each one hex8 or hex20,
+/// split into six tetrahedra (tet4, tet10) or into two wedges (wedge6, wedge15).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BlockSpec {
     /// Block name: the prefix of its node and face sets (`NAME.xmin`, `NAME.all`, ...).
     pub name: String,
+    /// Element shape (a solid; default hex8).
+    #[serde(default = "hex8", skip_serializing_if = "is_hex8")]
+    pub element: Shape,
     /// Reference position of the block's corner with the smallest coordinates.
     pub origin: [f64; 3],
     /// Division along x.
@@ -117,6 +121,14 @@ pub struct BlockSpec {
     pub y: Axis,
     /// Division along z.
     pub z: Axis,
+}
+
+fn hex8() -> Shape {
+    Shape::Hex8
+}
+
+fn is_hex8(s: &Shape) -> bool {
+    *s == Shape::Hex8
 }
 
 impl BlockSpec {
@@ -393,6 +405,14 @@ pub enum MeshError {
         /// What is wrong with it.
         what: String,
     },
+    /// A block of elements that are no solid.
+    #[error("block '{block}': a block is made of solid elements, not {shape}")]
+    BlockElement {
+        /// Block name.
+        block: String,
+        /// The shape asked for.
+        shape: &'static str,
+    },
     /// An element's connectivity has the wrong number of nodes for its shape.
     #[error("group {group}, element {element}: a {shape} needs {expected} nodes, got {got}")]
     Connectivity {
@@ -653,6 +673,24 @@ impl Mesh {
                 }
             }
         }
+        if !spec.element.is_solid() {
+            return Err(MeshError::BlockElement {
+                block: spec.name.clone(),
+                shape: spec.element.name(),
+            });
+        }
+        if spec.element != Shape::Hex8 {
+            let cells = (0..nz - 1).flat_map(|k| {
+                (0..ny - 1).flat_map(move |j| (0..nx - 1).map(move |i| cell(i, j, k)))
+            });
+            let cells: Vec<[usize; 8]> = cells.collect();
+            let ends = [
+                [tx[0], tx[nx - 1]],
+                [ty[0], ty[ny - 1]],
+                [tz[0], tz[nz - 1]],
+            ];
+            return self.add_split_block(spec, b, first, &cells, ends);
+        }
         let mut connectivity = Vec::with_capacity(8 * (nx - 1) * (ny - 1) * (nz - 1));
         for k in 0..nz - 1 {
             for j in 0..ny - 1 {
@@ -718,6 +756,98 @@ impl Mesh {
             self.face_sets
                 .insert(format!("{name}.{label}"), std::mem::take(&mut faces[f]));
         }
+        self.blocks.push(spec);
+        Ok(b)
+    }
+
+    /// The rest of [`Mesh::add_block`] for a block of another shape than hex8: the grid's
+    /// hex8 `cells` (corner nodes placed from `first` on) split into the block's shape, a node
+    /// added at the middle of every edge of a quadratic shape (placed at the middle of its
+    /// corners' block coordinates, so the block's shape parameters move it with them), and
+    /// the node and face sets of the six sides (`ends`: the block coordinates of each axis's
+    /// two sides).
+    fn add_split_block(
+        &mut self,
+        spec: BlockSpec,
+        b: usize,
+        first: usize,
+        cells: &[[usize; 8]],
+        ends: [[f64; 2]; 3],
+    ) -> Result<usize, MeshError> {
+        // hex8 cell -> linear elements (local hex8 node numbers), positively oriented: six
+        // tetrahedra around the diagonal 0-6 (Kuhn), or two wedges either side of the bottom
+        // diagonal 0-2; the splits of neighbouring cells meet on their shared faces
+        const KUHN: [[usize; 4]; 6] = [
+            [0, 1, 2, 6],
+            [0, 2, 3, 6],
+            [0, 3, 7, 6],
+            [0, 7, 4, 6],
+            [0, 4, 5, 6],
+            [0, 5, 1, 6],
+        ];
+        const PRISMS: [[usize; 6]; 2] = [[0, 1, 2, 4, 5, 6], [0, 2, 3, 4, 6, 7]];
+        let shape = spec.element;
+        let linear = shape.corners();
+        let mut corners: Vec<Vec<usize>> = Vec::new();
+        for c in cells {
+            match linear {
+                Shape::Tet4 => corners.extend(KUHN.iter().map(|t| t.map(|l| c[l]).to_vec())),
+                Shape::Wedge6 => corners.extend(PRISMS.iter().map(|t| t.map(|l| c[l]).to_vec())),
+                _ => corners.push(c.to_vec()),
+            }
+        }
+        let mut mid: HashMap<(usize, usize), usize> = HashMap::new();
+        let mut connectivity = Vec::with_capacity(shape.n_nodes() * corners.len());
+        for e in &corners {
+            connectivity.extend_from_slice(e);
+            if shape.is_quadratic() {
+                for [a, c] in shape.edges() {
+                    let key = (e[*a].min(e[*c]), e[*a].max(e[*c]));
+                    let n = match mid.get(&key) {
+                        Some(&n) => n,
+                        None => {
+                            let t = |n: usize| match self.places[n] {
+                                NodePlace::Block { t, .. } => t,
+                                NodePlace::Free(_) => [0.0; 3],
+                            };
+                            let (ta, tc) = (t(key.0), t(key.1));
+                            let n = self.places.len();
+                            self.places.push(NodePlace::Block {
+                                block: b,
+                                t: [0, 1, 2].map(|k| 0.5 * (ta[k] + tc[k])),
+                            });
+                            mid.insert(key, n);
+                            n
+                        }
+                    };
+                    connectivity.push(n);
+                }
+            }
+        }
+        let g = self.push_group(shape, connectivity, Some(b))?;
+        let name = spec.name.clone();
+        let nodes: Vec<usize> = (first..self.places.len()).collect();
+        let t_of = |n: usize| match self.places[n] {
+            NodePlace::Block { t, .. } => t,
+            NodePlace::Free(_) => [f64::NAN; 3],
+        };
+        // side s = 2 axis + (0 min, 1 max)
+        let on_side = |n: usize, s: usize| t_of(n)[s / 2] == ends[s / 2][s % 2];
+        const SIDES: [&str; 6] = ["xmin", "xmax", "ymin", "ymax", "zmin", "zmax"];
+        let mut faces: [FaceSet; 6] = Default::default();
+        let boundary = self.boundary_faces(g);
+        for f in boundary.iter() {
+            if let Some(s) = (0..6).find(|&s| f.nodes.iter().all(|&n| on_side(n, s))) {
+                faces[s].push_unchecked(f.family, f.nodes);
+            }
+        }
+        for (s, label) in SIDES.iter().enumerate() {
+            let set: Vec<usize> = nodes.iter().copied().filter(|&n| on_side(n, s)).collect();
+            self.node_sets.insert(format!("{name}.{label}"), set);
+            self.face_sets
+                .insert(format!("{name}.{label}"), std::mem::take(&mut faces[s]));
+        }
+        self.node_sets.insert(format!("{name}.all"), nodes);
         self.blocks.push(spec);
         Ok(b)
     }
@@ -807,6 +937,7 @@ mod tests {
 
     fn block() -> BlockSpec {
         BlockSpec {
+            element: crate::element::Shape::Hex8,
             name: "b".into(),
             origin: [1.0, 0.0, 0.0],
             x: Axis {

@@ -528,6 +528,7 @@ mod tests {
         use crate::mesh::{Axis, BlockSpec};
         let mut m = Mesh::default();
         m.add_block(BlockSpec {
+            element: crate::element::Shape::Hex8,
             name: "b".into(),
             origin: [0.0; 3],
             x: Axis::uniform(2.0, 4),

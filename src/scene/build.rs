@@ -650,7 +650,10 @@ impl Scene {
                             format!("body '{body}' has {} elements", elems.len()),
                         ));
                     }
-                    let n_gauss = b.family(&mesh).n_gauss();
+                    let n_gauss = b
+                        .family(&mesh)
+                        .map_err(|e| invalid(&format!("{at}.body"), format!("body '{body}': {e}")))?
+                        .n_gauss();
                     if *point >= n_gauss {
                         return Err(invalid(
                             &format!("{at}.point"),
@@ -987,6 +990,8 @@ impl Scene {
                             format!("face set '{name}' is empty"),
                         ));
                     }
+                    setup::check_target_families(faces)
+                        .map_err(|e| invalid(&format!("{at}.target"), e.to_string()))?;
                     // default: three face diagonals, plus how far the prescribed
                     // displacements can move the two bodies against each other
                     let (default, diag, travel) = setup::default_search_radius(

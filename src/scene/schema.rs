@@ -3,7 +3,7 @@
 
 use super::builtin;
 use crate::contact::{Friction, NormalLaw};
-use crate::element::{Hex8Formulation, Kinematics};
+use crate::element::{Formulation, Kinematics};
 use crate::law::Law;
 use crate::mesh::{Axis, BlockSpec};
 use crate::model::{Material, SolverSettings};
@@ -43,8 +43,10 @@ pub struct BodySpec {
     pub material: Material,
     /// Small or large deformation (scene default: large).
     pub kinematics: Kinematics,
-    /// Hex8 element formulation (scene default: incompatible modes).
-    pub formulation: Hex8Formulation,
+    /// Element formulation; `None` (the scene default) is the standard one of the body's
+    /// shape (incompatible modes for hex8, reduced integration for hex20, ...:
+    /// [`crate::element::family`]'s table).
+    pub formulation: Option<Formulation>,
 }
 
 /// Where a body's elements come from.
@@ -109,6 +111,8 @@ impl BodySpec {
 struct BodyToml {
     name: String,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    element: Option<crate::element::Shape>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     origin: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     x: Option<Axis>,
@@ -125,8 +129,8 @@ struct BodyToml {
     material: Material,
     #[serde(default = "large")]
     kinematics: Kinematics,
-    #[serde(default = "incompatible")]
-    formulation: Hex8Formulation,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    formulation: Option<Formulation>,
 }
 
 impl TryFrom<BodyToml> for BodySpec {
@@ -142,11 +146,18 @@ impl TryFrom<BodyToml> for BodySpec {
                 }
                 BodyGeometry::Block(BlockSpec {
                     name: b.name,
+                    element: b.element.unwrap_or(crate::element::Shape::Hex8),
                     origin,
                     x,
                     y,
                     z,
                 })
+            }
+            (Some(_), None, None, None, None) if b.element.is_some() => {
+                return Err(format!(
+                    "body '{}': `element` belongs to a generated block (a mesh file names its own)",
+                    b.name
+                ))
             }
             (Some(file), None, None, None, None) => BodyGeometry::Mesh(MeshSource {
                 name: b.name,
@@ -181,6 +192,7 @@ impl From<BodySpec> for BodyToml {
     fn from(b: BodySpec) -> Self {
         let mut t = BodyToml {
             name: b.name().to_string(),
+            element: None,
             origin: None,
             x: None,
             y: None,
@@ -194,6 +206,7 @@ impl From<BodySpec> for BodyToml {
         };
         match b.geometry {
             BodyGeometry::Block(block) => {
+                t.element = (block.element != crate::element::Shape::Hex8).then_some(block.element);
                 t.origin = Some(block.origin);
                 t.x = Some(block.x);
                 t.y = Some(block.y);
@@ -212,10 +225,6 @@ impl From<BodySpec> for BodyToml {
 pub(crate) fn large() -> Kinematics {
     Kinematics::Large
 }
-pub(crate) fn incompatible() -> Hex8Formulation {
-    Hex8Formulation::IncompatibleModes
-}
-
 /// A node outside every block (for discrete models).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -50,7 +50,7 @@
 
 use super::*;
 use crate::assembly::{Evaluation, Frozen};
-use crate::element::hex8::Kinematics;
+use crate::element::Kinematics;
 use crate::linalg::SparseMatrix;
 use crate::model::Lifted;
 use crate::solver::{AnalysisError, Converged};

@@ -7,11 +7,13 @@
 //! the two directions of one format and change together; the comparison they serve is the rest.
 //!
 //! ## The deck
-//! * nodes and hex8 elements one for one (fricsens node `i` is CalculiX node `i + 1`); the
-//!   element type follows the body's formulation: [`Hex8Formulation::Full`] (2x2x2 Gauss points)
-//!   is `C3D8`, [`Hex8Formulation::IncompatibleModes`] is `C3D8I` (CalculiX's incompatible
-//!   modes after Taylor, the same family as fricsens' nine Wilson-Taylor modes). F-bar has no
-//!   CalculiX counterpart and is refused. Small kinematics leaves `NLGEOM` off, large
+//! * nodes and solid elements one for one (fricsens node `i` is CalculiX node `i + 1`, node
+//!   order as it is: CalculiX numbers as Abaqus, as fricsens does); the element type follows
+//!   the body's family: hex8 full (2x2x2 Gauss points) is `C3D8`, hex8 incompatible modes
+//!   `C3D8I` (CalculiX's incompatible modes after Taylor, the same family as fricsens' nine
+//!   Wilson-Taylor modes), hex20 `C3D20` / `C3D20R` (reduced), tet4 `C3D4`, tet10 `C3D10`
+//!   (4 points), wedge6 `C3D6`, wedge15 `C3D15`. F-bar and tet10's 14-point rule have no
+//!   CalculiX counterpart and are refused. Small kinematics leaves `NLGEOM` off, large
 //!   kinematics sets it (CalculiX's `*ELASTIC` under `NLGEOM` is St Venant-Kirchhoff).
 //! * St Venant-Kirchhoff materials as `*ELASTIC`; J2 plasticity and Neo-Hookean are refused.
 //! * prescribed displacements as `*BOUNDARY` on node sets, nodal loads as `*CLOAD`, each with
@@ -88,7 +90,7 @@
 
 use crate::contact::geometry::RigidSurface;
 use crate::contact::{ContactPair, Friction, Target};
-use crate::element::{Hex8Formulation, Kinematics, Shape};
+use crate::element::Kinematics;
 use crate::model::{Amplitude, DesignParam, Material, Model};
 use crate::response::ResponseKind;
 use crate::sensitivity::{run_sensitivity, Method, Parameter, Settings};
@@ -331,7 +333,7 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
     }
     let mut next_node = x.len() + 1;
     let mut next_elem = model.mesh.n_elements() + 1;
-    if let Some(g) = model.mesh.groups.iter().find(|g| g.shape != Shape::Hex8) {
+    if let Some(g) = model.mesh.groups.iter().find(|g| !g.shape.is_solid()) {
         return Err(CcxError::Unsupported(format!(
             "{} elements have no CalculiX export yet",
             g.shape.name()
@@ -341,16 +343,16 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
     let mut nlgeom = false;
     let mut young_max: f64 = 0.0;
     for (b, body) in model.bodies.iter().enumerate() {
-        let ty = match body.formulation {
-            Hex8Formulation::Full => "C3D8",
-            Hex8Formulation::IncompatibleModes => "C3D8I",
-            Hex8Formulation::FBar => {
-                return Err(CcxError::Unsupported(format!(
-                    "body '{}': F-bar has no CalculiX element",
-                    body.name
-                )))
-            }
-        };
+        let family = body
+            .family(&model.mesh)
+            .map_err(|e| CcxError::Unsupported(format!("body '{}': {e}", body.name)))?;
+        let ty = calculix_element(family).ok_or_else(|| {
+            CcxError::Unsupported(format!(
+                "body '{}': {} has no CalculiX element",
+                body.name,
+                family.name()
+            ))
+        })?;
         nlgeom |= body.kinematics == Kinematics::Large;
         element_types.push(ty);
         let _ = writeln!(s, "*ELEMENT,TYPE={ty},ELSET=B{b}");
@@ -2278,4 +2280,21 @@ pub fn keyword_counts(deck: &str) -> BTreeMap<String, usize> {
         }
     }
     m
+}
+
+/// The CalculiX element of a family, node order as it is (CalculiX numbers as Abaqus, and so
+/// do these families): `C3D8` (full), `C3D8I` (incompatible modes), `C3D20` / `C3D20R`,
+/// `C3D4`, `C3D10` (4 points), `C3D6`, `C3D15`. F-bar and tet10's 14-point rule have none.
+fn calculix_element(family: crate::element::ElementFamily) -> Option<&'static str> {
+    Some(match family.name() {
+        "hex8" => "C3D8",
+        "hex8-incompatible-modes" => "C3D8I",
+        "hex20" => "C3D20",
+        "hex20-reduced" => "C3D20R",
+        "tet4" => "C3D4",
+        "tet10" => "C3D10",
+        "wedge6" => "C3D6",
+        "wedge15" => "C3D15",
+        _ => return None,
+    })
 }

@@ -194,7 +194,7 @@ fn material(r: &mut Rng, e: f64) -> Material {
 }
 
 fn body(r: &mut Rng, block: BlockSpec, e: f64) -> BodySpec {
-    use crate::element::{Hex8Formulation, Kinematics};
+    use crate::element::{Formulation, Kinematics};
     BodySpec {
         geometry: crate::scene::BodyGeometry::Block(block),
         material: material(r, e),
@@ -204,9 +204,9 @@ fn body(r: &mut Rng, block: BlockSpec, e: f64) -> BodySpec {
             Kinematics::Large
         },
         formulation: match r.weighted(&[0.2, 0.5, 0.3]) {
-            0 => Hex8Formulation::Full,
-            1 => Hex8Formulation::IncompatibleModes,
-            _ => Hex8Formulation::FBar,
+            0 => Some(Formulation::Full),
+            1 => Some(Formulation::IncompatibleModes),
+            _ => Some(Formulation::FBar),
         },
     }
 }
@@ -360,6 +360,7 @@ pub fn generate(seed: u64) -> Scene {
         .fold(f64::INFINITY, f64::min);
     let origin = [-lx / 2.0, -ly, if three_d { -lz / 2.0 } else { 0.0 }];
     let base = BlockSpec {
+        element: crate::element::Shape::Hex8,
         name: "base".into(),
         origin,
         x,
@@ -408,6 +409,7 @@ pub fn generate(seed: u64) -> Scene {
                 (lz, 1)
             };
             let slider = BlockSpec {
+                element: crate::element::Shape::Hex8,
                 name: "slider".into(),
                 origin: [
                     -w / 2.0 + lx * r.uniform(-0.1, 0.1),

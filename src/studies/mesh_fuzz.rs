@@ -141,6 +141,7 @@ pub struct SeedFile {
 pub fn builtin_seeds() -> Result<Vec<SeedFile>, ImportError> {
     let mut m = Mesh::default();
     m.add_block(BlockSpec {
+        element: crate::element::Shape::Hex8,
         name: "b".into(),
         origin: [0.3, -1.7, 2.1],
         x: Axis {

@@ -3,7 +3,7 @@
 
 use fricsens::element::hex8;
 use fricsens::element::hex8::{Hex8Input, Hex8Output};
-use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::element::{Formulation, Kinematics};
 use fricsens::material::StVenantKirchhoff;
 use fricsens::material::{Branch, MaterialLaw};
 use fricsens::mesh::{Axis, BlockSpec, Mesh, NodePlace};
@@ -15,6 +15,7 @@ use super::solve;
 
 pub fn block(name: &str, n: [usize; 3], l: [f64; 3]) -> BlockSpec {
     BlockSpec {
+        element: fricsens::element::Shape::Hex8,
         name: name.into(),
         origin: [0.0; 3],
         x: Axis::uniform(l[0], n[0]),
@@ -27,7 +28,7 @@ pub fn one_body_model(
     mesh: Mesh,
     material: Material,
     kinematics: Kinematics,
-    formulation: Hex8Formulation,
+    formulation: Formulation,
 ) -> Model {
     Model {
         mesh,
@@ -36,7 +37,7 @@ pub fn one_body_model(
             group: 0,
             material,
             kinematics,
-            formulation,
+            formulation: Some(formulation),
         }],
         times: vec![1.0],
         ..Model::default()
@@ -45,9 +46,19 @@ pub fn one_body_model(
 
 /// A 2x2x2 block whose interior node and some surface nodes are moved off the grid.
 pub fn distorted_mesh() -> Mesh {
+    distorted_mesh_of(fricsens::element::Shape::Hex8, false)
+}
+
+/// A 2x2x2 block of `shape` elements (the generator's hex cells, split for tetrahedra and
+/// wedges) whose corner nodes but the cube's are moved off the grid by a smooth, non-affine
+/// offset. A quadratic shape's mid-edge nodes stay at the middle of their (moved) corners
+/// when `curved` is false: straight edges, the patch test's distorted mesh. With `curved`,
+/// they are moved by the same offset as the corners: curved edges.
+pub fn distorted_mesh_of(shape: fricsens::element::Shape, curved: bool) -> Mesh {
     let mut mesh = Mesh::default();
-    mesh.add_block(block("b", [2, 2, 2], [2.0, 2.0, 2.0]))
-        .unwrap();
+    let mut spec = block("b", [2, 2, 2], [2.0, 2.0, 2.0]);
+    spec.element = shape;
+    mesh.add_block(spec).unwrap();
     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
     for (n, p) in mesh.places.iter_mut().enumerate() {
         let c = x[n];
@@ -60,6 +71,17 @@ pub fn distorted_mesh() -> Mesh {
                 0.09 * (c[0] * 0.9).sin() * (c[2] * (2.0 - c[2])).min(1.0),
             );
             *p = NodePlace::Free([c[0] + d[0], c[1] + d[1], c[2] + d[2]]);
+        }
+    }
+    if shape.is_quadratic() && !curved {
+        let x = mesh.coordinates::<f64>(&mesh.block_geometry());
+        let n_corners = shape.corners().n_nodes();
+        let elements: Vec<Vec<usize>> = mesh.elements().map(|(_, e)| e.to_vec()).collect();
+        for e in elements {
+            for (k, [a, b]) in shape.edges().iter().enumerate() {
+                let m = (x[e[*a]] + x[e[*b]]) * 0.5;
+                mesh.places[e[n_corners + k]] = NodePlace::Free([m[0], m[1], m[2]]);
+            }
         }
     }
     mesh
@@ -98,7 +120,7 @@ pub fn element<S: fricsens::scalar::Scalar, M: MaterialLaw>(
     x_ref: &[Vector3<S>; 8],
     dofs: &[Vector3<S>],
     kinematics: Kinematics,
-    formulation: Hex8Formulation,
+    formulation: Formulation,
     material: &M,
     hist_old: &[S],
     want_tangent: bool,
@@ -155,7 +177,7 @@ pub fn prescribe(model: &mut Model, nodes: Vec<usize>, c: usize, v: f64) {
 /// One St. Venant-Kirchhoff hex8 (large kinematics) moved rigidly, `x -> q x + c` (internal
 /// unknowns of `formulation` at zero): the largest nodal force and the norm of the Cauchy stress.
 pub fn rigid_motion_force(
-    formulation: Hex8Formulation,
+    formulation: Formulation,
     x_ref: [Vector3<f64>; 8],
     q: Matrix3<f64>,
     c: Vector3<f64>,
@@ -180,7 +202,7 @@ pub fn rigid_motion_force(
 /// stepped off equilibrium so that checks there are at a generic state.
 pub fn deformed_cantilever(
     kinematics: Kinematics,
-    formulation: Hex8Formulation,
+    formulation: Formulation,
     nu: f64,
 ) -> (Model, Vec<f64>) {
     let spec = CantileverSpec {
@@ -204,7 +226,7 @@ pub fn deformed_cantilever(
 
 /// The patch test: the boundary nodes of `mesh` follow an affine displacement field; every
 /// node must follow it and every element carry its exact, uniform stress (St Venant-Kirchhoff).
-pub fn patch_test(mesh: Mesh, kinematics: Kinematics, formulation: Hex8Formulation) {
+pub fn patch_test(mesh: Mesh, kinematics: Kinematics, formulation: Formulation) {
     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
     let grad_u = Matrix3::new(
         0.010, 0.004, -0.002, 0.003, -0.006, 0.005, -0.001, 0.002, 0.008,

@@ -25,7 +25,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use fricsens::element::hex8;
-use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::element::{Formulation, Kinematics};
 use fricsens::material::Branch;
 use fricsens::material::{J2Plasticity, Material};
 use fricsens::model::Model;
@@ -89,7 +89,7 @@ fn plastic_cantilever() -> Model {
         nx: NX,
         ny: NY,
         kinematics: Kinematics::Large,
-        formulation: Hex8Formulation::IncompatibleModes,
+        formulation: Formulation::IncompatibleModes,
         ..CantileverSpec::large_deflection()
     };
     let mut scene = cantilever(&spec);

@@ -5,7 +5,7 @@
 
 use crate::common::solve_scene;
 
-use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::element::{Formulation, Kinematics};
 use fricsens::scene::{cantilever, CantileverSpec};
 use fricsens::solver::Results;
 
@@ -43,8 +43,8 @@ fn small_deflection_plain_full_integration_locks() {
         let exact = spec.load() * spec.length.powi(3) / (3.0 * spec.young * spec.inertia());
         (w - exact).abs() / exact
     };
-    let err_full = tip(Hex8Formulation::Full);
-    let err_im = tip(Hex8Formulation::IncompatibleModes);
+    let err_full = tip(Formulation::Full);
+    let err_im = tip(Formulation::IncompatibleModes);
     println!("full integration error {err_full:.4}, incompatible modes error {err_im:.5}");
     // Shear locking: fully integrated hex8 with 2 elements through the thickness (aspect ratio
     // 2) is far too stiff; the same mesh with incompatible modes is accurate. This documents

@@ -13,7 +13,7 @@ use crate::common::{
 use approx::assert_relative_eq;
 use fricsens::assembly::{Assembler, Evaluation};
 use fricsens::element::hex8::{self, Hex8Input, Hex8Output};
-use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::element::{Formulation, Kinematics};
 use fricsens::linalg::SparseMatrix;
 use fricsens::material::{Branch, StVenantKirchhoff};
 use fricsens::mesh::Mesh;
@@ -25,21 +25,21 @@ use proptest::prelude::*;
 
 #[test]
 fn patch_test_distorted_mesh_small_strain() {
-    patch_test(distorted_mesh(), Kinematics::Small, Hex8Formulation::Full);
+    patch_test(distorted_mesh(), Kinematics::Small, Formulation::Full);
     patch_test(
         distorted_mesh(),
         Kinematics::Small,
-        Hex8Formulation::IncompatibleModes,
+        Formulation::IncompatibleModes,
     );
 }
 
 #[test]
 fn patch_test_distorted_mesh_large_strain() {
-    patch_test(distorted_mesh(), Kinematics::Large, Hex8Formulation::Full);
+    patch_test(distorted_mesh(), Kinematics::Large, Formulation::Full);
     patch_test(
         distorted_mesh(),
         Kinematics::Large,
-        Hex8Formulation::IncompatibleModes,
+        Formulation::IncompatibleModes,
     );
 }
 
@@ -47,7 +47,7 @@ fn patch_test_distorted_mesh_large_strain() {
 fn rigid_rotation_of_90_degrees_gives_zero_stress() {
     let q = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
     let (f, s) = rigid_motion_force(
-        Hex8Formulation::IncompatibleModes,
+        Formulation::IncompatibleModes,
         unit_cube(),
         *q.matrix(),
         Vector3::new(3.0, -2.0, 1.0),
@@ -74,7 +74,7 @@ proptest! {
             for i in 0..3 { xa[i] += jiggle[3 * k + i]; }
         }
         let (f, s) =
-            rigid_motion_force(Hex8Formulation::IncompatibleModes, x, *q.matrix(), Vector3::from(shift));
+            rigid_motion_force(Formulation::IncompatibleModes, x, *q.matrix(), Vector3::from(shift));
         prop_assert!(f < 1e-10 * 2.0e5, "force {}", f);
         prop_assert!(s < 1e-10 * 2.0e5, "stress {}", s);
     }
@@ -89,7 +89,7 @@ fn uniaxial_model(stretch: f64, nu: f64, increments: usize) -> (Model, Vec<usize
         mesh.clone(),
         Material::Svk(StVenantKirchhoff::new(200.0, nu)),
         Kinematics::Large,
-        Hex8Formulation::Full,
+        Formulation::Full,
     );
     for (set, c) in [("b.xmin", 0), ("b.ymin", 1), ("b.zmin", 2)] {
         model.prescribed.push(Prescribed {
@@ -160,7 +160,7 @@ fn uniaxial_compression_through_the_limit_point() {
 
 #[test]
 fn assembled_tangent_is_the_derivative_of_the_residual() {
-    for formulation in [Hex8Formulation::Full, Hex8Formulation::IncompatibleModes] {
+    for formulation in [Formulation::Full, Formulation::IncompatibleModes] {
         let (model, z) = deformed_cantilever(Kinematics::Large, formulation, 0.0);
         // directional derivative of R along v by dual numbers: K v
         let v: Vec<f64> = (0..z.len()).map(|i| ((i as f64) * 1.3).cos()).collect();
@@ -185,8 +185,7 @@ fn assembled_tangent_is_the_derivative_of_the_residual() {
 
 #[test]
 fn real_part_of_seeded_dual_evaluation_equals_f64() {
-    let (model, z) =
-        deformed_cantilever(Kinematics::Large, Hex8Formulation::IncompatibleModes, 0.0);
+    let (model, z) = deformed_cantilever(Kinematics::Large, Formulation::IncompatibleModes, 0.0);
     let asm = Assembler::new(&model, &[]).unwrap();
     let ne = model.mesh.n_elements();
     let mut ev = Evaluation::<f64>::new(&asm, ne);
@@ -293,7 +292,7 @@ fn incompatible_mode_gradients_integrate_to_zero() {
         &x_ref,
         &dofs,
         Kinematics::Small,
-        Hex8Formulation::IncompatibleModes,
+        Formulation::IncompatibleModes,
         &mat,
         &[],
         false,
@@ -315,7 +314,7 @@ fn dual_number_trait_bound_covers_vector_duals() {
         x_ref: &x_ref,
         dofs: &dofs,
         kinematics: Kinematics::Large,
-        formulation: Hex8Formulation::Full,
+        formulation: Formulation::Full,
         material: &mat,
         params: &[
             num_dual::DualSVec64::<3>::from_re(1.0).derivative(0),

@@ -1,4 +1,4 @@
-//! The F-bar hex8 (`Hex8Formulation::FBar`): the element checks (patch test, rigid motion,
+//! The F-bar hex8 (`Formulation::FBar`): the element checks (patch test, rigid motion,
 //! tangent against the dual-number derivative of the residual) and a problem where it matters,
 //! Prandtl's flat punch on a plastically incompressible plane-strain block, where plain full
 //! integration locks.
@@ -12,7 +12,7 @@ use crate::common::{
 };
 
 use fricsens::element::hex8::{self, Hex8Input, Hex8Output};
-use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::element::{Formulation, Kinematics};
 use fricsens::law::Law;
 use fricsens::material::{Branch, J2Plasticity};
 use fricsens::mesh::{Axis, BlockSpec, Mesh, NodePlace, Zone};
@@ -26,11 +26,11 @@ use std::time::Instant;
 
 #[test]
 fn serde_name_is_f_bar() {
-    let s = serde_json::to_string(&Hex8Formulation::FBar).unwrap();
+    let s = serde_json::to_string(&Formulation::FBar).unwrap();
     assert_eq!(s, "\"f-bar\"");
-    let f: Hex8Formulation = serde_json::from_str("\"f-bar\"").unwrap();
-    assert_eq!(f, Hex8Formulation::FBar);
-    assert_eq!(Hex8Formulation::FBar.internal_dofs(), 0);
+    let f: Formulation = serde_json::from_str("\"f-bar\"").unwrap();
+    assert_eq!(f, Formulation::FBar);
+    assert_eq!(Formulation::FBar.internal_dofs(), 0);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -60,15 +60,15 @@ fn rough_mesh() -> Mesh {
 #[test]
 fn patch_test_distorted_mesh_f_bar() {
     for mesh in [distorted_mesh(), rough_mesh()] {
-        patch_test(mesh.clone(), Kinematics::Small, Hex8Formulation::FBar);
-        patch_test(mesh, Kinematics::Large, Hex8Formulation::FBar);
+        patch_test(mesh.clone(), Kinematics::Small, Formulation::FBar);
+        patch_test(mesh, Kinematics::Large, Formulation::FBar);
     }
 }
 
 #[test]
 fn patch_test_rough_mesh_other_formulations() {
     // the rough mesh is a fair patch: the other formulations pass it too
-    for f in [Hex8Formulation::Full, Hex8Formulation::IncompatibleModes] {
+    for f in [Formulation::Full, Formulation::IncompatibleModes] {
         patch_test(rough_mesh(), Kinematics::Small, f);
         patch_test(rough_mesh(), Kinematics::Large, f);
     }
@@ -81,7 +81,7 @@ fn patch_test_rough_mesh_other_formulations() {
 fn rigid_rotation_of_90_degrees_gives_zero_force_f_bar() {
     let q = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
     let (f, s) = rigid_motion_force(
-        Hex8Formulation::FBar,
+        Formulation::FBar,
         unit_cube(),
         *q.matrix(),
         Vector3::new(3.0, -2.0, 1.0),
@@ -108,7 +108,7 @@ proptest! {
             for i in 0..3 { xa[i] += jiggle[3 * k + i]; }
         }
         let (f, s) =
-            rigid_motion_force(Hex8Formulation::FBar, x, *q.matrix(), Vector3::from(shift));
+            rigid_motion_force(Formulation::FBar, x, *q.matrix(), Vector3::from(shift));
         prop_assert!(f < 1e-10 * 2.0e5, "force {}", f);
         prop_assert!(s < 1e-10 * 2.0e5, "stress {}", s);
     }
@@ -146,7 +146,7 @@ fn generic_plastic_state() -> ([Vector3<f64>; 8], Vec<Vector3<f64>>, J2Plasticit
         &x,
         &half,
         Kinematics::Large,
-        Hex8Formulation::FBar,
+        Formulation::FBar,
         &mat,
         &zero,
         false,
@@ -166,7 +166,7 @@ fn element_tangent_equals_dual_derivative_f_bar_j2() {
         } else {
             u.clone()
         };
-        let r = element(&x, &small_u, kin, Hex8Formulation::FBar, &mat, &h, true);
+        let r = element(&x, &small_u, kin, Formulation::FBar, &mat, &h, true);
         let plastic = {
             // the state is plastic at some Gauss points (else this checks little)
             let mut n = 0;
@@ -193,7 +193,7 @@ fn element_tangent_equals_dual_derivative_f_bar_j2() {
                     })
                 })
                 .collect();
-            let rd = element(&xd, &ud, kin, Hex8Formulation::FBar, &mat, &hd, false);
+            let rd = element(&xd, &ud, kin, Formulation::FBar, &mat, &hd, false);
             for row in 0..24 {
                 worst = worst.max((rd.force[row].eps - r.tangent[row * 24 + col]).abs());
                 asym = asym.max((r.tangent[row * 24 + col] - r.tangent[col * 24 + row]).abs());
@@ -214,15 +214,7 @@ fn element_tangent_equals_dual_derivative_f_bar_j2() {
     let t0 = Instant::now();
     let mut acc = 0.0;
     for _ in 0..reps {
-        let r = element(
-            &x,
-            &u,
-            Kinematics::Large,
-            Hex8Formulation::FBar,
-            &mat,
-            &h,
-            true,
-        );
+        let r = element(&x, &u, Kinematics::Large, Formulation::FBar, &mat, &h, true);
         acc += r.tangent[7];
     }
     let hand = t0.elapsed().as_secs_f64() / reps as f64;
@@ -245,7 +237,7 @@ fn element_tangent_equals_dual_derivative_f_bar_j2() {
                 &xd,
                 &ud,
                 Kinematics::Large,
-                Hex8Formulation::FBar,
+                Formulation::FBar,
                 &mat,
                 &hd,
                 false,
@@ -256,15 +248,7 @@ fn element_tangent_equals_dual_derivative_f_bar_j2() {
     let ad = t0.elapsed().as_secs_f64() / reps_ad as f64;
     let t0 = Instant::now();
     for _ in 0..reps {
-        let r = element(
-            &x,
-            &u,
-            Kinematics::Large,
-            Hex8Formulation::Full,
-            &mat,
-            &h,
-            true,
-        );
+        let r = element(&x, &u, Kinematics::Large, Formulation::Full, &mat, &h, true);
         acc += r.tangent[7];
     }
     let full = t0.elapsed().as_secs_f64() / reps as f64;
@@ -291,16 +275,7 @@ fn vector_dual_design_derivatives_match_central_differences_f_bar() {
         let mut xr = x;
         xr[5][1] = x5;
         let m = J2Plasticity::linear(q[0], q[1], q[2], q[3]);
-        element(
-            &xr,
-            &u,
-            Kinematics::Large,
-            Hex8Formulation::FBar,
-            &m,
-            &h,
-            false,
-        )
-        .force
+        element(&xr, &u, Kinematics::Large, Formulation::FBar, &m, &h, false).force
     };
     // dual evaluation: E -> part 0, sigma_y -> part 1, X_5y -> part 2
     let params_d = [
@@ -319,7 +294,7 @@ fn vector_dual_design_derivatives_match_central_differences_f_bar() {
         x_ref: &xd,
         dofs: &ud,
         kinematics: Kinematics::Large,
-        formulation: Hex8Formulation::FBar,
+        formulation: Formulation::FBar,
         material: &mat,
         params: &params_d,
         hist_old: &hd,
@@ -384,7 +359,7 @@ fn check_assembled_tangent(model: &Model, z: &[f64], hist: &[f64], what: &str) {
 #[test]
 fn assembled_tangent_is_the_derivative_of_the_residual_f_bar() {
     for kin in [Kinematics::Large, Kinematics::Small] {
-        let (model, z) = deformed_cantilever(kin, Hex8Formulation::FBar, 0.3);
+        let (model, z) = deformed_cantilever(kin, Formulation::FBar, 0.3);
         check_assembled_tangent(&model, &z, &[], &format!("elastic cantilever {kin:?}"));
     }
     // elastoplastic: a sheared and compressed J2 block, committed history of a previous run
@@ -396,7 +371,7 @@ fn assembled_tangent_is_the_derivative_of_the_residual_f_bar() {
             mesh.clone(),
             Material::J2(J2Plasticity::linear(200e3, 0.3, 250.0, 200.0)),
             kin,
-            Hex8Formulation::FBar,
+            Formulation::FBar,
         );
         let bottom = mesh.node_sets["b.ymin"].clone();
         let top = mesh.node_sets["b.ymax"].clone();
@@ -438,7 +413,7 @@ struct PunchMesh {
 /// punch of half-width `a = 1` (prescribed vertical displacement of the top nodes with
 /// `x <= a`, horizontal motion free). Returns the model and the punch nodes.
 fn punch_model(
-    formulation: Hex8Formulation,
+    formulation: Formulation,
     kinematics: Kinematics,
     m: PunchMesh,
     size: (f64, f64),
@@ -453,6 +428,7 @@ fn punch_model(
         ratio,
     };
     let spec = BlockSpec {
+        element: fricsens::element::Shape::Hex8,
         name: "b".into(),
         origin: [0.0; 3],
         x: Axis {
@@ -509,7 +485,7 @@ const H_PUNCH: f64 = E_PUNCH / 10000.0;
 
 /// Punch displacement and mean punch pressure over Prandtl's `(2 + pi) k` at every increment.
 fn punch_curve(
-    formulation: Hex8Formulation,
+    formulation: Formulation,
     kinematics: Kinematics,
     m: PunchMesh,
     size: (f64, f64),
@@ -572,8 +548,8 @@ fn prandtl_punch_full_integration_locks_f_bar_does_not() {
     let n = 40;
     let times: Vec<f64> = (1..=n).map(|k| k as f64 / n as f64).collect();
     let run = |f| punch_curve(f, Kinematics::Small, mesh, (10.0, 10.0), 0.12, &times);
-    let fbar = run(Hex8Formulation::FBar);
-    let full = run(Hex8Formulation::Full);
+    let fbar = run(Formulation::FBar);
+    let full = run(Formulation::Full);
     // pressure at the end of the stroke, and its rise over the last quarter of the stroke
     let at = |c: &[(f64, f64)], d: f64| {
         c.iter()
@@ -622,7 +598,7 @@ fn f_bar_does_not_cure_shear_locking() {
         let exact = spec.load() * spec.length.powi(3) / (3.0 * spec.young * spec.inertia());
         (w - exact).abs() / exact
     };
-    let (e_fbar, e_full) = (err(Hex8Formulation::FBar), err(Hex8Formulation::Full));
+    let (e_fbar, e_full) = (err(Formulation::FBar), err(Formulation::Full));
     println!("tip deflection error: F-bar {e_fbar:.4}, full integration {e_full:.4}");
     // measured: F-bar 0.291, full 0.333. F-bar removes only the
     // volumetric part of the parasitic bending stiffness (the dilatation that a bending mode of

@@ -14,6 +14,7 @@ mod contact_laws;
 mod contact_oracles;
 mod contact_tangent;
 mod element;
+mod families;
 mod friction_laws;
 mod imported;
 mod loads;

@@ -10,7 +10,7 @@
 
 use fricsens::contact::friction::Coulomb;
 use fricsens::contact::{setup, Friction};
-use fricsens::element::{Hex8Formulation, Kinematics, Shape};
+use fricsens::element::{Formulation, Kinematics, Shape};
 use fricsens::material::StVenantKirchhoff;
 use fricsens::mesh::{FaceSet, Mesh, MeshError};
 use fricsens::model::{node_dof, Amplitude, Body, Material, Model, NodalLoad, Prescribed};
@@ -110,7 +110,7 @@ fn patch_in_code() -> Model {
         group,
         material: Material::Svk(StVenantKirchhoff::new(E, NU)),
         kinematics: Kinematics::Small,
-        formulation: Hex8Formulation::IncompatibleModes,
+        formulation: Some(Formulation::IncompatibleModes),
     };
     let bodies = vec![body("lower", lower), body("upper", upper)];
     let prescribed = vec![

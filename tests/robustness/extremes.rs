@@ -10,7 +10,7 @@ use crate::common::{fricsens, scratch_path, sens, try_solve};
 use fricsens::contact::friction::Coulomb;
 use fricsens::contact::ContactState;
 use fricsens::contact::Friction;
-use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::element::{Formulation, Kinematics};
 use fricsens::material::{Material, StVenantKirchhoff};
 use fricsens::mesh::{Axis, BlockSpec, NodePlace};
 use fricsens::model::{Amplitude, DesignParam, Model, NodalLoad, SolverSettings};
@@ -262,7 +262,7 @@ const RING: (f64, f64, f64, f64) = (1.0, 2.0, 0.1, 1.0); // a, b, thickness, pre
 /// `(r cos(pi/2 y), r sin(pi/2 y), z)`, symmetry on both cut planes, z fixed (plane strain),
 /// the pressure as consistent nodal forces on the inner polygon. Responses: the radial
 /// displacement at the inner and outer radius on the x axis.
-fn ring_model(formulation: Hex8Formulation, young: f64, nu: f64, nr: usize, nt: usize) -> Model {
+fn ring_model(formulation: Formulation, young: f64, nu: f64, nr: usize, nt: usize) -> Model {
     let (a, b, th, p) = RING;
     let fixed = |name: &str, set: &str, c: Component| PrescribedSpec {
         name: name.into(),
@@ -276,6 +276,7 @@ fn ring_model(formulation: Hex8Formulation, young: f64, nu: f64, nr: usize, nt: 
         description: String::new(),
         bodies: vec![BodySpec {
             geometry: BodyGeometry::Block(BlockSpec {
+                element: fricsens::element::Shape::Hex8,
                 name: "ring".into(),
                 origin: [a, 0.0, 0.0],
                 x: Axis::uniform(b - a, nr),
@@ -284,7 +285,7 @@ fn ring_model(formulation: Hex8Formulation, young: f64, nu: f64, nr: usize, nt: 
             }),
             material: Material::Svk(StVenantKirchhoff::new(young, nu)),
             kinematics: Kinematics::Small,
-            formulation,
+            formulation: Some(formulation),
         }],
         free_nodes: vec![],
         springs: vec![],
@@ -412,16 +413,16 @@ fn nearly_incompressible_thick_cylinder_with_f_bar_and_its_sensitivities() {
     };
     // F-bar: O(h^2) discretisation error, here also the polygonal inner and outer boundary
     // (chord sag (pi/32)^2 / 8 = 1.2e-3 of the radius)
-    for e in error(Hex8Formulation::FBar, 8, 16) {
+    for e in error(Formulation::FBar, 8, 16) {
         assert!(e.abs() < 0.005, "F-bar: {e}");
     }
     // full integration locks: far too stiff
-    for e in error(Hex8Formulation::Full, 8, 16) {
+    for e in error(Formulation::Full, 8, 16) {
         assert!(e < -0.2, "full integration: {e}");
     }
     let mut du_error = Vec::new();
     for (nr, nt) in [(8, 16), (16, 32)] {
-        let model = ring_model(Hex8Formulation::FBar, young, nu, nr, nt);
+        let model = ring_model(Formulation::FBar, young, nu, nr, nt);
         let ddm = sens(&model, &["E", "nu"], Method::Ddm, 0.0);
         let d = &ddm.increments[0];
         let e = [0, 1].map(|r| d.derivatives[r][1] / lame_du[r] - 1.0);

@@ -27,6 +27,7 @@ fn scratch(test: &str) -> PathBuf {
 fn block(name: &str, n: [usize; 3]) -> (Mesh, Vec<Vector3<f64>>) {
     let mut m = Mesh::default();
     m.add_block(BlockSpec {
+        element: fricsens::element::Shape::Hex8,
         name: name.into(),
         origin: [0.3, -1.7, 2.1],
         x: Axis {
@@ -164,6 +165,7 @@ fn two_bodies_written_together_read_back_one_by_one() {
     let dir = scratch("two-bodies");
     let (mut m, _) = block("a", [2, 1, 1]);
     m.add_block(BlockSpec {
+        element: fricsens::element::Shape::Hex8,
         name: "c".into(),
         origin: [5.0, 0.0, 0.0],
         x: Axis::uniform(1.0, 1),

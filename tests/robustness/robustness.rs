@@ -7,7 +7,7 @@ use crate::common::{fricsens, scratch_path, solve};
 
 use fricsens::contact::friction::{PressureDependentCoulomb, RegularizedCoulomb};
 use fricsens::contact::Friction;
-use fricsens::element::{Hex8Formulation, Kinematics};
+use fricsens::element::{Formulation, Kinematics};
 use fricsens::law::Law;
 use fricsens::material::Material;
 use fricsens::model::Model;
@@ -1449,7 +1449,7 @@ fn a_model_with_parallel_factorization_is_bit_identical_across_thread_counts() {
         ny: 24,
         increments: 1,
         kinematics: Kinematics::Small,
-        formulation: Hex8Formulation::Full,
+        formulation: Formulation::Full,
         ..CantileverSpec::small_deflection()
     };
     let model = cantilever(&spec).build().unwrap();

@@ -7,7 +7,7 @@
 use crate::common::{fricsens, scratch_path};
 
 use fricsens::contact::{quad_nodes, Target};
-use fricsens::element::Hex8Formulation;
+use fricsens::element::Formulation;
 use fricsens::material::{J2Plasticity, Material};
 use fricsens::scene::{indentation, Scene, TargetSpec};
 use fricsens::studies::ccx::{
@@ -267,7 +267,7 @@ fn a_rigid_target_pushed_by_a_force_is_a_cload_on_its_reference_node() {
 #[test]
 fn what_calculix_cannot_be_told_is_a_typed_error() {
     let mut scene = indentation(2, 4);
-    scene.bodies[0].formulation = Hex8Formulation::FBar;
+    scene.bodies[0].formulation = Some(Formulation::FBar);
     let model = scene.build().unwrap();
     assert!(matches!(
         export(&model, &ExportOptions::default()),

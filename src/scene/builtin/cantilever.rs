@@ -26,7 +26,7 @@ pub struct CantileverSpec {
     /// Small or large deformation.
     pub kinematics: Kinematics,
     /// Hex8 element formulation.
-    pub formulation: Hex8Formulation,
+    pub formulation: Formulation,
 }
 
 impl CantileverSpec {
@@ -43,7 +43,7 @@ impl CantileverSpec {
             alpha: 5.0,
             increments: 10,
             kinematics: Kinematics::Large,
-            formulation: Hex8Formulation::IncompatibleModes,
+            formulation: Formulation::IncompatibleModes,
         }
     }
 
@@ -60,7 +60,7 @@ impl CantileverSpec {
             alpha: 1e-4,
             increments: 1,
             kinematics: Kinematics::Small,
-            formulation: Hex8Formulation::IncompatibleModes,
+            formulation: Formulation::IncompatibleModes,
         }
     }
 
@@ -85,6 +85,7 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
         ),
         bodies: vec![BodySpec {
             geometry: BodyGeometry::Block(BlockSpec {
+                element: crate::element::Shape::Hex8,
                 name: "beam".into(),
                 origin: [0.0, 0.0, 0.0],
                 x: Axis::uniform(c.length, c.nx),
@@ -100,7 +101,7 @@ pub fn cantilever(c: &CantileverSpec) -> Scene {
             }),
             material: Material::Svk(StVenantKirchhoff::new(c.young, c.nu)),
             kinematics: c.kinematics,
-            formulation: c.formulation,
+            formulation: Some(c.formulation),
         }],
         free_nodes: vec![],
         springs: vec![],

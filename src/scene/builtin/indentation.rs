@@ -92,6 +92,7 @@ pub(crate) fn indentation_mesh(
         description: "Rigid block indenting and sliding on an elastic half-space (Chen, Hisada et al. section 3.1): plane strain, E = 200 GPa, nu = 0.3, block 20 mm wide with 1 mm corner radii, pressed 0.01 mm then slid 3.33 mm, mu = 0.5.".into(),
         bodies: vec![BodySpec {
             geometry: BodyGeometry::Block(BlockSpec {
+                element: crate::element::Shape::Hex8,
                 name: "slab".into(),
                 origin: [-250.0, -250.0, 0.0],
                 x,
@@ -100,7 +101,7 @@ pub(crate) fn indentation_mesh(
             }),
             material: Material::Svk(StVenantKirchhoff::new(200e3, 0.3)),
             kinematics: Kinematics::Small,
-            formulation: Hex8Formulation::IncompatibleModes,
+            formulation: Some(Formulation::IncompatibleModes),
         }],
         free_nodes: vec![],
         springs: vec![],

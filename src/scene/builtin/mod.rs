@@ -4,7 +4,7 @@
 use super::*;
 use crate::contact::friction::Coulomb;
 use crate::contact::{Friction, NormalLaw};
-use crate::element::{Hex8Formulation, Kinematics};
+use crate::element::{Formulation, Kinematics};
 use crate::material::{J2Plasticity, Material, StVenantKirchhoff};
 use crate::mesh::{Axis, BlockSpec, Zone};
 use crate::model::SolverSettings;
@@ -244,6 +244,7 @@ pub(crate) fn block_body(
     let [x, y, z] = axes;
     BodySpec {
         geometry: BodyGeometry::Block(BlockSpec {
+            element: crate::element::Shape::Hex8,
             name: name.into(),
             origin,
             x,
@@ -252,7 +253,7 @@ pub(crate) fn block_body(
         }),
         material,
         kinematics,
-        formulation: Hex8Formulation::IncompatibleModes,
+        formulation: Some(Formulation::IncompatibleModes),
     }
 }
 

@@ -80,6 +80,7 @@ pub(crate) fn uniaxial_cube(
         description: String::new(),
         bodies: vec![BodySpec {
             geometry: BodyGeometry::Block(BlockSpec {
+                element: crate::element::Shape::Hex8,
                 name: "cube".into(),
                 origin: [0.0; 3],
                 x: Axis::uniform(1.0, 1),
@@ -88,7 +89,7 @@ pub(crate) fn uniaxial_cube(
             }),
             material,
             kinematics,
-            formulation: Hex8Formulation::Full,
+            formulation: Some(Formulation::Full),
         }],
         free_nodes: vec![],
         springs: vec![],

@@ -97,8 +97,8 @@ pub fn benchmark_cantilever(nx: usize) -> Scene {
         // a resultant tip load of 1: alpha = P L^2 / (E I)
         alpha: 1.0 * 100f64.powi(2) / (1e7 * 1.0 * 2f64.powi(3) / 12.0),
         increments: 1,
-        kinematics: crate::element::hex8::Kinematics::Small,
-        formulation: crate::element::hex8::Hex8Formulation::IncompatibleModes,
+        kinematics: crate::element::Kinematics::Small,
+        formulation: crate::element::Formulation::IncompatibleModes,
     };
     let mut s = cantilever(&spec);
     s.name = format!("cantilever-{nx}");

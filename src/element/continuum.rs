@@ -1,0 +1,920 @@
+//! The continuum kernel: isoparametric solids of every shape (hex8, hex20, tet4, tet10,
+//! wedge6, wedge15), total Lagrangian, generic over the scalar.
+//!
+//! One kernel integrates every solid family: a shape gives its `Interpolation` (node count
+//! and shape-function derivatives in natural coordinates), a formulation its `Rule` (Gauss
+//! points and weights) and whether it adds incompatible modes (hex8) or replaces `F` by F-bar.
+//! Nothing below depends on the shape otherwise.
+//!
+//! ## Kinematics
+//! Reference coordinates `X`, displacements `u`, deformation gradient
+//! `F = I + sum_A d_A (x) g_A`, where the sum runs over the nodes (`d_A = u_a`,
+//! `g_A = grad_X N_a`) and, for the enhanced variant, over three incompatible modes
+//! (`d_A = alpha_k`, `g_A = Gtilde_k`).
+//!
+//! * `Large`: Green-Lagrange strain `E = (F^T F - I)/2`, second Piola-Kirchhoff `S = S(E)`,
+//!   internal force `f_Ai = int B_Ai^T S dV0` with `B_Ai = dE/dd_Ai = sym(F^T e_i (x) g_A)`.
+//! * `Small`: linear strain `eps = sym(F - I)`, `sigma = sigma(eps)`, `B_Ai = sym(e_i (x) g_A)`.
+//!
+//! Tangent (hand-coded, consistent): `K_AiBj = int B_Ai^T C B_Bj + delta_ij g_A^T S g_B dV0`
+//! (the geometric term only under `Large`). It is checked against the dual-number derivative of
+//! the internal force in the tests.
+//!
+//! ## Formulations
+//! Each family takes the formulations its literature uses ([`Formulation`];
+//! [`super::ElementFamily::new`] refuses the others): full integration, reduced integration
+//! (hex20's 2x2x2), a higher-order rule (tet10's 14 points), incompatible modes (hex8) and
+//! F-bar (every family with more than one Gauss point).
+//!
+//! ## Incompatible modes (hex8's bending-capable variant)
+//! Wilson's bubble modes `phi_k = 1 - xi_k^2` with Taylor's correction (Simo & Armero 1992):
+//! `Gtilde_k(xi) = (j0 / j(xi)) J0^-T dphi_k/dxi`, `J0` the Jacobian at the element centre.
+//! `int Gtilde_k dV0 = 0`, so the patch test is passed. Their nine amplitudes `alpha` are
+//! element-internal unknowns of the global system (not condensed here): the sparse LU eliminates
+//! them as it would any interior DOF, and the sensitivity engine treats them like any other
+//! unknown. Plain full integration locks in bending; this variant does not.
+//!
+//! ## F-bar (the volumetric-locking remedy)
+//! After de Souza Neto, Peric, Dutko & Owen (1996), on the family's full rule: at each Gauss
+//! point the deformation gradient is replaced by
+//! `Fbar = r F`, `r = (J0 / J)^(1/3)`, `J = det F`, `J0 = det F0`,
+//! so that the volume change of every Gauss point is the element's single `J0`: one volumetric
+//! constraint per element instead of one per Gauss point, which is what removes volumetric locking (nearly
+//! incompressible elasticity, isochoric plastic flow). `F0 = I + sum_A u_a (x) gbar_A` is the
+//! *volume average* of `F` over the element, `gbar_A = (1/V0) int g_A dV0`. On a parallelepiped
+//! this is exactly `F` at the element centre (the shape-function gradients are multilinear in
+//! `xi`); on a distorted 3D hex the centre value differs from the average, and only the average
+//! lets the variationally consistent element below pass the patch test (with the centre value:
+//! nodal displacement errors of 3e-3 relative on a randomly distorted 3x3x3 patch).
+//!
+//! * `Large`: `Ebar = (Fbar^T Fbar - I)/2`, `S = S(Ebar)`, and the internal force is the
+//!   variational derivative of the F-bar strain, `f_a = int B_a^T S dV0` with, for unknown
+//!   `a = (A, i)`,
+//!   `B_a = dEbar/dd_a = r sym(Fbar^T e_i (x) g_A) + v_a Cbar`,
+//!   `v_a = d ln r / dd_a = ((q0_A)_i - (q_A)_i) / 3`, `q_A = F^-T g_A`, `q0_A = F0^-T gbar_A`,
+//!   `Cbar = Fbar^T Fbar`. Equivalently `f_a = int p_a + s v_a dV0`, `p_a = r (Fbar S g_A)_i`,
+//!   `s = S : Cbar`.
+//! * `Small` (B-bar): `eps_bar = dev(eps) + (1/3) tr(eps0) I`, `eps0 = sym(F0 - I)` the element
+//!   average; `B_a = sym(e_i (x) g_A) + ((gbar_A)_i - (g_A)_i)/3 I`.
+//!
+//! Tangent (hand-coded, consistent): `K_ab = int B_a^T C B_b + G_ab dV0` with the geometric term
+//! (`Large` only) `G_ab = S : d2Ebar/dd_a dd_b`, for `b = (B, j)`:
+//!
+//! ```text
+//! G_ab = r^2 delta_ij g_A . S g_B + 2 (v_a p_b + v_b p_a) + 2 s v_a v_b
+//!        + (s/3) [ (q_A)_j (q_B)_i - (q0_A)_j (q0_B)_i ]
+//! ```
+//!
+//! (from `dq_A/dd_Bj = -q_B (q_A)_j`, `dq0_A/dd_Bj = -q0_B (q0_A)_j`). Because the force is the
+//! exact derivative of `int W(Ebar) dV0`-type work, this tangent is symmetric whenever `C` is
+//! (hyperelasticity, associative J2 with its algorithmic tangent). The *non*-variational
+//! original (spatial virtual work with the unmodified gradient of the test function) has an
+//! unsymmetric tangent; it is not what is implemented here.
+//!
+//! | symbol | meaning |
+//! |---|---|
+//! | `xi` | natural coordinates in `[-1, 1]^3` |
+//! | `N_a` | shape functions of the element's `Interpolation` |
+//! | `w_q` | Gauss weight of the `Rule` |
+//! | `J = dX/dxi`, `j = det J` | reference Jacobian (the volume weight is `j w_q`) |
+//! | `F`, `E`, `S` | deformation gradient, Green-Lagrange strain, PK2 stress |
+//! | `g_A`, `B_A` | generalised shape gradient, strain-displacement row |
+//! | `gbar_A`, `F0`, `J0` | element averages (F-bar): gradient, deformation gradient, its det |
+//! | `r`, `Fbar`, `Cbar`, `Ebar` | F-bar factor `(J0/J)^(1/3)`, modified `F`, `C`, Green strain |
+//! | `q_A`, `q0_A`, `v_a` | `F^-T g_A`, `F0^-T gbar_A`, `d ln r / dd_a` |
+use crate::material::{strain_to_voigt, stress_to_voigt, Branch, MaterialLaw, Voigt};
+use crate::scalar::{det3, inv3, re, Scalar};
+use nalgebra::{Matrix3, Vector3};
+
+/// Most nodes of any registered family (hex20).
+pub(crate) const MAX_NODES: usize = 20;
+/// Most Gauss points of any registered family (hex20's 3x3x3).
+pub(crate) const MAX_GAUSS: usize = 27;
+/// Most generalised nodes (nodes plus groups of three internal unknowns) of any family.
+pub(crate) const MAX_GEN: usize = 20;
+/// Most element unknowns of any registered family.
+pub(crate) const MAX_DOFS: usize = 3 * MAX_GEN;
+
+/// Everything one element evaluation needs besides its unknowns.
+pub struct ElementInput<'a, S: Scalar, M: MaterialLaw> {
+    /// Reference coordinates of the nodes, in the shape's node order.
+    pub x_ref: &'a [Vector3<S>],
+    /// Unknowns: the nodal displacements, then the internal unknowns in groups of three.
+    pub dofs: &'a [Vector3<S>],
+    /// Strain measure.
+    pub kinematics: Kinematics,
+    /// The material law.
+    pub material: &'a M,
+    /// Material parameters lifted to `S`.
+    pub params: &'a [S],
+    /// Committed history, `n_gauss * material.history_len()` scalars.
+    pub hist_old: &'a [S],
+    /// Branch per Gauss point to impose (SDM's frozen evaluation), or `None`.
+    pub frozen: Option<&'a [Branch]>,
+}
+
+/// What one element evaluation returns.
+pub struct ElementOutput<'a, S: Scalar> {
+    /// Internal force, `n_dofs` entries (node-major, component-minor).
+    pub force: &'a mut [S],
+    /// Tangent, row-major `n_dofs^2`, if wanted.
+    pub tangent: Option<&'a mut [S]>,
+    /// Updated history, `n_gauss * history_len` scalars.
+    pub hist_new: &'a mut [S],
+    /// Branch taken at each Gauss point (`n_gauss` entries).
+    pub branches: &'a mut [Branch],
+    /// Trial yield ratio at each Gauss point (`n_gauss` entries).
+    pub yield_ratio: &'a mut [f64],
+    /// Volume-averaged Cauchy stress.
+    pub cauchy: Matrix3<S>,
+    /// Smallest det F over the Gauss points (real part).
+    pub min_det_f: f64,
+}
+
+/// Strain measure used by an element.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kinematics {
+    /// Total Lagrangian, Green-Lagrange strain and PK2 stress.
+    Large,
+    /// Linear strain (geometrically linear).
+    Small,
+}
+
+/// How a solid element is integrated. Which formulations a shape takes, and its standard one
+/// (a body that names none), is [`super::ElementFamily::new`]'s table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[non_exhaustive]
+pub enum Formulation {
+    /// The family's full Gauss rule: 2x2x2 (hex8), 3x3x3 (hex20), 1 point (tet4), 4 points
+    /// (tet10), 3x2 (wedge6), 3x3 (wedge15). Hex8 locks in bending.
+    Full,
+    /// Reduced integration: 2x2x2 on hex20 (C3D20R), free of volumetric and shear locking.
+    Reduced,
+    /// A higher-order rule: tet10 on Walkington's 14-point degree-5 rule (exact for a curved
+    /// tet10's stiffness up to its Jacobian's variation).
+    HighOrder,
+    /// Nine incompatible modes (Wilson-Taylor, Simo-Armero) on hex8: accurate in bending.
+    IncompatibleModes,
+    /// F-bar (de Souza Neto et al. 1996) on the family's full rule, variationally consistent:
+    /// free of volumetric locking (near incompressibility, isochoric plastic flow), but not of
+    /// shear locking in bending. B-bar under small kinematics. See the module docs.
+    #[serde(rename = "f-bar")]
+    FBar,
+}
+
+impl Formulation {
+    /// Every formulation.
+    pub const ALL: [Formulation; 5] = [
+        Formulation::Full,
+        Formulation::Reduced,
+        Formulation::HighOrder,
+        Formulation::IncompatibleModes,
+        Formulation::FBar,
+    ];
+
+    /// Name as in scene files (`full`, `reduced`, `high-order`, `incompatible-modes`,
+    /// `f-bar`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Formulation::Full => "full",
+            Formulation::Reduced => "reduced",
+            Formulation::HighOrder => "high-order",
+            Formulation::IncompatibleModes => "incompatible-modes",
+            Formulation::FBar => "f-bar",
+        }
+    }
+
+    /// Number of element-internal unknowns (the hex8 incompatible modes' nine amplitudes).
+    pub fn internal_dofs(self) -> usize {
+        match self {
+            Formulation::IncompatibleModes => 9,
+            _ => 0,
+        }
+    }
+}
+
+/// Why an element evaluation failed. The solver recovers from an inverted element or a
+/// non-finite stress by cutting the increment back; a bad reference geometry is fatal.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ElementFailure {
+    /// The element was handed the wrong number of nodes, branches or unknowns for its family
+    /// (a model whose layout does not match its elements; not recoverable).
+    #[error("{what}: the family has {expected}, the element was given {got}")]
+    Layout {
+        /// What was miscounted (`nodes`, `frozen branches`).
+        what: &'static str,
+        /// How many the family has.
+        expected: usize,
+        /// How many the element was given.
+        got: usize,
+    },
+    /// The reference Jacobian is singular or negative: a bad mesh (not recoverable).
+    #[error("reference Jacobian determinant {det:.3e} at Gauss point {gauss_point}: the element is degenerate or inverted in the mesh")]
+    BadReferenceGeometry {
+        /// Gauss point (`usize::MAX`: the element centre of the incompatible modes).
+        gauss_point: usize,
+        /// Determinant of the reference Jacobian `dX/dxi` there.
+        det: f64,
+    },
+    /// det F <= 0 at a Gauss point: the element turned inside out (recoverable by cutback).
+    /// `gauss_point == usize::MAX`: the element-average `det F0` of the F-bar variant.
+    #[error("det F = {det_f:.3e} at Gauss point {gauss_point}: element inverted")]
+    Inverted {
+        /// Gauss point, or `usize::MAX` for the F-bar average.
+        gauss_point: usize,
+        /// `det F` there.
+        det_f: f64,
+    },
+    /// A non-finite number appeared in the stress.
+    #[error("non-finite stress at Gauss point {gauss_point}")]
+    NonFinite {
+        /// Gauss point.
+        gauss_point: usize,
+    },
+    /// The element was evaluated with the wrong kind of section: a material for a spring, a
+    /// stiffness for a continuum element (a model whose layout does not match its elements;
+    /// not recoverable).
+    #[error("a {family} element takes {expected}, it was given {got}")]
+    Section {
+        /// The family's name.
+        family: &'static str,
+        /// The section it takes.
+        expected: &'static str,
+        /// The section it was given.
+        got: &'static str,
+    },
+}
+
+/// A shape's interpolation: its node count and the derivatives of its shape functions with
+/// respect to the natural coordinates.
+pub(crate) struct Interpolation {
+    /// Number of nodes.
+    pub(crate) n_nodes: usize,
+    /// `N_a` at `xi`, entries `0..n_nodes` written.
+    pub(crate) values: fn([f64; 3]) -> [f64; MAX_NODES],
+    /// `dN_a/dxi_j` at `xi`, rows `0..n_nodes` written.
+    pub(crate) derivatives: fn([f64; 3]) -> [[f64; 3]; MAX_NODES],
+}
+
+/// A Gauss rule on a shape's natural domain.
+pub(crate) struct Rule {
+    /// Natural coordinates of the points.
+    pub(crate) points: &'static [[f64; 3]],
+    /// Their weights (summing to the natural domain's volume).
+    pub(crate) weights: &'static [f64],
+}
+
+impl Rule {
+    /// Number of points.
+    pub(crate) fn len(&self) -> usize {
+        self.points.len()
+    }
+}
+
+/// A solid element's tables: what the kernel integrates.
+pub(crate) struct Solid<'t> {
+    /// The shape's interpolation.
+    pub(crate) interpolation: &'t Interpolation,
+    /// The Gauss rule.
+    pub(crate) rule: &'t Rule,
+    /// Hex8's incompatible modes (three bubble gradients after the nodes).
+    pub(crate) enhanced: bool,
+    /// F-bar (see the module docs).
+    pub(crate) fbar: bool,
+}
+
+/// `H = grad_X u` at a Gauss point from the generalised displacements (the enhanced part
+/// included).
+fn displacement_gradient<S: Scalar>(
+    dofs: &[Vector3<S>],
+    grads: &[Vector3<S>; MAX_GEN],
+    n_gen: usize,
+) -> Matrix3<S> {
+    let mut h = Matrix3::<S>::zeros();
+    for (d, g) in dofs.iter().zip(grads).take(n_gen) {
+        for i in 0..3 {
+            for j in 0..3 {
+                h[(i, j)] += d[i] * g[j];
+            }
+        }
+    }
+    h
+}
+
+/// The strain the material sees: Green-Lagrange `(F^T F - I) / 2` under large kinematics,
+/// `sym H` under small.
+fn strain_measure<S: Scalar>(h: &Matrix3<S>, large: bool) -> Matrix3<S> {
+    if large {
+        let f = h + Matrix3::identity();
+        (f.transpose() * f - Matrix3::identity()) * S::lift(0.5)
+    } else {
+        (h + h.transpose()) * S::lift(0.5)
+    }
+}
+
+impl Solid<'_> {
+    /// Number of generalised nodes: the nodes and, with incompatible modes, three more.
+    pub(crate) fn generalised_nodes(&self) -> usize {
+        self.interpolation.n_nodes + if self.enhanced { 3 } else { 0 }
+    }
+
+    /// The element's reference nodes, checked against the interpolation's count.
+    fn nodes<'x, S: Scalar>(
+        &self,
+        x: &'x [Vector3<S>],
+    ) -> Result<&'x [Vector3<S>], ElementFailure> {
+        if x.len() != self.interpolation.n_nodes {
+            return Err(ElementFailure::Layout {
+                what: "nodes",
+                expected: self.interpolation.n_nodes,
+                got: x.len(),
+            });
+        }
+        Ok(x)
+    }
+
+    /// The centre Jacobian's inverse transpose and determinant (incompatible modes only).
+    fn centre<S: Scalar>(
+        &self,
+        x_ref: &[Vector3<S>],
+    ) -> Result<Option<(Matrix3<S>, S)>, ElementFailure> {
+        if !self.enhanced {
+            return Ok(None);
+        }
+        let jac = self.jacobian(x_ref, [0.0; 3]).0;
+        match inv3(&jac) {
+            Some((inv, det)) if re(det) > 0.0 => Ok(Some((inv.transpose(), det))),
+            other => Err(ElementFailure::BadReferenceGeometry {
+                gauss_point: usize::MAX,
+                det: other.map(|v| re(v.1)).unwrap_or(0.0),
+            }),
+        }
+    }
+
+    /// `J_ij = dX_i / dxi_j` at `xi`, and the shape-function derivatives there.
+    fn jacobian<S: Scalar>(
+        &self,
+        x_ref: &[Vector3<S>],
+        xi: [f64; 3],
+    ) -> (Matrix3<S>, [[f64; 3]; MAX_NODES]) {
+        let dn = (self.interpolation.derivatives)(xi);
+        let mut jac = Matrix3::<S>::zeros();
+        for (xa, da) in x_ref.iter().zip(&dn).take(self.interpolation.n_nodes) {
+            for i in 0..3 {
+                for j in 0..3 {
+                    jac[(i, j)] += xa[i] * da[j];
+                }
+            }
+        }
+        (jac, dn)
+    }
+
+    /// Reference geometry at Gauss point `gp`: generalised gradients and the volume weight.
+    fn reference_geometry<S: Scalar>(
+        &self,
+        x_ref: &[Vector3<S>],
+        gp: usize,
+        centre: &Option<(Matrix3<S>, S)>,
+    ) -> Result<GaussGeometry<S>, ElementFailure> {
+        let xi = self.rule.points[gp];
+        let (jac, dn) = self.jacobian(x_ref, xi);
+        let (jinv, det) = match inv3(&jac) {
+            Some(v) if re(v.1) > 0.0 => v,
+            other => {
+                return Err(ElementFailure::BadReferenceGeometry {
+                    gauss_point: gp,
+                    det: other.map(|v| re(v.1)).unwrap_or(0.0),
+                })
+            }
+        };
+        let mut grads = [Vector3::<S>::zeros(); MAX_GEN];
+        // grad_X N = J^-T dN/dxi
+        let jinv_t = jinv.transpose();
+        let n = self.interpolation.n_nodes;
+        for (g, d) in grads.iter_mut().zip(&dn).take(n) {
+            let dxi = Vector3::new(S::lift(d[0]), S::lift(d[1]), S::lift(d[2]));
+            *g = jinv_t * dxi;
+        }
+        if let Some((j0inv_t, j0)) = centre {
+            let scale = *j0 / det;
+            for k in 0..3 {
+                let mut dphi = Vector3::<S>::zeros();
+                dphi[k] = S::lift(-2.0 * xi[k]);
+                grads[n + k] = (j0inv_t * dphi) * scale;
+            }
+        }
+        Ok(GaussGeometry {
+            grads,
+            weight: det * self.rule.weights[gp],
+        })
+    }
+
+    /// The strain each Gauss point's material sees for the generalised displacements `dofs`
+    /// (the evaluation's strain, without its stress update), written into `out[..n_gauss]`.
+    /// `Ok(false)` for F-bar, whose points see a strain modified by the whole element.
+    pub(crate) fn gauss_strains<S: Scalar>(
+        &self,
+        x_ref: &[Vector3<S>],
+        dofs: &[Vector3<S>],
+        kinematics: Kinematics,
+        out: &mut [Matrix3<S>],
+    ) -> Result<bool, ElementFailure> {
+        if self.fbar {
+            return Ok(false);
+        }
+        let x_ref = self.nodes(x_ref)?;
+        let centre = self.centre(x_ref)?;
+        let n_gen = self.generalised_nodes();
+        for (gp, e) in out.iter_mut().enumerate().take(self.rule.len()) {
+            let geo = self.reference_geometry(x_ref, gp, &centre)?;
+            let h = displacement_gradient(dofs, &geo.grads, n_gen);
+            *e = strain_measure(&h, kinematics == Kinematics::Large);
+        }
+        Ok(true)
+    }
+
+    /// The shape functions at every Gauss point and the point's reference volume weight
+    /// `j w_q` (for integrals over the element: errors, body forces).
+    pub(crate) fn quadrature(
+        &self,
+        x_ref: &[Vector3<f64>],
+    ) -> Result<Vec<([f64; MAX_NODES], f64)>, ElementFailure> {
+        let x_ref = self.nodes(x_ref)?;
+        (0..self.rule.len())
+            .map(|gp| {
+                let w = self.reference_geometry(x_ref, gp, &None)?.weight;
+                Ok(((self.interpolation.values)(self.rule.points[gp]), w))
+            })
+            .collect()
+    }
+
+    /// Element volume in the reference configuration.
+    pub(crate) fn reference_volume<S: Scalar>(
+        &self,
+        x_ref: &[Vector3<S>],
+    ) -> Result<S, ElementFailure> {
+        let x_ref = self.nodes(x_ref)?;
+        let mut v = S::zero();
+        for gp in 0..self.rule.len() {
+            v += self.reference_geometry(x_ref, gp, &None)?.weight;
+        }
+        Ok(v)
+    }
+
+    /// Evaluate internal force (and the tangent if asked), the updated history and the
+    /// branch of every Gauss point.
+    pub(crate) fn evaluate<S: Scalar, M: MaterialLaw>(
+        &self,
+        input: &ElementInput<'_, S, M>,
+        out: &mut ElementOutput<'_, S>,
+    ) -> Result<(), ElementFailure> {
+        let x_ref = self.nodes(input.x_ref)?;
+        let ng = self.rule.len();
+        if let Some(f) = input.frozen.filter(|f| f.len() != ng) {
+            return Err(ElementFailure::Layout {
+                what: "frozen branches",
+                expected: ng,
+                got: f.len(),
+            });
+        }
+        let n_gen = self.generalised_nodes();
+        if input.dofs.len() != n_gen {
+            return Err(ElementFailure::Layout {
+                what: "generalised nodes",
+                expected: n_gen,
+                got: input.dofs.len(),
+            });
+        }
+        if self.fbar {
+            self.evaluate_fbar(x_ref, input, out)
+        } else {
+            self.evaluate_standard(x_ref, input, out)
+        }
+    }
+
+    /// The standard displacement formulation (with incompatible modes if enhanced).
+    fn evaluate_standard<S: Scalar, M: MaterialLaw>(
+        &self,
+        x_ref: &[Vector3<S>],
+        input: &ElementInput<'_, S, M>,
+        out: &mut ElementOutput<'_, S>,
+    ) -> Result<(), ElementFailure> {
+        let n_gen = self.generalised_nodes();
+        let ndof = 3 * n_gen;
+        debug_assert!(out.force.len() >= ndof);
+        for f in out.force[..ndof].iter_mut() {
+            *f = S::zero();
+        }
+        if let Some(k) = out.tangent.as_deref_mut() {
+            for v in k[..ndof * ndof].iter_mut() {
+                *v = S::zero();
+            }
+        }
+        let centre = self.centre(x_ref)?;
+        let large = input.kinematics == Kinematics::Large;
+        let mut cauchy = Matrix3::<S>::zeros();
+        let mut volume = S::zero();
+        out.min_det_f = f64::INFINITY;
+        let mut b = [[Voigt::<S>::zeros(); 3]; MAX_GEN];
+        for gp in 0..self.rule.len() {
+            let geo = self.reference_geometry(x_ref, gp, &centre)?;
+            let h = displacement_gradient(input.dofs, &geo.grads, n_gen);
+            let f = h + Matrix3::identity();
+            let det_f = det3(&f);
+            out.min_det_f = out.min_det_f.min(re(det_f));
+            if large && re(det_f) <= 0.0 {
+                return Err(ElementFailure::Inverted {
+                    gauss_point: gp,
+                    det_f: re(det_f),
+                });
+            }
+            let strain = strain_measure(&h, large);
+            let resp = material_point(input, out, gp, &strain)?;
+            let sv = stress_to_voigt(&resp.stress);
+            let w = geo.weight;
+            // B rows: dE_voigt / d(d_Ai)
+            for (a, (ba, g)) in b.iter_mut().zip(&geo.grads).enumerate().take(n_gen) {
+                for (i, bai) in ba.iter_mut().enumerate() {
+                    // F^T e_i = row i of F (or e_i for small kinematics)
+                    let fr: Vector3<S> = if large {
+                        Vector3::new(f[(i, 0)], f[(i, 1)], f[(i, 2)])
+                    } else {
+                        let mut e = Vector3::zeros();
+                        e[i] = S::one();
+                        e
+                    };
+                    *bai = sym_dyad_voigt(&fr, g);
+                    out.force[3 * a + i] += bai.dot(&sv) * w;
+                }
+            }
+            if let Some(k) = out.tangent.as_deref_mut() {
+                let c = &resp.tangent;
+                for a in 0..n_gen {
+                    for i in 0..3 {
+                        let cb = c * b[a][i] * w; // C B_Ai w
+                        let row = 3 * a + i;
+                        for bb in 0..n_gen {
+                            for j in 0..3 {
+                                k[row * ndof + 3 * bb + j] += b[bb][j].dot(&cb);
+                            }
+                        }
+                    }
+                }
+                if large {
+                    for a in 0..n_gen {
+                        let sg = resp.stress * geo.grads[a] * w;
+                        for bb in 0..n_gen {
+                            let v = geo.grads[bb].dot(&sg);
+                            for i in 0..3 {
+                                k[(3 * a + i) * ndof + 3 * bb + i] += v;
+                            }
+                        }
+                    }
+                }
+            }
+            let sigma = if large {
+                f * resp.stress * f.transpose() / det_f
+            } else {
+                resp.stress
+            };
+            let dv = if large { w * det_f } else { w };
+            cauchy += sigma * dv;
+            volume += dv;
+        }
+        out.cauchy = cauchy / volume;
+        Ok(())
+    }
+
+    /// The F-bar variant of [`Solid::evaluate`] (see the module docs for the formulas).
+    fn evaluate_fbar<S: Scalar, M: MaterialLaw>(
+        &self,
+        x_ref: &[Vector3<S>],
+        input: &ElementInput<'_, S, M>,
+        out: &mut ElementOutput<'_, S>,
+    ) -> Result<(), ElementFailure> {
+        let nn = self.interpolation.n_nodes;
+        let ng = self.rule.len();
+        let ndof = 3 * nn;
+        debug_assert!(out.force.len() >= ndof);
+        let large = input.kinematics == Kinematics::Large;
+        for f in out.force[..ndof].iter_mut() {
+            *f = S::zero();
+        }
+        if let Some(k) = out.tangent.as_deref_mut() {
+            for v in k[..ndof * ndof].iter_mut() {
+                *v = S::zero();
+            }
+        }
+        // reference geometry of every Gauss point, and the element averages
+        let mut grads = [[Vector3::<S>::zeros(); MAX_NODES]; MAX_GAUSS];
+        let mut weights = [S::zero(); MAX_GAUSS];
+        for gp in 0..ng {
+            let geo = self.reference_geometry(x_ref, gp, &None)?;
+            grads[gp][..nn].copy_from_slice(&geo.grads[..nn]);
+            weights[gp] = geo.weight;
+        }
+        let (grads, weights) = (&grads[..ng], &weights[..ng]);
+        let mut volume0 = S::zero();
+        let mut gbar = [Vector3::<S>::zeros(); MAX_NODES];
+        for (g_gp, w) in grads.iter().zip(weights) {
+            volume0 += *w;
+            for (gb, g) in gbar.iter_mut().zip(&g_gp[..nn]) {
+                *gb += g * *w;
+            }
+        }
+        let inv_v0 = volume0.recip();
+        for gb in gbar[..nn].iter_mut() {
+            *gb *= inv_v0;
+        }
+        let mut h0 = Matrix3::<S>::zeros();
+        for (d, g) in input.dofs.iter().zip(&gbar[..nn]) {
+            h0 += d * g.transpose();
+        }
+        let f0 = h0 + Matrix3::identity();
+        // q0_A = F0^-T gbar_A (large), gbar_A (small); J0
+        let (q0, j0) = if large {
+            match inv3(&f0) {
+                Some((f0inv, j0)) if re(j0) > 0.0 => {
+                    let t = f0inv.transpose();
+                    (gbar.map(|g| t * g), j0)
+                }
+                other => {
+                    return Err(ElementFailure::Inverted {
+                        gauss_point: usize::MAX,
+                        det_f: other.map(|v| re(v.1)).unwrap_or(0.0),
+                    })
+                }
+            }
+        } else {
+            (gbar, S::one())
+        };
+        let tr_h0 = h0.trace();
+        let mut cauchy = Matrix3::<S>::zeros();
+        let mut volume = S::zero();
+        out.min_det_f = f64::INFINITY;
+        let mut b = [[Voigt::<S>::zeros(); 3]; MAX_NODES];
+        let mut v = [[S::zero(); 3]; MAX_NODES];
+        let mut p = [[S::zero(); 3]; MAX_NODES];
+        let mut q = [Vector3::<S>::zeros(); MAX_NODES];
+        for (gp, (g_gp, &w)) in grads.iter().zip(weights).enumerate() {
+            let g_gp = &g_gp[..nn];
+            let mut h = Matrix3::<S>::zeros();
+            for (d, g) in input.dofs.iter().zip(g_gp) {
+                h += d * g.transpose();
+            }
+            let f = h + Matrix3::identity();
+            let det_f = det3(&f);
+            out.min_det_f = out.min_det_f.min(re(det_f));
+            // F-bar kinematics
+            let (fbar, cbar, r, strain) = if large {
+                let (finv, det) = match inv3(&f) {
+                    Some(x) if re(x.1) > 0.0 => x,
+                    _ => {
+                        return Err(ElementFailure::Inverted {
+                            gauss_point: gp,
+                            det_f: re(det_f),
+                        })
+                    }
+                };
+                let t = finv.transpose();
+                for (qa, g) in q.iter_mut().zip(g_gp) {
+                    *qa = t * g;
+                }
+                // `* recip()`, not `/`: a dual quotient multiplies by the reciprocal, and the
+                // real part of a dual evaluation must equal the f64 evaluation bit for bit
+                let r = (j0 * det.recip()).cbrt();
+                let fbar = f * r;
+                let cbar = fbar.transpose() * fbar;
+                let strain = (cbar - Matrix3::identity()) * S::lift(0.5);
+                (fbar, cbar, r, strain)
+            } else {
+                q[..nn].copy_from_slice(g_gp);
+                let eps = (h + h.transpose()) * S::lift(0.5);
+                let strain = eps + Matrix3::from_diagonal_element((tr_h0 - h.trace()) / 3.0);
+                (Matrix3::identity(), Matrix3::identity(), S::one(), strain)
+            };
+            let resp = material_point(input, out, gp, &strain)?;
+            let sv = stress_to_voigt(&resp.stress);
+            // Cbar in Voigt strain form (engineering shears): the dEbar of a unit d ln r
+            let cbar_v = strain_to_voigt(&cbar);
+            // r Fbar S (large); S (small): p_a = (this g_A)_i
+            let rfs = if large {
+                fbar * resp.stress * r
+            } else {
+                resp.stress
+            };
+            for (a, g) in g_gp.iter().enumerate() {
+                let pa = rfs * g;
+                for i in 0..3 {
+                    v[a][i] = (q0[a][i] - q[a][i]) / 3.0;
+                    p[a][i] = pa[i];
+                    // r Fbar^T e_i = r (row i of Fbar), or e_i
+                    let row: Vector3<S> = if large {
+                        Vector3::new(fbar[(i, 0)], fbar[(i, 1)], fbar[(i, 2)]) * r
+                    } else {
+                        let mut e = Vector3::zeros();
+                        e[i] = S::one();
+                        e
+                    };
+                    b[a][i] = sym_dyad_voigt(&row, g) + cbar_v * v[a][i];
+                    out.force[3 * a + i] += b[a][i].dot(&sv) * w;
+                }
+            }
+            if let Some(k) = out.tangent.as_deref_mut() {
+                let c = &resp.tangent;
+                for a in 0..nn {
+                    for i in 0..3 {
+                        let cb = c * b[a][i] * w; // C B_a w
+                        let row = 3 * a + i;
+                        for bb in 0..nn {
+                            for j in 0..3 {
+                                k[row * ndof + 3 * bb + j] += b[bb][j].dot(&cb);
+                            }
+                        }
+                    }
+                }
+                if large {
+                    let s_c = resp.stress.component_mul(&cbar).sum(); // S : Cbar
+                    let r2 = r * r;
+                    for a in 0..nn {
+                        let sg = resp.stress * g_gp[a];
+                        for bb in 0..nn {
+                            let gsg = g_gp[bb].dot(&sg) * r2;
+                            for i in 0..3 {
+                                let row = 3 * a + i;
+                                for j in 0..3 {
+                                    let mut g_ab = (v[a][i] * p[bb][j] + v[bb][j] * p[a][i]) * 2.0
+                                        + s_c * v[a][i] * v[bb][j] * 2.0
+                                        + s_c
+                                            * (q[a][j] * q[bb][i] - q0[a][j] * q0[bb][i])
+                                            * (1.0 / 3.0);
+                                    if i == j {
+                                        g_ab += gsg;
+                                    }
+                                    k[row * ndof + 3 * bb + j] += g_ab * w;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            let (sigma, dv) = if large {
+                (fbar * resp.stress * fbar.transpose() / j0, w * det_f)
+            } else {
+                (resp.stress, w)
+            };
+            cauchy += sigma * dv;
+            volume += dv;
+        }
+        out.cauchy = cauchy / volume;
+        Ok(())
+    }
+}
+
+/// Reference geometry at one Gauss point: generalised gradients and the volume weight.
+struct GaussGeometry<S: Scalar> {
+    grads: [Vector3<S>; MAX_GEN],
+    weight: S,
+}
+
+/// The material update at Gauss point `gp` (branch frozen if asked), with its bookkeeping:
+/// history slot, branch, yield ratio, finiteness.
+fn material_point<S: Scalar, M: MaterialLaw>(
+    input: &ElementInput<'_, S, M>,
+    out: &mut ElementOutput<'_, S>,
+    gp: usize,
+    strain: &Matrix3<S>,
+) -> Result<crate::material::PointResponse<S>, ElementFailure> {
+    let nh = input.material.history_len();
+    let resp = input.material.update(
+        input.params,
+        strain,
+        &input.hist_old[gp * nh..(gp + 1) * nh],
+        &mut out.hist_new[gp * nh..(gp + 1) * nh],
+        input.frozen.map(|fr| fr[gp]),
+    );
+    if !resp.stress.iter().all(|s| re(*s).is_finite()) {
+        return Err(ElementFailure::NonFinite { gauss_point: gp });
+    }
+    out.branches[gp] = resp.branch;
+    out.yield_ratio[gp] = resp.yield_ratio;
+    Ok(resp)
+}
+
+/// `Voigt` row of `sym(a (x) g)` with engineering shears.
+#[inline]
+fn sym_dyad_voigt<S: Scalar>(a: &Vector3<S>, g: &Vector3<S>) -> Voigt<S> {
+    Voigt::from([
+        a[0] * g[0],
+        a[1] * g[1],
+        a[2] * g[2],
+        a[0] * g[1] + a[1] * g[0],
+        a[1] * g[2] + a[2] * g[1],
+        a[0] * g[2] + a[2] * g[0],
+    ])
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::element::{ElementFamily, Shape};
+
+    /// Exact integral of `x^i y^j z^k` over a shape's natural domain.
+    fn monomial(shape: Shape, [i, j, k]: [i32; 3]) -> f64 {
+        let fact = |n: i32| (1..=n).map(f64::from).product::<f64>();
+        let line = |p: i32| {
+            if p % 2 == 1 {
+                0.0
+            } else {
+                2.0 / f64::from(p + 1)
+            }
+        };
+        match shape.corners() {
+            Shape::Hex8 => line(i) * line(j) * line(k),
+            Shape::Tet4 => fact(i) * fact(j) * fact(k) / fact(i + j + k + 3),
+            _ => fact(i) * fact(j) / fact(i + j + 2) * line(k),
+        }
+    }
+
+    #[test]
+    fn every_rule_integrates_its_degree_exactly() {
+        // (family, total degree for simplices; per-axis degrees for the products)
+        for family in ElementFamily::solids() {
+            let solid = family.solid().unwrap();
+            let shape = family.shape();
+            let (tri_degree, axis_degree) = match family.name() {
+                "tet4" => (1, 0),
+                "tet10" | "tet10-f-bar" => (2, 0),
+                "tet10-high-order" => (5, 0),
+                "wedge6" | "wedge6-f-bar" => (2, 3),
+                "wedge15" | "wedge15-f-bar" => (2, 5),
+                "hex20" | "hex20-f-bar" => (0, 5),
+                _ => (0, 3), // 2x2x2
+            };
+            let mut checked = 0;
+            for i in 0..=6 {
+                for j in 0..=6 {
+                    for k in 0..=6 {
+                        let exact_expected = match shape.corners() {
+                            Shape::Hex8 => i <= axis_degree && j <= axis_degree && k <= axis_degree,
+                            Shape::Tet4 => i + j + k <= tri_degree,
+                            _ => i + j <= tri_degree && k <= axis_degree,
+                        };
+                        if !exact_expected {
+                            continue;
+                        }
+                        let q: f64 = (solid.rule.points.iter().zip(solid.rule.weights))
+                            .map(|(p, w)| w * p[0].powi(i) * p[1].powi(j) * p[2].powi(k))
+                            .sum();
+                        let exact = monomial(shape, [i, j, k]);
+                        // round-off of summing up to 27 terms of the volume's size
+                        let volume: f64 = solid.rule.weights.iter().sum();
+                        assert!(
+                            (q - exact).abs() < 1e-14 * volume,
+                            "{}: x^{i} y^{j} z^{k}: {q} vs {exact}",
+                            family.name()
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(checked > 0);
+        }
+    }
+
+    #[test]
+    fn interpolations_are_nodal_partitions_of_unity_with_their_slopes() {
+        for shape in Shape::SOLIDS {
+            let family = ElementFamily::standard(shape);
+            let interp = family.solid().unwrap().interpolation;
+            let nn = interp.n_nodes;
+            for (a, xa) in shape.natural_nodes().iter().enumerate() {
+                let n = (interp.values)(*xa);
+                for (b, v) in n.iter().enumerate().take(nn) {
+                    let expected = if a == b { 1.0 } else { 0.0 };
+                    assert!((v - expected).abs() < 1e-14, "{shape:?} N_{b} at node {a}");
+                }
+            }
+            let xi = [0.21, 0.17, 0.33];
+            let n = (interp.values)(xi);
+            assert!((n[..nn].iter().sum::<f64>() - 1.0).abs() < 1e-14);
+            let d = (interp.derivatives)(xi);
+            let h = 1e-6;
+            for j in 0..3 {
+                let (mut p, mut m) = (xi, xi);
+                p[j] += h;
+                m[j] -= h;
+                let (np, nm) = ((interp.values)(p), (interp.values)(m));
+                for a in 0..nn {
+                    let fd = (np[a] - nm[a]) / (2.0 * h);
+                    // central difference of a cubic at most: error h^2 ~ 1e-12, round-off 1e-10
+                    assert!((fd - d[a][j]).abs() < 1e-9, "{shape:?} dN_{a}/dxi_{j}");
+                }
+                // the derivatives of a partition of unity sum to zero
+                assert!(d[..nn].iter().map(|r| r[j]).sum::<f64>().abs() < 1e-13);
+            }
+        }
+    }
+}
