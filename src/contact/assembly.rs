@@ -8,12 +8,12 @@
 //! symbolic factorization is done once however far the node slides over its candidates.
 
 pub use super::eval::ContactEval;
-use super::geometry::{closest_on_quads, closest_on_quads_keeping};
-use super::quad_nodes;
+use super::geometry::{closest_on_segments, closest_on_segments_keeping, Segment};
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
     KernelParams, MotionControl, StoredAnchor, Target, TargetGeom,
 };
+use crate::element::face::MAX_FACE_NODES;
 use crate::mesh::FaceSet;
 use crate::model::{node_dof, node_dofs, Lifted, Model};
 use crate::scalar::Scalar;
@@ -138,6 +138,47 @@ fn node_pos<S: Scalar>(lifted: &Lifted<S>, z: &[S], n: usize) -> Vector3<S> {
     lifted.coords[n] + node_disp(z, n)
 }
 
+/// Target face `f` with its nodes at `position(node)`.
+fn segment<T: Scalar>(
+    faces: &FaceSet,
+    f: usize,
+    position: impl Fn(usize) -> Vector3<T>,
+) -> Segment<T> {
+    let face = faces.face(f);
+    let mut nodes = [Vector3::zeros(); MAX_FACE_NODES];
+    for (x, &n) in nodes.iter_mut().zip(face.nodes) {
+        *x = position(n);
+    }
+    Segment {
+        family: face.family,
+        nodes,
+    }
+}
+
+/// The stick anchor at `xi` on target face `f`: reference positions `reference(node)` and
+/// displacements `displacement(node)` of its nodes.
+fn face_anchor<T: Scalar>(
+    faces: &FaceSet,
+    f: usize,
+    reference: impl Fn(usize) -> Vector3<T>,
+    mut displacement: impl FnMut(usize) -> Result<Vector3<T>, ContactFailure>,
+    xi: [T; 2],
+) -> Result<AnchorGeom<T>, ContactFailure> {
+    let face = faces.face(f);
+    let mut r = [Vector3::zeros(); MAX_FACE_NODES];
+    let mut d = [Vector3::zeros(); MAX_FACE_NODES];
+    for (a, &n) in face.nodes.iter().enumerate() {
+        r[a] = reference(n);
+        d[a] = displacement(n)?;
+    }
+    Ok(AnchorGeom::Face {
+        family: face.family,
+        reference: r,
+        displacement: d,
+        xi,
+    })
+}
+
 /// Which candidate face is closest to `x` (a branch decision, on real parts), and the
 /// convected coordinates of the closest point on it; face `keep` (of the last converged state)
 /// is kept while `x` projects onto it within [`super::geometry::SEGMENT_KEEP`].
@@ -149,13 +190,14 @@ fn closest_face<S: Scalar>(
     x: &Vector3<S>,
     keep: Option<usize>,
 ) -> Result<(usize, [f64; 2]), ContactFailure> {
-    let quads: Vec<[Vector3<f64>; 4]> = candidates
+    let segments: Vec<Segment<f64>> = candidates
         .iter()
-        .map(|&f| quad_nodes(faces, f).map(|n| node_pos(lifted, z, n).map(|v| v.value())))
+        .map(|&f| segment(faces, f, |n| node_pos(lifted, z, n).map(|v| v.value())))
         .collect();
     let xr = x.map(|v| v.value());
     let keep = keep.and_then(|f| candidates.iter().position(|&c| c == f));
-    let (k, pr) = closest_on_quads_keeping(&xr, &quads, keep).map_err(ContactFailure::Geometry)?;
+    let (k, pr) =
+        closest_on_segments_keeping(&xr, &segments, keep).map_err(ContactFailure::Geometry)?;
     Ok((candidates[k], [pr.xi[0], pr.xi[1]]))
 }
 
@@ -290,8 +332,8 @@ pub(crate) fn evaluate<S: Scalar>(
                 Target::Rigid { .. } => (0, [0.0, 0.0]),
             };
             let target = match &pair.target {
-                Target::Faces { faces } => TargetGeom::Quad {
-                    nodes: quad_nodes(faces, face).map(|n| node_pos(lifted, z, n)),
+                Target::Faces { faces } => TargetGeom::Face {
+                    segment: segment(faces, face, |n| node_pos(lifted, z, n)),
                     xi_start,
                 },
                 Target::Rigid { surface, .. } => TargetGeom::Rigid { surface, d },
@@ -300,14 +342,16 @@ pub(crate) fn evaluate<S: Scalar>(
             let lambda_bar = pair.lambda_bar(h_old).unwrap_or(S::zero());
             let stored = pair.anchor(h_old);
             let anchor = match (stored, &pair.target) {
-                (Some(StoredAnchor::Face { face: af, xi }), Target::Faces { faces }) => {
-                    let f = quad_nodes(faces, af.min(faces.len() - 1));
-                    Some(AnchorGeom::Quad {
-                        reference: f.map(|n| lifted.coords[n]),
-                        displacement: f.map(|n| node_disp(z, n)),
+                (Some(StoredAnchor::Face { face: af, xi }), Target::Faces { faces }) => Some(
+                    face_anchor(
+                        faces,
+                        af.min(faces.len() - 1),
+                        |n| lifted.coords[n],
+                        |n| Ok(node_disp(z, n)),
                         xi,
-                    })
-                }
+                    )
+                    .map_err(err)?,
+                ),
                 (Some(StoredAnchor::Offset(offset)), _) => Some(AnchorGeom::Rigid { offset, d }),
                 _ => None,
             };
@@ -366,7 +410,7 @@ pub(crate) fn evaluate<S: Scalar>(
                 residual[node_dof(s, c)] -= force[c];
             }
             if let Target::Faces { faces } = &pair.target {
-                for (a, &n) in quad_nodes(faces, face).iter().enumerate() {
+                for (a, &n) in faces.nodes(face).iter().enumerate() {
                     for c in 0..3 {
                         residual[node_dof(n, c)] += ko.weights[a] * force[c];
                     }
@@ -436,8 +480,8 @@ pub(crate) fn evaluate<S: Scalar>(
                                 .0
                             }
                         };
-                        let nodes = quad_nodes(faces, anchor_face).map(|n| node_pos(lifted, z, n));
-                        let pa = project_on_quad_s(&ko.new_anchor, &nodes).map_err(err)?;
+                        let seg = segment(faces, anchor_face, |n| node_pos(lifted, z, n));
+                        let pa = project_on_segment_s(&ko.new_anchor, &seg).map_err(err)?;
                         pair.set_anchor(
                             h_new,
                             StoredAnchor::Face {
@@ -476,12 +520,12 @@ pub(crate) fn evaluate<S: Scalar>(
     Ok(())
 }
 
-fn project_on_quad_s<S: Scalar>(
+fn project_on_segment_s<S: Scalar>(
     x: &Vector3<S>,
-    nodes: &[Vector3<S>; 4],
+    seg: &Segment<S>,
 ) -> Result<[S; 2], ContactFailure> {
-    let p =
-        super::geometry::project_on_quad(x, nodes, [0.0, 0.0]).map_err(ContactFailure::Geometry)?;
+    let p = super::geometry::project_on_segment(x, seg, seg.family.centre_st())
+        .map_err(ContactFailure::Geometry)?;
     Ok(p.xi)
 }
 
@@ -512,15 +556,14 @@ fn local_tangent<S: Scalar>(
             let nh = pair.history_len();
             let h0 = layout.history[p] + nh * i;
             let off_face = match pair.anchor(&hist_old[h0..h0 + nh]) {
-                Some(StoredAnchor::Face { face: af, .. }) => {
-                    quad_nodes(faces, af.min(faces.len() - 1))
-                        .iter()
-                        .filter(|n| !quad_nodes(faces, face).contains(n))
-                        .count()
-                }
+                Some(StoredAnchor::Face { face: af, .. }) => faces
+                    .nodes(af.min(faces.len() - 1))
+                    .iter()
+                    .filter(|n| !faces.nodes(face).contains(n))
+                    .count(),
                 _ => 0,
             };
-            4 + 3 * (4 + off_face)
+            4 + 3 * (faces.nodes(face).len() + off_face)
         }
         // the node, its multiplier, and the translations of a pushed target
         Target::Rigid { .. } => 4 + layout.target[p].iter().flatten().count(),
@@ -534,8 +577,11 @@ fn local_tangent<S: Scalar>(
         local_tangent_n::<S, 8>(args)
     } else if seeds <= 16 {
         local_tangent_n::<S, 16>(args)
-    } else {
+    } else if seeds <= 28 {
         local_tangent_n::<S, 28>(args)
+    } else {
+        // quadratic faces: up to 4 + 3 (8 + 8) seeds on a quad8 whose anchor lies on another
+        local_tangent_n::<S, 52>(args)
     }
 }
 
@@ -625,16 +671,16 @@ fn local_tangent_n<S: Scalar, const N: usize>(
     }
     let (target, contact_nodes) = match &pair.target {
         Target::Faces { faces } => {
-            let mut nodes = [Vector3::zeros(); 4];
-            for (a, &n) in quad_nodes(faces, face).iter().enumerate() {
-                nodes[a] = xref(n) + node_ad(n, &mut slots)?;
+            let mut seg = segment(faces, face, xref);
+            for (x, &n) in seg.nodes.iter_mut().zip(faces.nodes(face)) {
+                *x += node_ad(n, &mut slots)?;
             }
             (
-                TargetGeom::Quad {
-                    nodes,
-                    xi_start: [0.0, 0.0],
+                TargetGeom::Face {
+                    segment: seg,
+                    xi_start: seg.family.centre_st(),
                 },
-                Some(quad_nodes(faces, face)),
+                Some(faces.nodes(face)),
             )
         }
         Target::Rigid { surface, .. } => (TargetGeom::Rigid { surface, d }, None),
@@ -643,18 +689,13 @@ fn local_tangent_n<S: Scalar, const N: usize>(
     let lambda_bar = Ad::<N>::from_re(pair.lambda_bar(h_old).map_or(0.0, |v| v.value()));
     let re = |v: S| Ad::<N>::from_re(v.value());
     let anchor = match (pair.anchor(h_old), &pair.target) {
-        (Some(StoredAnchor::Face { face: af, xi }), Target::Faces { faces }) => {
-            let af = af.min(faces.len() - 1);
-            let mut displacement = [Vector3::zeros(); 4];
-            for (a, &n) in quad_nodes(faces, af).iter().enumerate() {
-                displacement[a] = node_ad(n, &mut slots)?;
-            }
-            Some(AnchorGeom::Quad {
-                reference: quad_nodes(faces, af).map(xref),
-                displacement,
-                xi: xi.map(re),
-            })
-        }
+        (Some(StoredAnchor::Face { face: af, xi }), Target::Faces { faces }) => Some(face_anchor(
+            faces,
+            af.min(faces.len() - 1),
+            xref,
+            |n| node_ad(n, &mut slots),
+            xi.map(re),
+        )?),
         (Some(StoredAnchor::Offset(offset)), _) => Some(AnchorGeom::Rigid {
             offset: offset.map(re),
             d,
@@ -755,16 +796,16 @@ pub(crate) fn initial_history<S: Scalar>(
                     pair.set_anchor(&mut h[h0..h0 + nh], StoredAnchor::Offset(a));
                 }
                 Target::Faces { faces } => {
-                    let quads: Vec<[Vector3<f64>; 4]> = pair.candidates[i]
+                    let segments: Vec<Segment<f64>> = pair.candidates[i]
                         .iter()
-                        .map(|&f| quad_nodes(faces, f).map(|n| lifted.coords[n].map(|v| v.value())))
+                        .map(|&f| segment(faces, f, |n| lifted.coords[n].map(|v| v.value())))
                         .collect();
                     let xr = x.map(|v| v.value());
-                    let (k, _) = closest_on_quads(&xr, &quads, None).map_err(err)?;
+                    let (k, _) = closest_on_segments(&xr, &segments, None).map_err(err)?;
                     let f = pair.candidates[i][k];
-                    let nodes = quad_nodes(faces, f).map(|n| lifted.coords[n]);
-                    let pr =
-                        super::geometry::project_on_quad(&x, &nodes, [0.0, 0.0]).map_err(err)?;
+                    let seg = segment(faces, f, |n| lifted.coords[n]);
+                    let pr = super::geometry::project_on_segment(&x, &seg, seg.family.centre_st())
+                        .map_err(err)?;
                     pair.set_anchor(
                         &mut h[h0..h0 + nh],
                         StoredAnchor::Face { face: f, xi: pr.xi },

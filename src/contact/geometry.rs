@@ -108,6 +108,8 @@
 
 use nalgebra::Vector3;
 
+use crate::element::face::MAX_FACE_NODES;
+use crate::element::FaceFamily;
 use crate::scalar::{lift_vec, re_vec, safe_norm, Scalar};
 
 /// `ξ` tolerance of the "inside" test: `|ξ^α| ≤ 1 + QUAD_INSIDE_TOLERANCE`.
@@ -269,15 +271,6 @@ fn finite_vec(v: &Vector3<f64>) -> bool {
     v.iter().all(|c| c.is_finite())
 }
 
-fn real_nodes<S: Scalar>(nodes: &[Vector3<S>; 4]) -> [Vector3<f64>; 4] {
-    [
-        re_vec(&nodes[0]),
-        re_vec(&nodes[1]),
-        re_vec(&nodes[2]),
-        re_vec(&nodes[3]),
-    ]
-}
-
 /// Coordinates relative to the segment centroid `c` (returns `x − c`, `x_a − c`, `c`). The
 /// projection is translation invariant; this removes the cancellation in `t_α = Σ N_{a,α} x_a`
 /// and in `x − x̄` when coordinates are large compared with the segment.
@@ -330,223 +323,6 @@ fn check_segment(nodes: &[Vector3<f64>; 4]) -> Result<f64, GeometryError> {
         }
     }
     Ok(h)
-}
-
-/// Closest-point Newton on the real parts, unconstrained in `ξ` (the bilinear extension).
-/// Returns the converged `ξ`.
-fn newton_real(
-    x: &Vector3<f64>,
-    nodes: &[Vector3<f64>; 4],
-    h: f64,
-    xi_start: [f64; 2],
-) -> Result<[f64; 2], GeometryError> {
-    let twist = quad_twist(nodes);
-    // magnitude of the coordinates: sets the rounding noise of r = x − x̄ (~ ε L)
-    let l = nodes.iter().fold(x.amax(), |m, n| m.max(n.amax()));
-    let mut xi = xi_start;
-    let mut ev = quad_eval(nodes, &xi);
-    let mut r = x - ev.x;
-    let mut f = 0.5 * r.dot(&r);
-    let mut residual = f64::INFINITY;
-    let mut iterations = 0;
-    while iterations < MAX_NEWTON_ITERATIONS {
-        iterations += 1;
-        // g = −∇f = (x − x̄)·t_α
-        let g = [r.dot(&ev.t1), r.dot(&ev.t2)];
-        let scale = (r.norm() + h) * h;
-        residual = g[0].abs().max(g[1].abs()) / scale;
-        let tmax = ev.t1.norm().max(ev.t2.norm());
-        let noise_g = 8.0 * f64::EPSILON * l * tmax / scale;
-        if residual <= RESIDUAL_TOLERANCE.max(noise_g) {
-            return Ok(xi);
-        }
-        let m11 = ev.t1.dot(&ev.t1);
-        let m22 = ev.t2.dot(&ev.t2);
-        let m12 = ev.t1.dot(&ev.t2);
-        let h12 = m12 - r.dot(&twist);
-        let det_h = m11 * m22 - h12 * h12;
-        let det_m = m11 * m22 - m12 * m12;
-        let mut dir = if det_h > 1e-12 * m11 * m22 {
-            // full Newton (H positive definite)
-            [
-                (m22 * g[0] - h12 * g[1]) / det_h,
-                (m11 * g[1] - h12 * g[0]) / det_h,
-            ]
-        } else if det_m > 1e-14 * m11 * m22 {
-            // H indefinite (beyond a focal distance): Levenberg-Marquardt shift H + μM, with
-            // μ = 2|λ_min| + 1e-3 from the generalised eigenvalues of (H, M),
-            // det(H − λM) = det_m λ² − b λ + det_h = 0
-            let b = m11 * m22 + m22 * m11 - 2.0 * h12 * m12;
-            let lambda_min = (b - (b * b - 4.0 * det_m * det_h).max(0.0).sqrt()) / (2.0 * det_m);
-            let mu = 2.0 * (-lambda_min).max(0.0) + 1e-3;
-            let (a11, a22, a12) = (m11 * (1.0 + mu), m22 * (1.0 + mu), h12 + mu * m12);
-            let det = a11 * a22 - a12 * a12;
-            [
-                (a22 * g[0] - a12 * g[1]) / det,
-                (a11 * g[1] - a12 * g[0]) / det,
-            ]
-        } else {
-            // fold of the bilinear extension: steepest descent
-            let s = m11 + m22;
-            [g[0] / s, g[1] / s]
-        };
-        let len = dir[0].abs().max(dir[1].abs());
-        if !len.is_finite() {
-            break;
-        }
-        if len > MAX_STEP {
-            dir = [dir[0] * MAX_STEP / len, dir[1] * MAX_STEP / len];
-        }
-        let slope = g[0] * dir[0] + g[1] * dir[1];
-        let gnorm = (g[0] * g[0] + g[1] * g[1]).sqrt();
-        let mut alpha = 1.0;
-        let mut accepted = None;
-        for _ in 0..40 {
-            let trial = [xi[0] + alpha * dir[0], xi[1] + alpha * dir[1]];
-            let ev_t = quad_eval(nodes, &trial);
-            let r_t = x - ev_t.x;
-            let f_t = 0.5 * r_t.dot(&r_t);
-            let armijo = f_t <= f - 1e-4 * alpha * slope;
-            // below the resolution of f (rounding of r ~ ε L): accept when the gradient
-            // still decreases
-            let noise_f = 16.0 * f64::EPSILON * l * (r.norm() + r_t.norm());
-            let flat = f_t - f <= noise_f && {
-                let gt = [r_t.dot(&ev_t.t1), r_t.dot(&ev_t.t2)];
-                (gt[0] * gt[0] + gt[1] * gt[1]).sqrt() < gnorm
-            };
-            if armijo || flat {
-                accepted = Some((trial, ev_t, r_t, f_t));
-                break;
-            }
-            alpha *= 0.5;
-        }
-        let Some((trial, ev_t, r_t, f_t)) = accepted else {
-            // no decrease possible: converged to rounding if the residual is small
-            if residual <= 1e-9 {
-                return Ok(xi);
-            }
-            break;
-        };
-        xi = trial;
-        ev = ev_t;
-        r = r_t;
-        f = f_t;
-        if alpha == 1.0 && len <= STEP_TOLERANCE {
-            return Ok(xi);
-        }
-    }
-    Err(GeometryError::NoConvergence {
-        iterations,
-        residual,
-    })
-}
-
-/// Unit vector `v/|v|`, or the given error when `|v|` is zero (real part).
-fn unit_or<S: Scalar>(v: &Vector3<S>, err: GeometryError) -> Result<Vector3<S>, GeometryError> {
-    let n = safe_norm(v);
-    let nr = n.value();
-    if nr > 0.0 && nr.is_finite() {
-        Ok(v / n)
-    } else {
-        Err(err)
-    }
-}
-
-/// Builds the projection at `ξ` (in `S`) on a quad.
-fn quad_projection<S: Scalar>(
-    x: &Vector3<S>,
-    nodes: &[Vector3<S>; 4],
-    xi: [S; 2],
-    h: f64,
-    inside: bool,
-) -> Result<Projection<S>, GeometryError> {
-    let ev = quad_eval(nodes, &xi);
-    let jn = ev.t1.cross(&ev.t2);
-    if !greater(safe_norm(&jn).value(), AREA_TOLERANCE * h * h) {
-        return Err(GeometryError::DegenerateSegment {
-            reason: "the bilinear map folds at the projection point",
-        });
-    }
-    let normal = unit_or(
-        &jn,
-        GeometryError::DegenerateSegment {
-            reason: "zero normal at the projection point",
-        },
-    )?;
-    let gap = (x - ev.x).dot(&normal);
-    Ok(Projection {
-        xi,
-        point: ev.x,
-        t1: ev.t1,
-        t2: ev.t2,
-        normal,
-        gap,
-        inside,
-    })
-}
-
-/// The final Newton correction in `S` from the converged real `ξ₀` (exact first derivatives by
-/// the implicit function theorem), then the projection at the corrected `ξ`.
-fn finish_interior<S: Scalar>(
-    x: &Vector3<S>,
-    nodes: &[Vector3<S>; 4],
-    xi0: [f64; 2],
-    h: f64,
-) -> Result<Projection<S>, GeometryError> {
-    let xi_c = [S::lift(xi0[0]), S::lift(xi0[1])];
-    let ev = quad_eval(nodes, &xi_c);
-    let r = x - ev.x;
-    let g1 = r.dot(&ev.t1);
-    let g2 = r.dot(&ev.t2);
-    let h11 = ev.t1.dot(&ev.t1);
-    let h22 = ev.t2.dot(&ev.t2);
-    let h12 = ev.t1.dot(&ev.t2) - r.dot(&quad_twist(nodes));
-    let det = h11 * h22 - h12 * h12;
-    if !greater(det.value(), 1e-12 * h11.value() * h22.value()) {
-        return Err(GeometryError::AmbiguousProjection {
-            reason: "singular closest-point matrix (point at a focal point of the segment)",
-        });
-    }
-    let xi = [
-        xi_c[0] + (h22 * g1 - h12 * g2) / det,
-        xi_c[1] + (h11 * g2 - h12 * g1) / det,
-    ];
-    let lim = 1.0 + QUAD_INSIDE_TOLERANCE;
-    let inside = xi[0].value().abs() <= lim && xi[1].value().abs() <= lim;
-    quad_projection(x, nodes, xi, h, inside)
-}
-
-/// Closest-point projection of `x` onto the bilinear quad `nodes` (counter-clockwise seen from
-/// outside), by Newton in convected coordinates from `xi_start`.
-///
-/// The projection is onto the bilinear extension of the segment (`ξ` unconstrained); `inside`
-/// tells whether `|ξ^α| ≤ 1 + 1e-10`. See the module docs for the derivative scheme.
-///
-/// # Errors
-/// [`GeometryError::NonFinite`] (NaN/inf input), [`GeometryError::DegenerateSegment`]
-/// (coincident/collinear nodes, zero area, re-entrant corner, fold at the projection point),
-/// [`GeometryError::NoConvergence`], [`GeometryError::AmbiguousProjection`] (singular Newton
-/// matrix at the solution).
-pub(crate) fn project_on_quad<S: Scalar>(
-    x: &Vector3<S>,
-    nodes: &[Vector3<S>; 4],
-    xi_start: [f64; 2],
-) -> Result<Projection<S>, GeometryError> {
-    let xr = re_vec(x);
-    if !finite_vec(&xr) {
-        return Err(GeometryError::NonFinite {
-            what: "hitting point",
-        });
-    }
-    if !(xi_start[0].is_finite() && xi_start[1].is_finite()) {
-        return Err(GeometryError::NonFinite { what: "xi_start" });
-    }
-    let h = check_segment(&real_nodes(nodes))?;
-    let (xl, nl, c) = localized(x, nodes);
-    let xi0 = newton_real(&re_vec(&xl), &real_nodes(&nl), h, xi_start)?;
-    let mut p = finish_interior(&xl, &nl, xi0, h)?;
-    p.point += c;
-    Ok(p)
 }
 
 /// Closest point on the boundary of a quad (real parts): `(edge, u, distance)` with `u ∈ [0, 1]`
@@ -648,53 +424,67 @@ fn prefer(c: &Candidate, best: &Candidate, hint: Option<usize>) -> bool {
 /// the node changes segment once it is further out.
 pub const SEGMENT_KEEP: f64 = 0.1;
 
-/// [`closest_on_quads`], except that segment `keep` is kept while `x` projects onto its
-/// interior or within [`SEGMENT_KEEP`] outside it (in `ξ`): hysteresis of the segment choice
-/// against the last converged state.
+/// [`closest_on_segments`], except that segment `keep` is kept while `x` projects onto its
+/// interior or within [`SEGMENT_KEEP`] outside it (in `ξ`; half that on a triangle, whose
+/// natural domain is half as wide): hysteresis of the segment choice against the last
+/// converged state.
 ///
 /// # Errors
-/// Those of [`closest_on_quads`].
-pub fn closest_on_quads_keeping<S: Scalar>(
+/// Those of [`closest_on_segments`].
+pub fn closest_on_segments_keeping<S: Scalar>(
     x: &Vector3<S>,
-    quads: &[[Vector3<S>; 4]],
+    segments: &[Segment<S>],
     keep: Option<usize>,
 ) -> Result<(usize, Projection<S>), GeometryError> {
-    if let Some(k) = keep.filter(|&k| k < quads.len()) {
+    if let Some(k) = keep.filter(|&k| k < segments.len()) {
         let xr = re_vec(x);
-        let quad = real_nodes(&quads[k]);
-        if let (true, Ok(h)) = (finite_vec(&xr), check_segment(&quad)) {
-            let (xl, nl, _) = localized(&xr, &quad);
-            if let Ok(xi) = newton_real(&xl, &nl, h, [0.0, 0.0]) {
-                let lim = 1.0 + SEGMENT_KEEP;
-                if xi[0].abs() <= lim && xi[1].abs() <= lim {
-                    let (xs, ns, c) = localized(x, &quads[k]);
-                    let mut p = finish_interior(&xs, &ns, xi, h)?;
+        let seg = segments[k].real();
+        if let (true, Ok(h)) = (finite_vec(&xr), check_face(&seg)) {
+            let (xl, sl, _) = seg.localized(&xr);
+            if let Ok(xi) = newton_real(&xl, &sl, h, seg.family.centre_st()) {
+                let width = if seg.family.is_triangle() { 0.5 } else { 1.0 };
+                if seg.family.contains(xi, SEGMENT_KEEP * width) {
+                    let (xs, ss, c) = segments[k].localized(x);
+                    let mut p = finish_interior(&xs, &ss, xi, h)?;
                     p.point += c;
                     return Ok((k, p));
                 }
             }
         }
     }
-    closest_on_quads(x, quads, keep)
+    closest_on_segments(x, segments, keep)
 }
 
-/// Closest point of `x` on a set of quad segments, with segment switching for large sliding.
+/// [`closest_on_segments_keeping`] over bilinear quads.
 ///
-/// Returns the index of the chosen segment and the projection onto it. The rule (closest point
-/// on the union of the closed segments, interior before boundary, best-aligned normal at shared
+/// # Errors
+/// Those of [`closest_on_segments`].
+pub fn closest_on_quads_keeping<S: Scalar>(
+    x: &Vector3<S>,
+    quads: &[[Vector3<S>; 4]],
+    keep: Option<usize>,
+) -> Result<(usize, Projection<S>), GeometryError> {
+    let segments: Vec<Segment<S>> = quads.iter().map(|q| Segment::quad4(*q)).collect();
+    closest_on_segments_keeping(x, &segments, keep)
+}
+
+/// Closest point of `x` on a set of target faces, with face switching for large sliding.
+///
+/// Returns the index of the chosen face and the projection onto it. The rule (closest point
+/// on the union of the closed faces, interior before boundary, best-aligned normal at shared
 /// edges, then `hint`, then lowest index) is given in the module docs. For a boundary result
-/// `inside = false` and the normal is the segment normal at the boundary point.
+/// `inside = false` and the normal is the face normal at the boundary point.
 ///
 /// # Errors
 /// [`GeometryError::NoSegments`], [`GeometryError::NonFinite`] for a non-finite `x`,
-/// [`GeometryError::Segment`] when a segment is invalid (non-finite, degenerate), and the errors
+/// [`GeometryError::Segment`] when a face is invalid (non-finite, degenerate), and the errors
 /// of the final evaluation of the chosen candidate.
-pub fn closest_on_quads<S: Scalar>(
+pub fn closest_on_segments<S: Scalar>(
     x: &Vector3<S>,
-    quads: &[[Vector3<S>; 4]],
+    segments: &[Segment<S>],
     hint: Option<usize>,
 ) -> Result<(usize, Projection<S>), GeometryError> {
-    if quads.is_empty() {
+    if segments.is_empty() {
         return Err(GeometryError::NoSegments);
     }
     let xr = re_vec(x);
@@ -703,23 +493,23 @@ pub fn closest_on_quads<S: Scalar>(
             what: "hitting point",
         });
     }
-    let lim = 1.0 + QUAD_INSIDE_TOLERANCE;
     let mut best: Option<Candidate> = None;
     let mut offer = |c: Candidate| match &best {
         Some(b) if !prefer(&c, b, hint) => {}
         _ => best = Some(c),
     };
-    for (index, quad) in quads.iter().enumerate() {
-        let h = check_segment(&real_nodes(quad)).map_err(|e| GeometryError::Segment {
+    for (index, seg) in segments.iter().enumerate() {
+        let seg = seg.real();
+        let h = check_face(&seg).map_err(|e| GeometryError::Segment {
             index,
             source: Box::new(e),
         })?;
-        let (xr, nr, _) = localized(&xr, &real_nodes(quad));
+        let (xr, sr, _) = seg.localized(&xr);
         // interior stationary point (a failed or outside unconstrained projection only means
         // that this segment offers its boundary point)
-        if let Ok(xi) = newton_real(&xr, &nr, h, [0.0, 0.0]) {
-            if xi[0].abs() <= lim && xi[1].abs() <= lim {
-                let dist = (xr - quad_eval(&nr, &xi).x).norm();
+        if let Ok(xi) = newton_real(&xr, &sr, h, seg.family.centre_st()) {
+            if seg.family.contains(xi, QUAD_INSIDE_TOLERANCE) {
+                let dist = (xr - surface_point(&sr, &xi).x).norm();
                 offer(Candidate {
                     index,
                     h,
@@ -729,9 +519,9 @@ pub fn closest_on_quads<S: Scalar>(
                 });
             }
         }
-        let (edge, u, dist) = boundary_real(&xr, &nr);
-        let xi = boundary_xi(&xr, &nr, edge, u);
-        let ev = quad_eval(&nr, &xi);
+        let (edge, u, dist) = face_boundary_real(&xr, &sr);
+        let xi = face_boundary_xi(&xr, &sr, edge, u);
+        let ev = surface_point(&sr, &xi);
         let n = ev.t1.cross(&ev.t2).normalize();
         let align = if dist > 0.0 {
             ((xr - ev.x).dot(&n) / dist).abs()
@@ -749,20 +539,522 @@ pub fn closest_on_quads<S: Scalar>(
     let Some(best) = best else {
         return Err(GeometryError::NoSegments);
     };
-    let (xl, nl, c) = localized(x, &quads[best.index]);
+    let (xl, sl, c) = segments[best.index].localized(x);
     let mut projection = match best.kind {
         CandidateKind::Interior(xi0) => {
-            let mut p = finish_interior(&xl, &nl, xi0, best.h)?;
+            let mut p = finish_interior(&xl, &sl, xi0, best.h)?;
             p.inside = true;
             p
         }
         CandidateKind::Boundary { edge, u } => {
-            let xi = boundary_xi(&xl, &nl, edge, u);
-            quad_projection(&xl, &nl, xi, best.h, false)?
+            let xi = face_boundary_xi(&xl, &sl, edge, u);
+            face_projection(&xl, &sl, xi, best.h, false)?
         }
     };
     projection.point += c;
     Ok((best.index, projection))
+}
+
+/// [`closest_on_segments`] over bilinear quads.
+///
+/// # Errors
+/// Those of [`closest_on_segments`].
+pub fn closest_on_quads<S: Scalar>(
+    x: &Vector3<S>,
+    quads: &[[Vector3<S>; 4]],
+    hint: Option<usize>,
+) -> Result<(usize, Projection<S>), GeometryError> {
+    let segments: Vec<Segment<S>> = quads.iter().map(|q| Segment::quad4(*q)).collect();
+    closest_on_segments(x, &segments, hint)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Target faces of every family
+// ---------------------------------------------------------------------------------------------
+
+/// A target face as the projection sees it: its family and the positions of its nodes (the
+/// first `family.n_nodes()` entries, in the family's order, counter-clockwise seen from
+/// outside the target body).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment<S> {
+    /// The face's family.
+    pub family: FaceFamily,
+    /// Node positions.
+    pub nodes: [Vector3<S>; MAX_FACE_NODES],
+}
+
+impl<S: Scalar> Segment<S> {
+    /// A face of `family` with nodes `nodes` (`family.n_nodes()` of them).
+    pub fn new(family: FaceFamily, nodes: &[Vector3<S>]) -> Self {
+        let mut all = [Vector3::zeros(); MAX_FACE_NODES];
+        all[..nodes.len()].copy_from_slice(nodes);
+        Segment { family, nodes: all }
+    }
+
+    /// A bilinear quad.
+    pub fn quad4(nodes: [Vector3<S>; 4]) -> Self {
+        Segment::new(FaceFamily::Quad4, &nodes)
+    }
+
+    /// The nodes in use.
+    fn used(&self) -> &[Vector3<S>] {
+        &self.nodes[..self.family.n_nodes()]
+    }
+
+    /// The four nodes of a bilinear quad.
+    fn quad(&self) -> [Vector3<S>; 4] {
+        [self.nodes[0], self.nodes[1], self.nodes[2], self.nodes[3]]
+    }
+
+    /// The real parts.
+    fn real(&self) -> Segment<f64> {
+        Segment {
+            family: self.family,
+            nodes: self.nodes.map(|n| re_vec(&n)),
+        }
+    }
+
+    /// Coordinates relative to the face's centre (returns `x − c`, the face moved by `−c`, `c`):
+    /// the quad's [`localized`] for a quad4, the mean of the nodes for the others.
+    fn localized(&self, x: &Vector3<S>) -> (Vector3<S>, Segment<S>, Vector3<S>) {
+        let c = if self.family == FaceFamily::Quad4 {
+            localized(x, &self.quad()).2
+        } else {
+            self.used().iter().fold(Vector3::zeros(), |s, n| s + n)
+                * S::lift(1.0 / self.family.n_nodes() as f64)
+        };
+        let mut moved = *self;
+        for n in moved.nodes.iter_mut().take(self.family.n_nodes()) {
+            *n -= c;
+        }
+        (x - c, moved, c)
+    }
+}
+
+/// Position, covariant tangents and second derivatives of a face at `ξ`.
+struct SurfacePoint<S> {
+    x: Vector3<S>,
+    t1: Vector3<S>,
+    t2: Vector3<S>,
+    /// `[x̄_{,11}, x̄_{,12}, x̄_{,22}]`.
+    curvature: [Vector3<S>; 3],
+}
+
+/// The face's map at `ξ`: the bilinear quad's own [`quad_eval`] and [`quad_twist`] for a quad4,
+/// the family's interpolation for the others.
+fn surface_point<S: Scalar>(seg: &Segment<S>, xi: &[S; 2]) -> SurfacePoint<S> {
+    if seg.family == FaceFamily::Quad4 {
+        let q = quad_eval(&seg.quad(), xi);
+        return SurfacePoint {
+            x: q.x,
+            t1: q.t1,
+            t2: q.t2,
+            curvature: [Vector3::zeros(), quad_twist(&seg.quad()), Vector3::zeros()],
+        };
+    }
+    let f = seg.family.interpolation(*xi);
+    let mut p = SurfacePoint {
+        x: Vector3::zeros(),
+        t1: Vector3::zeros(),
+        t2: Vector3::zeros(),
+        curvature: [Vector3::zeros(); 3],
+    };
+    for (a, node) in seg.used().iter().enumerate() {
+        p.x += node * f.n[a];
+        p.t1 += node * f.d[a][0];
+        p.t2 += node * f.d[a][1];
+        for k in 0..3 {
+            p.curvature[k] += node * f.dd[a][k];
+        }
+    }
+    p
+}
+
+/// Validates a face (real parts) and returns its size `h` (largest node distance): a quad4
+/// by [`check_segment`]; the others when every coordinate is finite and the Jacobian
+/// `t_1 × t_2` is positive along the centre normal at every node and at the centre (beyond
+/// `1e-10 h²`): no collapsed corner, no fold of the curved map over the face.
+fn check_face(seg: &Segment<f64>) -> Result<f64, GeometryError> {
+    if seg.family == FaceFamily::Quad4 {
+        return check_segment(&seg.quad());
+    }
+    let nodes = seg.used();
+    if !nodes.iter().all(finite_vec) {
+        return Err(GeometryError::NonFinite {
+            what: "segment node coordinates",
+        });
+    }
+    let mut h: f64 = 0.0;
+    for a in 0..nodes.len() {
+        for b in a + 1..nodes.len() {
+            h = h.max((nodes[a] - nodes[b]).norm());
+        }
+    }
+    if !(h > 0.0 && h.is_finite()) {
+        return Err(GeometryError::DegenerateSegment {
+            reason: "all nodes coincide",
+        });
+    }
+    let c = surface_point(seg, &seg.family.centre_st());
+    let jn = c.t1.cross(&c.t2);
+    if !greater(jn.norm(), AREA_TOLERANCE * h * h) {
+        return Err(GeometryError::DegenerateSegment {
+            reason: "zero area (collinear or coincident nodes)",
+        });
+    }
+    let n0 = jn.normalize();
+    for a in 0..nodes.len() {
+        let p = surface_point(seg, &seg.family.node_st(a));
+        if !greater(p.t1.cross(&p.t2).dot(&n0), AREA_TOLERANCE * h * h) {
+            return Err(GeometryError::DegenerateSegment {
+                reason: "the face folds or collapses at a node (coincident nodes, a mid-side node off its edge)",
+            });
+        }
+    }
+    Ok(h)
+}
+
+/// The closest-point matrix `H_αβ = t_α · t_β − r · x̄_{,αβ}` and the metric `M_αβ = t_α · t_β`
+/// as `(h11, h12, h22, m11, m12, m22)`.
+fn closest_point_matrix<S: Scalar>(p: &SurfacePoint<S>, r: &Vector3<S>) -> [S; 6] {
+    let m11 = p.t1.dot(&p.t1);
+    let m22 = p.t2.dot(&p.t2);
+    let m12 = p.t1.dot(&p.t2);
+    [
+        m11 - r.dot(&p.curvature[0]),
+        m12 - r.dot(&p.curvature[1]),
+        m22 - r.dot(&p.curvature[2]),
+        m11,
+        m12,
+        m22,
+    ]
+}
+
+/// Closest-point Newton on the real parts, unconstrained in `ξ` (the extension of the face's
+/// map beyond its domain). Returns the converged `ξ`.
+fn newton_real(
+    x: &Vector3<f64>,
+    seg: &Segment<f64>,
+    h: f64,
+    xi_start: [f64; 2],
+) -> Result<[f64; 2], GeometryError> {
+    // magnitude of the coordinates: sets the rounding noise of r = x − x̄ (~ ε L)
+    let l = seg.used().iter().fold(x.amax(), |m, n| m.max(n.amax()));
+    let mut xi = xi_start;
+    let mut ev = surface_point(seg, &xi);
+    let mut r = x - ev.x;
+    let mut f = 0.5 * r.dot(&r);
+    let mut residual = f64::INFINITY;
+    let mut iterations = 0;
+    while iterations < MAX_NEWTON_ITERATIONS {
+        iterations += 1;
+        // g = −∇f = (x − x̄)·t_α
+        let g = [r.dot(&ev.t1), r.dot(&ev.t2)];
+        let scale = (r.norm() + h) * h;
+        residual = g[0].abs().max(g[1].abs()) / scale;
+        let tmax = ev.t1.norm().max(ev.t2.norm());
+        let noise_g = 8.0 * f64::EPSILON * l * tmax / scale;
+        if residual <= RESIDUAL_TOLERANCE.max(noise_g) {
+            return Ok(xi);
+        }
+        let [h11, h12, h22, m11, m12, m22] = closest_point_matrix(&ev, &r);
+        let det_h = h11 * h22 - h12 * h12;
+        let det_m = m11 * m22 - m12 * m12;
+        let mut dir = if det_h > 1e-12 * m11 * m22 && h11 > 0.0 {
+            // full Newton (H positive definite)
+            [
+                (h22 * g[0] - h12 * g[1]) / det_h,
+                (h11 * g[1] - h12 * g[0]) / det_h,
+            ]
+        } else if det_m > 1e-14 * m11 * m22 {
+            // H indefinite (beyond a focal distance): Levenberg-Marquardt shift H + μM, with
+            // μ = 2|λ_min| + 1e-3 from the generalised eigenvalues of (H, M),
+            // det(H − λM) = det_m λ² − b λ + det_h = 0
+            let b = h11 * m22 + h22 * m11 - 2.0 * h12 * m12;
+            let lambda_min = (b - (b * b - 4.0 * det_m * det_h).max(0.0).sqrt()) / (2.0 * det_m);
+            let mu = 2.0 * (-lambda_min).max(0.0) + 1e-3;
+            let (a11, a22, a12) = (h11 + mu * m11, h22 + mu * m22, h12 + mu * m12);
+            let det = a11 * a22 - a12 * a12;
+            [
+                (a22 * g[0] - a12 * g[1]) / det,
+                (a11 * g[1] - a12 * g[0]) / det,
+            ]
+        } else {
+            // fold of the map's extension: steepest descent
+            let s = m11 + m22;
+            [g[0] / s, g[1] / s]
+        };
+        let len = dir[0].abs().max(dir[1].abs());
+        if !len.is_finite() {
+            break;
+        }
+        if len > MAX_STEP {
+            dir = [dir[0] * MAX_STEP / len, dir[1] * MAX_STEP / len];
+        }
+        let slope = g[0] * dir[0] + g[1] * dir[1];
+        let gnorm = (g[0] * g[0] + g[1] * g[1]).sqrt();
+        let mut alpha = 1.0;
+        let mut accepted = None;
+        for _ in 0..40 {
+            let trial = [xi[0] + alpha * dir[0], xi[1] + alpha * dir[1]];
+            let ev_t = surface_point(seg, &trial);
+            let r_t = x - ev_t.x;
+            let f_t = 0.5 * r_t.dot(&r_t);
+            let armijo = f_t <= f - 1e-4 * alpha * slope;
+            // below the resolution of f (rounding of r ~ ε L): accept when the gradient
+            // still decreases
+            let noise_f = 16.0 * f64::EPSILON * l * (r.norm() + r_t.norm());
+            let flat = f_t - f <= noise_f && {
+                let gt = [r_t.dot(&ev_t.t1), r_t.dot(&ev_t.t2)];
+                (gt[0] * gt[0] + gt[1] * gt[1]).sqrt() < gnorm
+            };
+            if armijo || flat {
+                accepted = Some((trial, ev_t, r_t, f_t));
+                break;
+            }
+            alpha *= 0.5;
+        }
+        let Some((trial, ev_t, r_t, f_t)) = accepted else {
+            // no decrease possible: converged to rounding if the residual is small
+            if residual <= 1e-9 {
+                return Ok(xi);
+            }
+            break;
+        };
+        xi = trial;
+        ev = ev_t;
+        r = r_t;
+        f = f_t;
+        if alpha == 1.0 && len <= STEP_TOLERANCE {
+            return Ok(xi);
+        }
+    }
+    Err(GeometryError::NoConvergence {
+        iterations,
+        residual,
+    })
+}
+
+/// Unit vector `v/|v|`, or the given error when `|v|` is zero (real part).
+fn unit_or<S: Scalar>(v: &Vector3<S>, err: GeometryError) -> Result<Vector3<S>, GeometryError> {
+    let n = safe_norm(v);
+    let nr = n.value();
+    if nr > 0.0 && nr.is_finite() {
+        Ok(v / n)
+    } else {
+        Err(err)
+    }
+}
+
+/// Builds the projection at `ξ` (in `S`) on a face.
+fn face_projection<S: Scalar>(
+    x: &Vector3<S>,
+    seg: &Segment<S>,
+    xi: [S; 2],
+    h: f64,
+    inside: bool,
+) -> Result<Projection<S>, GeometryError> {
+    let ev = surface_point(seg, &xi);
+    let jn = ev.t1.cross(&ev.t2);
+    if !greater(safe_norm(&jn).value(), AREA_TOLERANCE * h * h) {
+        return Err(GeometryError::DegenerateSegment {
+            reason: "the face's map folds at the projection point",
+        });
+    }
+    let normal = unit_or(
+        &jn,
+        GeometryError::DegenerateSegment {
+            reason: "zero normal at the projection point",
+        },
+    )?;
+    let gap = (x - ev.x).dot(&normal);
+    Ok(Projection {
+        xi,
+        point: ev.x,
+        t1: ev.t1,
+        t2: ev.t2,
+        normal,
+        gap,
+        inside,
+    })
+}
+
+/// The final Newton correction in `S` from the converged real `ξ₀` (exact first derivatives by
+/// the implicit function theorem), then the projection at the corrected `ξ`.
+fn finish_interior<S: Scalar>(
+    x: &Vector3<S>,
+    seg: &Segment<S>,
+    xi0: [f64; 2],
+    h: f64,
+) -> Result<Projection<S>, GeometryError> {
+    let xi_c = [S::lift(xi0[0]), S::lift(xi0[1])];
+    let ev = surface_point(seg, &xi_c);
+    let r = x - ev.x;
+    let g1 = r.dot(&ev.t1);
+    let g2 = r.dot(&ev.t2);
+    let [h11, h12, h22, m11, _, m22] = closest_point_matrix(&ev, &r);
+    let det = h11 * h22 - h12 * h12;
+    if !greater(det.value(), 1e-12 * m11.value() * m22.value()) {
+        return Err(GeometryError::AmbiguousProjection {
+            reason: "singular closest-point matrix (point at a focal point of the segment)",
+        });
+    }
+    let xi = [
+        xi_c[0] + (h22 * g1 - h12 * g2) / det,
+        xi_c[1] + (h11 * g2 - h12 * g1) / det,
+    ];
+    let inside = seg
+        .family
+        .contains([xi[0].value(), xi[1].value()], QUAD_INSIDE_TOLERANCE);
+    face_projection(x, seg, xi, h, inside)
+}
+
+/// Closest-point projection of `x` onto the face `seg` (counter-clockwise seen from outside),
+/// by Newton in convected coordinates from `xi_start`.
+///
+/// The projection is onto the extension of the face's map (`ξ` unconstrained); `inside` tells
+/// whether `ξ` lies in the natural domain (within `1e-10`). See the module docs for the
+/// derivative scheme.
+///
+/// # Errors
+/// [`GeometryError::NonFinite`] (NaN/inf input), [`GeometryError::DegenerateSegment`]
+/// (coincident/collinear nodes, zero area, re-entrant corner, fold at the projection point),
+/// [`GeometryError::NoConvergence`], [`GeometryError::AmbiguousProjection`] (singular Newton
+/// matrix at the solution).
+pub(crate) fn project_on_segment<S: Scalar>(
+    x: &Vector3<S>,
+    seg: &Segment<S>,
+    xi_start: [f64; 2],
+) -> Result<Projection<S>, GeometryError> {
+    let xr = re_vec(x);
+    if !finite_vec(&xr) {
+        return Err(GeometryError::NonFinite {
+            what: "hitting point",
+        });
+    }
+    if !(xi_start[0].is_finite() && xi_start[1].is_finite()) {
+        return Err(GeometryError::NonFinite { what: "xi_start" });
+    }
+    let h = check_face(&seg.real())?;
+    let (xl, sl, c) = seg.localized(x);
+    let xi0 = newton_real(&re_vec(&xl), &sl.real(), h, xi_start)?;
+    let mut p = finish_interior(&xl, &sl, xi0, h)?;
+    p.point += c;
+    Ok(p)
+}
+
+/// [`project_on_segment`] onto a bilinear quad.
+#[cfg(test)]
+pub(crate) fn project_on_quad<S: Scalar>(
+    x: &Vector3<S>,
+    nodes: &[Vector3<S>; 4],
+    xi_start: [f64; 2],
+) -> Result<Projection<S>, GeometryError> {
+    project_on_segment(x, &Segment::quad4(*nodes), xi_start)
+}
+
+/// `ξ(u)` on edge `edge` of a face, `u ∈ [0, 1]` from the edge's first corner to its second
+/// (a straight line in `ξ` for every family).
+fn edge_xi<S: Scalar>(family: FaceFamily, edge: usize, u: S) -> [S; 2] {
+    let [a, b] = family.edges()[edge];
+    let (sa, sb) = (family.node_st(a), family.node_st(b));
+    [u * (sb[0] - sa[0]) + sa[0], u * (sb[1] - sa[1]) + sa[1]]
+}
+
+/// `x̄_u`, `x̄_uu` along edge `edge` at `p` (the face's point on it).
+fn edge_derivatives<S: Scalar>(
+    family: FaceFamily,
+    edge: usize,
+    p: &SurfacePoint<S>,
+) -> (Vector3<S>, Vector3<S>) {
+    let [a, b] = family.edges()[edge];
+    let (sa, sb) = (family.node_st(a), family.node_st(b));
+    let (d0, d1) = (sb[0] - sa[0], sb[1] - sa[1]);
+    let xu = p.t1 * S::lift(d0) + p.t2 * S::lift(d1);
+    let xuu = p.curvature[0] * S::lift(d0 * d0)
+        + p.curvature[1] * S::lift(2.0 * d0 * d1)
+        + p.curvature[2] * S::lift(d1 * d1);
+    (xu, xuu)
+}
+
+/// The closest point of `x` on edge `edge` of a curved face (real parts): `u ∈ [0, 1]` and its
+/// distance. Newton on `φ(u) = |x − x̄(ξ(u))|² / 2` from the best of five samples, steps kept
+/// in `[0, 1]`, a gradient step where `φ'' ≤ 0`; the ends are candidates too.
+fn curved_edge_real(x: &Vector3<f64>, seg: &Segment<f64>, edge: usize) -> (f64, f64) {
+    let dist = |u: f64| (x - surface_point(seg, &edge_xi(seg.family, edge, u)).x).norm();
+    let mut u = [0.0, 0.25, 0.5, 0.75, 1.0]
+        .into_iter()
+        .min_by(|a, b| dist(*a).total_cmp(&dist(*b)))
+        .unwrap_or(0.5);
+    for _ in 0..MAX_NEWTON_ITERATIONS {
+        let p = surface_point(seg, &edge_xi(seg.family, edge, u));
+        let r = x - p.x;
+        let (xu, xuu) = edge_derivatives(seg.family, edge, &p);
+        let slope = -r.dot(&xu);
+        let curvature = xu.dot(&xu) - r.dot(&xuu);
+        let step = if curvature > 0.0 {
+            -slope / curvature
+        } else {
+            -slope / xu.dot(&xu).max(f64::MIN_POSITIVE)
+        };
+        let next = (u + step).clamp(0.0, 1.0);
+        let done = (next - u).abs() <= STEP_TOLERANCE;
+        u = next;
+        if done {
+            break;
+        }
+    }
+    [u, 0.0, 1.0]
+        .into_iter()
+        .map(|v| (v, dist(v)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap_or((u, dist(u)))
+}
+
+/// Closest point on the boundary of a face (real parts): `(edge, u, distance)`, `u ∈ [0, 1]`
+/// along the edge (a quad4's [`boundary_real`], its own edge table).
+fn face_boundary_real(x: &Vector3<f64>, seg: &Segment<f64>) -> (usize, f64, f64) {
+    if seg.family == FaceFamily::Quad4 {
+        return boundary_real(x, &seg.quad());
+    }
+    let mut best = (0, 0.0, f64::INFINITY);
+    for (e, [a, b]) in seg.family.edges().iter().enumerate() {
+        let (u, dist) = if seg.family.is_quadratic() {
+            curved_edge_real(x, seg, e)
+        } else {
+            let ab = seg.nodes[*b] - seg.nodes[*a];
+            let u = ((x - seg.nodes[*a]).dot(&ab) / ab.dot(&ab)).clamp(0.0, 1.0);
+            (u, (x - (seg.nodes[*a] + ab * u)).norm())
+        };
+        if dist < best.2 {
+            best = (e, u, dist);
+        }
+    }
+    best
+}
+
+/// `ξ` (in `S`) of the boundary point on `edge` at the real position `u_re` (a quad4's
+/// [`boundary_xi`]): at an end, the corner's constant `ξ`; inside a straight edge, the exact
+/// closed-form minimiser; inside a curved one, one Newton step in `S` from `u_re`, whose
+/// derivative part is the implicit-function-theorem derivative of the edge's closest point.
+fn face_boundary_xi<S: Scalar>(x: &Vector3<S>, seg: &Segment<S>, edge: usize, u_re: f64) -> [S; 2] {
+    if seg.family == FaceFamily::Quad4 {
+        return boundary_xi(x, &seg.quad(), edge, u_re);
+    }
+    let u = if !(u_re > 0.0 && u_re < 1.0) {
+        S::lift(u_re)
+    } else if seg.family.is_quadratic() {
+        let u0 = S::lift(u_re);
+        let p = surface_point(seg, &edge_xi(seg.family, edge, u0));
+        let r = x - p.x;
+        let (xu, xuu) = edge_derivatives(seg.family, edge, &p);
+        u0 + r.dot(&xu) / (xu.dot(&xu) - r.dot(&xuu))
+    } else {
+        let [a, b] = seg.family.edges()[edge];
+        let ab = seg.nodes[b] - seg.nodes[a];
+        (x - seg.nodes[a]).dot(&ab) / ab.dot(&ab)
+    };
+    edge_xi(seg.family, edge, u)
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -800,3 +800,214 @@ fn projection_far_from_the_origin_matches_the_translated_one() {
     let (_, c) = closest_on_quads(&(x + shift), &[q.map(|n| n + shift)], None).unwrap();
     assert!((a.gap - c.gap).abs() < 1e-11);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Faces of every family (tri3, tri6, quad8; quad4 through the same search)
+// ---------------------------------------------------------------------------------------------
+
+/// A face of `family` on the curved surface `z = 0.15 x² − 0.1 x y + 0.05 y²` (its nodes on
+/// it, so a quadratic face is curved), the natural domain mapped to about `[0, 2]²`.
+fn curved_face(family: FaceFamily) -> Segment<f64> {
+    let nodes: Vec<V3> = (0..family.n_nodes())
+        .map(|a| {
+            let [s, t] = family.node_st(a);
+            let (x, y) = if family.is_triangle() {
+                (2.0 * s + 0.3 * t, 2.0 * t - 0.2 * s)
+            } else {
+                (1.0 + s + 0.15 * t, 1.0 + t - 0.1 * s)
+            };
+            V3::new(x, y, 0.15 * x * x - 0.1 * x * y + 0.05 * y * y)
+        })
+        .collect();
+    Segment::new(family, &nodes)
+}
+
+/// Independent point of a face at natural coordinates `st` (the family's shape functions).
+fn face_at(seg: &Segment<f64>, st: [f64; 2]) -> V3 {
+    let (n, _) = seg.family.shape(st);
+    (0..seg.family.n_nodes()).fold(V3::zeros(), |p, a| p + seg.nodes[a] * n[a])
+}
+
+/// Brute force: the distance from `x` to the closed face, by a dense grid of its natural
+/// domain then a compass search kept in the domain.
+fn brute_force_face_distance(x: &V3, seg: &Segment<f64>) -> f64 {
+    let family = seg.family;
+    let n = 200;
+    let to_st = |i: usize, j: usize| {
+        let (a, b) = (i as f64 / n as f64, j as f64 / n as f64);
+        if family.is_triangle() {
+            [a * (1.0 - b), b]
+        } else {
+            [2.0 * a - 1.0, 2.0 * b - 1.0]
+        }
+    };
+    let d = |st: [f64; 2]| (x - face_at(seg, st)).norm();
+    let mut best = ([0.0, 0.0], f64::INFINITY);
+    for i in 0..=n {
+        for j in 0..=n {
+            let st = to_st(i, j);
+            let v = d(st);
+            if v < best.1 {
+                best = (st, v);
+            }
+        }
+    }
+    let mut step = 2.0 / n as f64;
+    while step > 1e-14 {
+        let mut moved = false;
+        // the diagonals let it slide along a triangle's hypotenuse
+        for (ds, dt) in [
+            (1.0, 0.0),
+            (-1.0, 0.0),
+            (0.0, 1.0),
+            (0.0, -1.0),
+            (1.0, -1.0),
+            (-1.0, 1.0),
+        ] {
+            let st = [best.0[0] + ds * step, best.0[1] + dt * step];
+            if family.contains(st, 0.0) {
+                let v = d(st);
+                if v < best.1 {
+                    best = (st, v);
+                    moved = true;
+                }
+            }
+        }
+        if !moved {
+            step *= 0.5;
+        }
+    }
+    best.1
+}
+
+#[test]
+fn projections_on_curved_faces_are_the_closest_points() {
+    for family in FaceFamily::ALL {
+        let seg = curved_face(family);
+        for x in [
+            V3::new(0.9, 1.1, 1.2),
+            V3::new(1.3, 0.4, -0.8),
+            V3::new(3.5, 0.5, 0.7),   // beyond an edge
+            V3::new(-1.0, -1.0, 0.3), // beyond a corner
+            V3::new(0.7, 0.6, 0.05),
+        ] {
+            let (_, p) = closest_on_segments(&x, &[seg], None).unwrap();
+            let brute = brute_force_face_distance(&x, &seg);
+            let dist = (x - p.point).norm();
+            // the compass search stops at 1e-14 in xi: distances agree to ~1e-12
+            assert!(
+                (dist - brute).abs() < 1e-10,
+                "{family:?} {x}: {dist} vs brute force {brute}"
+            );
+            // the point is the face's point at the returned xi, in the face
+            assert!((face_at(&seg, p.xi) - p.point).norm() < 1e-12);
+            assert!(family.contains(p.xi, 1e-10));
+            if p.inside {
+                // orthogonality (eq. 9) and |gap| = distance
+                let r = x - p.point;
+                assert!(r.dot(&p.t1).abs() < 1e-12 && r.dot(&p.t2).abs() < 1e-12);
+                assert!((p.gap.abs() - dist).abs() < 1e-12);
+            }
+            // outward normal: counter-clockwise faces seen from +z
+            assert!(p.normal.z > 0.0);
+        }
+    }
+}
+
+#[test]
+fn curved_projection_derivatives_are_finite_differences() {
+    // d(xi, gap)/d(x and every node coordinate) from one dual evaluation per seed, against
+    // central differences of the f64 projection: inside points, and points whose closest point
+    // is on a curved edge
+    for family in FaceFamily::ALL {
+        let seg = curved_face(family);
+        for x in [V3::new(0.9, 1.1, 1.2), V3::new(3.2, 0.6, 0.7)] {
+            let n_nodes = family.n_nodes();
+            for k in 0..3 * (n_nodes + 1) {
+                let perturbed = |h: f64| {
+                    let mut s = seg;
+                    let mut y = x;
+                    if k < 3 {
+                        y[k] += h;
+                    } else {
+                        s.nodes[(k - 3) / 3][(k - 3) % 3] += h;
+                    }
+                    closest_on_segments(&y, &[s], None).unwrap().1
+                };
+                let (pp, pm) = (perturbed(FD_STEP), perturbed(-FD_STEP));
+                let lift = |v: &V3| v.map(Dual64::from_re);
+                let nodes: Vec<Vector3<Dual64>> = seg.nodes[..n_nodes].iter().map(lift).collect();
+                let mut sd = Segment::new(family, &nodes);
+                let mut xd = lift(&x);
+                if k < 3 {
+                    xd[k].eps = 1.0;
+                } else {
+                    sd.nodes[(k - 3) / 3][(k - 3) % 3].eps = 1.0;
+                }
+                let (_, pd) = closest_on_segments(&xd, &[sd], None).unwrap();
+                let fd_gap = (pp.gap - pm.gap) / (2.0 * FD_STEP);
+                // central differences of smooth functions of order one: error ~ FD_STEP²
+                assert!(
+                    (pd.gap.eps - fd_gap).abs() < 1e-7,
+                    "{family:?} seed {k}: gap"
+                );
+                for a in 0..2 {
+                    let fd = (pp.xi[a] - pm.xi[a]) / (2.0 * FD_STEP);
+                    assert!(
+                        (pd.xi[a].eps - fd).abs() < 1e-7,
+                        "{family:?} seed {k}: xi{a}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_node_sliding_over_curved_faces_sees_a_continuous_gap() {
+    // two quad8 (and two tri6) faces of one curved surface sharing an edge: the closest point
+    // on their union moves continuously, so does the gap
+    for family in [FaceFamily::Quad8, FaceFamily::Tri6] {
+        let a = curved_face(family);
+        // the mirror image across x = 0 (reversed order keeps it counter-clockwise from +z),
+        // sharing the edge of a's nodes at x = 0 when there are some; otherwise just a second
+        // face of the surface
+        let mirrored: Vec<V3> = a.nodes[..family.n_nodes()]
+            .iter()
+            .map(|v| {
+                V3::new(
+                    -v.x,
+                    v.y,
+                    0.15 * v.x * v.x + 0.1 * v.x * v.y + 0.05 * v.y * v.y,
+                )
+            })
+            .collect();
+        let mut order: Vec<usize> = (0..family.n_nodes()).collect();
+        // reverse the corner cycle and the mid-side nodes with it
+        let c = family.n_corners();
+        let corners: Vec<usize> = (0..c).rev().collect();
+        let mids: Vec<usize> = (0..c).rev().map(|m| c + (m + c - 1) % c).collect();
+        if family.is_quadratic() {
+            order = corners.iter().chain(mids.iter()).copied().collect();
+        }
+        let b = Segment::new(
+            family,
+            &order.iter().map(|&i| mirrored[i]).collect::<Vec<_>>(),
+        );
+        let mut last: Option<f64> = None;
+        for i in 0..=200 {
+            let s = -1.5 + 3.0 * i as f64 / 200.0;
+            let x = V3::new(s, 1.0, 1.0);
+            let (_, p) = closest_on_segments(&x, &[a, b], None).unwrap();
+            let dist = (x - p.point).norm();
+            if let Some(l) = last {
+                // a step of 0.015 moves the distance by at most that much
+                assert!(
+                    (dist - l).abs() <= 0.0151,
+                    "{family:?} at {s}: {l} -> {dist}"
+                );
+            }
+            last = Some(dist);
+        }
+    }
+}

@@ -50,6 +50,7 @@ pub mod friction;
 pub mod geometry;
 pub mod setup;
 
+use crate::element::face::MAX_FACE_NODES;
 use crate::element::FaceFamily;
 use crate::load::Amplitude;
 use crate::mesh::FaceSet;
@@ -57,7 +58,7 @@ use crate::scalar::Scalar;
 pub use assembly::ContactError;
 pub use friction::Friction;
 use friction::{FrictionBranch, FrictionLaw};
-use geometry::{project_on_quad, Projection, RigidSurface};
+use geometry::{project_on_segment, Projection, RigidSurface, Segment};
 use nalgebra::Vector3;
 
 /// How the normal force is computed.
@@ -335,11 +336,8 @@ pub enum StoredAnchor<S> {
     Offset(Vector3<S>),
 }
 
-/// The four nodes of target face `f`, for the kernel's one face geometry, the bilinear quad
-/// ([`TargetGeom::Quad`]). A face family with a geometry of its own (tri3, quad8) adds its arm
-/// here and its projection in [`geometry`]. The pair's set-up refuses target faces of other
-/// families ([`setup::SetupError::TargetFamily`]); were one to reach here, its first node
-/// four times is a collapsed quad, which the projection refuses as a typed error.
+/// The four nodes of a quad4 target face `f` (the CalculiX export's master faces; another
+/// family gives its first node four times, a collapsed quad that the export refuses).
 pub fn quad_nodes(faces: &FaceSet, f: usize) -> [usize; 4] {
     let face = faces.face(f);
     match face.family {
@@ -398,9 +396,9 @@ impl Default for ContactChoice {
 /// Target geometry seen by the kernel.
 pub enum TargetGeom<'a, S: Scalar> {
     /// The contact face of a deformable target.
-    Quad {
-        /// Current positions of the face's nodes.
-        nodes: [Vector3<S>; 4],
+    Face {
+        /// The face, at the current positions of its nodes.
+        segment: Segment<S>,
         /// Starting point of the closest-point Newton iteration.
         xi_start: [f64; 2],
     },
@@ -418,12 +416,14 @@ pub enum TargetGeom<'a, S: Scalar> {
 /// `x - x_anchor = (X - Xbar) + (u - ubar)`.
 pub enum AnchorGeom<S: Scalar> {
     /// Material point `xi` of a target face: reference coordinates and displacements of its
-    /// nodes.
-    Quad {
+    /// nodes (the first `family.n_nodes()`).
+    Face {
+        /// The face's family.
+        family: FaceFamily,
         /// Reference coordinates of the face's nodes.
-        reference: [Vector3<S>; 4],
+        reference: [Vector3<S>; MAX_FACE_NODES],
         /// Displacements of the face's nodes.
-        displacement: [Vector3<S>; 4],
+        displacement: [Vector3<S>; MAX_FACE_NODES],
         /// Convected coordinates of the anchor on the face.
         xi: [S; 2],
     },
@@ -443,20 +443,32 @@ impl<S: Scalar> AnchorGeom<S> {
     fn separation(&self, x_ref: &Vector3<S>, u: &Vector3<S>) -> (Vector3<S>, f64) {
         let norm = |v: &Vector3<S>| v.map(|c| c.value()).norm();
         match self {
-            AnchorGeom::Quad {
+            AnchorGeom::Face {
+                family,
                 reference,
                 displacement,
                 xi,
             } => {
-                let n = bilinear(xi);
-                let xb = reference[0] * n[0]
-                    + reference[1] * n[1]
-                    + reference[2] * n[2]
-                    + reference[3] * n[3];
-                let ub = displacement[0] * n[0]
-                    + displacement[1] * n[1]
-                    + displacement[2] * n[2]
-                    + displacement[3] * n[3];
+                let (xb, ub) = if *family == FaceFamily::Quad4 {
+                    let n = bilinear(xi);
+                    (
+                        reference[0] * n[0]
+                            + reference[1] * n[1]
+                            + reference[2] * n[2]
+                            + reference[3] * n[3],
+                        displacement[0] * n[0]
+                            + displacement[1] * n[1]
+                            + displacement[2] * n[2]
+                            + displacement[3] * n[3],
+                    )
+                } else {
+                    let n = family.interpolation(*xi).n;
+                    let nn = family.n_nodes();
+                    let at = |v: &[Vector3<S>]| {
+                        (v.iter().zip(&n).take(nn)).fold(Vector3::zeros(), |s, (p, w)| s + p * *w)
+                    };
+                    (at(reference), at(displacement))
+                };
                 let dx = x_ref - xb;
                 let du = u - ub;
                 // the reference part carries the round-off of the anchor's projection
@@ -522,8 +534,9 @@ pub struct KernelParams<'a, S: Scalar> {
 pub struct KernelOut<S: Scalar> {
     /// Contact force on the hitting node, `p_n n + t` (the residual gets `-force`).
     pub force: Vector3<S>,
-    /// Shape functions of the contact point on the contact face (deformable target).
-    pub weights: [S; 4],
+    /// Shape functions of the contact point on the contact face (deformable target; the
+    /// first `n_nodes` of its family).
+    pub weights: [S; MAX_FACE_NODES],
     /// Residual of the multiplier row.
     pub r_lambda: S,
     /// Normal contact force `p_n >= 0`.
@@ -572,16 +585,20 @@ pub fn node_kernel<S: Scalar>(
 ) -> Result<KernelOut<S>, ContactFailure> {
     let x = &(x_ref + u);
     let proj = match target {
-        TargetGeom::Quad { nodes, xi_start } => project_on_quad(x, nodes, *xi_start),
+        TargetGeom::Face { segment, xi_start } => project_on_segment(x, segment, *xi_start),
         TargetGeom::Rigid { surface, d } => surface.project(x, d),
     }
     .map_err(ContactFailure::Geometry)?;
     let g = proj.gap;
     let n = proj.normal;
-    let weights = match target {
-        TargetGeom::Quad { .. } => bilinear(&proj.xi),
-        TargetGeom::Rigid { .. } => [S::zero(); 4],
-    };
+    let mut weights = [S::zero(); MAX_FACE_NODES];
+    match target {
+        TargetGeom::Face { segment, .. } if segment.family == FaceFamily::Quad4 => {
+            weights[..4].copy_from_slice(&bilinear(&proj.xi));
+        }
+        TargetGeom::Face { segment, .. } => weights = segment.family.interpolation(proj.xi).n,
+        TargetGeom::Rigid { .. } => {}
+    }
     let k = par.k;
     // normal branch, on real parts
     let active = match frozen {

@@ -263,33 +263,10 @@ pub enum SetupError {
         /// The search radius used.
         radius: f64,
     },
-    /// A target face of a family node-to-segment contact has no projection for yet.
-    #[error("target face {face} is a {family} face: contact targets are quad4 faces (hex8 or wedge6 sides) so far")]
-    TargetFamily {
-        /// The face's index in the target set.
-        face: usize,
-        /// Its family's name.
-        family: &'static str,
-    },
     /// The surface elements give no default tangential penalty (a face on no element, or a
     /// body without modulus).
     #[error("no default tangential stiffness from the surface elements: give one")]
     NoTangentialDefault,
-}
-
-/// Whether every target face has a projection (quad4 so far), a typed error naming the first
-/// that has none.
-pub fn check_target_families(target: &FaceSet) -> Result<(), SetupError> {
-    match target
-        .iter()
-        .position(|f| f.family != crate::element::FaceFamily::Quad4)
-    {
-        Some(face) => Err(SetupError::TargetFamily {
-            face,
-            family: target.face(face).family.name(),
-        }),
-        None => Ok(()),
-    }
 }
 
 /// The default search radius of a pair whose first hitting node is `hitting` against
@@ -392,7 +369,6 @@ pub fn pair_between_faces(
     if target.is_empty() {
         return Err(SetupError::EmptyFaces { which: "target" });
     }
-    check_target_families(target)?;
     let x = mesh.coordinates::<f64>(&mesh.block_geometry());
     let node_group = node_groups(mesh);
     let nodes = face_set_nodes(hitting);

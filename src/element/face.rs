@@ -29,6 +29,18 @@ use nalgebra::Vector3;
 /// Most nodes of any face family.
 pub const MAX_FACE_NODES: usize = 8;
 
+/// A face's shape functions at a point: values `n`, first derivatives `d` (`[d/ds, d/dt]`)
+/// and second derivatives `dd` (`[d2/ds2, d2/dsdt, d2/dt2]`), the first `n_nodes` entries.
+#[derive(Clone, Copy, Debug)]
+pub struct FaceShape<S> {
+    /// `N_a`.
+    pub n: [S; MAX_FACE_NODES],
+    /// `[N_a,s, N_a,t]`.
+    pub d: [[S; 2]; MAX_FACE_NODES],
+    /// `[N_a,ss, N_a,st, N_a,tt]`.
+    pub dd: [[S; 3]; MAX_FACE_NODES],
+}
+
 /// The shape of a boundary face as contact and surface loads see it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -170,60 +182,130 @@ impl FaceFamily {
     /// Shape functions at `(s, t)` (the first `n_nodes` entries) and their derivatives
     /// `[dN/ds, dN/dt]`.
     pub fn shape(self, st: [f64; 2]) -> ([f64; MAX_FACE_NODES], [[f64; 2]; MAX_FACE_NODES]) {
+        let f = self.interpolation(st);
+        (f.n, f.d)
+    }
+
+    /// Shape functions, first and second derivatives at `(s, t)`, in any scalar (a contact
+    /// point's `xi` carries the derivatives of the projection).
+    // the node number addresses the natural coordinates and the three outputs alike
+    #[allow(clippy::needless_range_loop)]
+    pub fn interpolation<S: Scalar>(self, st: [S; 2]) -> FaceShape<S> {
         let (s, t) = (st[0], st[1]);
-        let mut n = [0.0; MAX_FACE_NODES];
-        let mut d = [[0.0; 2]; MAX_FACE_NODES];
+        let one = S::one();
+        let z = S::zero();
+        let mut f = FaceShape {
+            n: [z; MAX_FACE_NODES],
+            d: [[z; 2]; MAX_FACE_NODES],
+            dd: [[z; 3]; MAX_FACE_NODES],
+        };
         match self {
             FaceFamily::Quad4 => {
                 for a in 0..4 {
                     let [sa, ta] = QUAD_ST[a];
-                    n[a] = 0.25 * (1.0 + sa * s) * (1.0 + ta * t);
-                    d[a] = [0.25 * sa * (1.0 + ta * t), 0.25 * ta * (1.0 + sa * s)];
+                    let (fs, ft) = (one + s * sa, one + t * ta);
+                    f.n[a] = fs * ft * 0.25;
+                    f.d[a] = [ft * (0.25 * sa), fs * (0.25 * ta)];
+                    f.dd[a] = [z, S::lift(0.25 * sa * ta), z];
                 }
             }
             FaceFamily::Quad8 => {
                 for a in 0..4 {
                     let [sa, ta] = QUAD_ST[a];
-                    let (fs, ft) = (1.0 + sa * s, 1.0 + ta * t);
-                    n[a] = 0.25 * fs * ft * (sa * s + ta * t - 1.0);
-                    d[a] = [
-                        0.25 * sa * ft * (2.0 * sa * s + ta * t),
-                        0.25 * ta * fs * (sa * s + 2.0 * ta * t),
+                    let (fs, ft) = (one + s * sa, one + t * ta);
+                    f.n[a] = fs * ft * (s * sa + t * ta - 1.0) * 0.25;
+                    f.d[a] = [
+                        ft * (s * (2.0 * sa) + t * ta) * (0.25 * sa),
+                        fs * (s * sa + t * (2.0 * ta)) * (0.25 * ta),
+                    ];
+                    f.dd[a] = [
+                        ft * 0.5,
+                        (s * (2.0 * sa) + t * (2.0 * ta) + 1.0) * (0.25 * sa * ta),
+                        fs * 0.5,
                     ];
                 }
                 for a in 4..8 {
                     let [sa, ta] = QUAD_ST[a];
                     if sa == 0.0 {
-                        n[a] = 0.5 * (1.0 - s * s) * (1.0 + ta * t);
-                        d[a] = [-s * (1.0 + ta * t), 0.5 * (1.0 - s * s) * ta];
+                        let ft = one + t * ta;
+                        f.n[a] = (one - s * s) * ft * 0.5;
+                        f.d[a] = [-s * ft, (one - s * s) * (0.5 * ta)];
+                        f.dd[a] = [-ft, -s * ta, z];
                     } else {
-                        n[a] = 0.5 * (1.0 + sa * s) * (1.0 - t * t);
-                        d[a] = [0.5 * sa * (1.0 - t * t), -t * (1.0 + sa * s)];
+                        let fs = one + s * sa;
+                        f.n[a] = fs * (one - t * t) * 0.5;
+                        f.d[a] = [(one - t * t) * (0.5 * sa), -t * fs];
+                        f.dd[a] = [z, -t * sa, -fs];
                     }
                 }
             }
             FaceFamily::Tri3 | FaceFamily::Tri6 => {
-                let l = [1.0 - s - t, s, t];
-                let dl = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];
+                let l = [one - s - t, s, t];
+                const DL: [[f64; 2]; 3] = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];
                 if self == FaceFamily::Tri3 {
-                    n[..3].copy_from_slice(&l);
-                    d[..3].copy_from_slice(&dl);
+                    f.n[..3].copy_from_slice(&l);
+                    for (d, dl) in f.d.iter_mut().zip(DL) {
+                        *d = dl.map(S::lift);
+                    }
                 } else {
                     for a in 0..3 {
-                        n[a] = l[a] * (2.0 * l[a] - 1.0);
-                        d[a] = [(4.0 * l[a] - 1.0) * dl[a][0], (4.0 * l[a] - 1.0) * dl[a][1]];
+                        let g = l[a] * 4.0 - 1.0;
+                        f.n[a] = l[a] * (l[a] * 2.0 - 1.0);
+                        f.d[a] = [g * DL[a][0], g * DL[a][1]];
+                        f.dd[a] = [
+                            4.0 * DL[a][0] * DL[a][0],
+                            4.0 * DL[a][0] * DL[a][1],
+                            4.0 * DL[a][1] * DL[a][1],
+                        ]
+                        .map(S::lift);
                     }
                     for (m, [a, b]) in TRI_EDGES.iter().enumerate() {
-                        n[3 + m] = 4.0 * l[*a] * l[*b];
-                        d[3 + m] = [
-                            4.0 * (dl[*a][0] * l[*b] + l[*a] * dl[*b][0]),
-                            4.0 * (dl[*a][1] * l[*b] + l[*a] * dl[*b][1]),
+                        let (la, lb, da, db) = (l[*a], l[*b], DL[*a], DL[*b]);
+                        f.n[3 + m] = la * lb * 4.0;
+                        f.d[3 + m] = [
+                            (lb * da[0] + la * db[0]) * 4.0,
+                            (lb * da[1] + la * db[1]) * 4.0,
                         ];
+                        f.dd[3 + m] = [
+                            4.0 * 2.0 * da[0] * db[0],
+                            4.0 * (da[0] * db[1] + db[0] * da[1]),
+                            4.0 * 2.0 * da[1] * db[1],
+                        ]
+                        .map(S::lift);
                     }
                 }
             }
         }
-        (n, d)
+        f
+    }
+
+    /// Natural coordinates of the face's centre (`(0, 0)` on a quad, the centroid of a
+    /// triangle).
+    pub fn centre_st(self) -> [f64; 2] {
+        if self.is_triangle() {
+            [1.0 / 3.0, 1.0 / 3.0]
+        } else {
+            [0.0, 0.0]
+        }
+    }
+
+    /// Whether `(s, t)` lies in the natural domain, widened by `tolerance`.
+    pub fn contains(self, st: [f64; 2], tolerance: f64) -> bool {
+        if self.is_triangle() {
+            st[0] >= -tolerance && st[1] >= -tolerance && st[0] + st[1] <= 1.0 + tolerance
+        } else {
+            st[0].abs() <= 1.0 + tolerance && st[1].abs() <= 1.0 + tolerance
+        }
+    }
+
+    /// The edges of the natural domain as pairs of corner numbers (counter-clockwise), each a
+    /// straight line in `(s, t)` from the first corner's coordinates to the second's.
+    pub fn edges(self) -> &'static [[usize; 2]] {
+        if self.is_triangle() {
+            &TRI_EDGES
+        } else {
+            &[[0, 1], [1, 2], [2, 3], [3, 0]]
+        }
     }
 
     /// A Gauss rule on the natural domain, `(point, weight)`: exact for the face's
@@ -400,6 +482,31 @@ mod tests {
                     let fd = (np[a] - nm[a]) / (2.0 * h);
                     // central difference of a quadratic: exact up to round-off 1e-16 / 1e-6
                     assert!((fd - d[a][k]).abs() < 1e-9, "{family:?} dN_{a}/d{k}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn second_derivatives_are_the_slopes_of_the_first() {
+        for family in FaceFamily::ALL {
+            let st = [0.23, 0.31];
+            let h = 1e-6;
+            let f = family.interpolation(st);
+            for k in 0..2 {
+                let (mut p, mut m) = (st, st);
+                p[k] += h;
+                m[k] -= h;
+                let (dp, dm) = (family.interpolation(p).d, family.interpolation(m).d);
+                for a in 0..family.n_nodes() {
+                    for j in 0..2 {
+                        // d/d(st_k) of dN/d(st_j): entry k + j of [ss, st, tt]
+                        let fd = (dp[a][j] - dm[a][j]) / (2.0 * h);
+                        assert!(
+                            (fd - f.dd[a][k + j]).abs() < 1e-8,
+                            "{family:?} N_{a},{k}{j}"
+                        );
+                    }
                 }
             }
         }

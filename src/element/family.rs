@@ -292,6 +292,31 @@ impl ElementFamily {
         }
     }
 
+    /// The shape functions at the points of the finest Gauss rule of the element's shape
+    /// (3x3x3 on hexahedra, 14 points on tetrahedra, 3x3 on wedges) and each point's
+    /// reference volume weight: for integrals whose integrand is richer than the element's
+    /// own rule integrates (errors against an exact field); none for a discrete family.
+    pub fn fine_quadrature(
+        self,
+        x_ref: &[Vector3<f64>],
+    ) -> Result<Vec<([f64; MAX_NODES], f64)>, ElementFailure> {
+        let Some(solid) = self.solid() else {
+            return Ok(Vec::new());
+        };
+        let rule = match self.shape().corners() {
+            Shape::Tet4 => &tet::GAUSS_14,
+            Shape::Wedge6 => &wedge::GAUSS_3X3,
+            _ => &hex20::GAUSS_3X3X3,
+        };
+        Solid {
+            interpolation: solid.interpolation,
+            rule,
+            enhanced: false,
+            fbar: false,
+        }
+        .quadrature(x_ref)
+    }
+
     /// Element volume in the reference configuration.
     pub fn reference_volume<S: Scalar>(self, x_ref: &[Vector3<S>]) -> Result<S, ElementFailure> {
         match self.solid() {

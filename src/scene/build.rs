@@ -990,8 +990,6 @@ impl Scene {
                             format!("face set '{name}' is empty"),
                         ));
                     }
-                    setup::check_target_families(faces)
-                        .map_err(|e| invalid(&format!("{at}.target"), e.to_string()))?;
                     // default: three face diagonals, plus how far the prescribed
                     // displacements can move the two bodies against each other
                     let (default, diag, travel) = setup::default_search_radius(

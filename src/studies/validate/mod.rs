@@ -27,6 +27,7 @@ use std::path::{Path, PathBuf};
 
 pub mod anatomy;
 pub mod auto_step;
+pub mod convergence;
 mod figures;
 pub mod imported;
 pub mod partial;
@@ -101,6 +102,14 @@ pub enum ValidateError {
     /// A figure could not be written.
     #[error(transparent)]
     Plot(#[from] PlotError),
+    /// A study's model could not be made.
+    #[error("{study}: {what}")]
+    Study {
+        /// The study.
+        study: &'static str,
+        /// What failed.
+        what: String,
+    },
     /// An imported-geometry check failed to run.
     #[error(transparent)]
     Imported(#[from] imported::ImportedError),
@@ -296,6 +305,10 @@ pub struct Validation {
     /// spring (the full validation).
     #[serde(default)]
     pub refinement: Option<refinement::RefinementStudy>,
+    /// The element families' convergence orders on Lamé's cylinder ([`convergence`]; the
+    /// full validation).
+    #[serde(default)]
+    pub convergence: Vec<convergence::ConvergenceRow>,
 }
 
 /// The leaf spring's ten design parameters of the batched cost measurement: friction,
@@ -844,6 +857,8 @@ pub enum Job {
     BatchedRefined,
     /// The shape-parameter benchmark and the refined SDM ([`refinement`]).
     Refinement,
+    /// The element families' convergence orders ([`convergence`]).
+    Convergence,
 }
 
 /// The imported-geometry checks, each a job of its own.
@@ -870,6 +885,7 @@ impl Job {
             Job::Batched => "batched cost, leaf-spring".into(),
             Job::BatchedRefined => "batched cost, refined leaf-spring".into(),
             Job::Refinement => "shape parameters: cantilever refinement, refined SDM".into(),
+            Job::Convergence => "element families: convergence orders on Lame's cylinder".into(),
         }
     }
 }
@@ -903,6 +919,7 @@ pub fn plan(scenes: &[Scene], opts: &ValidateOptions) -> Vec<Job> {
             jobs.push(Job::BatchedRefined);
         }
         jobs.push(Job::Refinement);
+        jobs.push(Job::Convergence);
     }
     jobs
 }
@@ -933,6 +950,8 @@ pub enum JobOutput {
     Batched(BatchedCost),
     /// [`Job::Refinement`].
     Refinement(refinement::RefinementStudy),
+    /// [`Job::Convergence`].
+    Convergence(Vec<convergence::ConvergenceRow>),
 }
 
 /// Run one job.
@@ -977,6 +996,7 @@ pub fn run_job(
             &opts.betas,
             opts.floor,
         )?),
+        Job::Convergence => JobOutput::Convergence(convergence::study(&convergence::LEVELS)?),
     })
 }
 
@@ -1059,6 +1079,7 @@ fn finish(
     let mut imported = Vec::new();
     let mut batched = Vec::new();
     let mut shape = None;
+    let mut converged = Vec::new();
     for o in outputs {
         match o {
             JobOutput::Scene {
@@ -1082,6 +1103,13 @@ fn finish(
             }
             JobOutput::Imported(rows) => imported.extend(rows),
             JobOutput::Batched(b) => batched.push(b),
+            JobOutput::Convergence(rows) => {
+                crate::studies::plot::write_svg(
+                    &convergence::figure(&rows),
+                    &figs.join(convergence::FIGURE),
+                )?;
+                converged = rows;
+            }
             JobOutput::Refinement(r) => {
                 crate::studies::plot::write_svg(
                     &refinement::figure(&r),
@@ -1104,6 +1132,7 @@ fn finish(
         wall_seconds,
         batched,
         refinement: shape,
+        convergence: converged,
     };
     // the indentation's pressure profile after sliding, for figures 4 and 5 and the report
     let indentation = validation

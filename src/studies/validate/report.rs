@@ -372,6 +372,7 @@ pub(super) fn report(
     if let Some(l) = laws {
         s.push_str(&l.section());
     }
+    super::convergence::write_convergence(&mut s, &val.convergence);
     // sections written by `fricsens scaling` and `fricsens ccx` (long, or needing CalculiX):
     // included as they were last generated
     for (file, what) in [
