@@ -172,7 +172,6 @@ struct Local<S: Scalar> {
     cauchy: Matrix3<S>,
     min_det_f: f64,
     failure: Option<ElementFailure>,
-    hist: [S; MAX_HISTORY],
 }
 
 impl<S: Scalar> Local<S> {
@@ -185,13 +184,9 @@ impl<S: Scalar> Local<S> {
             cauchy: Matrix3::zeros(),
             min_det_f: f64::INFINITY,
             failure: None,
-            hist: [S::zero(); MAX_HISTORY],
         }
     }
 }
-
-/// Largest element history (the most Gauss points of any family x 16 scalars).
-pub(crate) const MAX_HISTORY: usize = MAX_GAUSS * 16;
 
 impl Assembler {
     /// The same assembler keeping the stress of every element in the evaluation's scalar
@@ -427,6 +422,15 @@ impl Assembler {
             Vec::new()
         };
         let mut kf = vec![0.0; if want_k { stride } else { 0 }];
+        // the elements' updated histories, one slot per element of a chunk, sized by the
+        // largest of this evaluation (a hex20's 27 points are not every element's)
+        let hstride = order
+            .iter()
+            .map(|&e| self.dofs.history(e).len())
+            .max()
+            .unwrap_or(0)
+            .max(1);
+        let mut hbuf = vec![S::zero(); CHUNK.min(ne) * hstride];
         let mut start = 0;
         while start < ne {
             let end = (start + CHUNK).min(ne);
@@ -439,7 +443,10 @@ impl Assembler {
             } else {
                 (start..end).map(|_| None).collect()
             };
-            let local = |(i, k): (usize, Option<&mut [S]>)| {
+            let hslots: Vec<&mut [S]> = hbuf[..(end - start) * hstride]
+                .chunks_mut(hstride)
+                .collect();
+            let local = |(i, (k, h)): (usize, (Option<&mut [S]>, &mut [S]))| {
                 let e = order[i];
                 self.element_local(
                     model,
@@ -449,15 +456,16 @@ impl Assembler {
                     frozen.and_then(|f| f.gauss),
                     e,
                     k,
+                    h,
                 )
             };
             if end - start < PARALLEL_MIN {
                 locals.clear();
-                locals.extend((start..end).zip(slots).map(local));
+                locals.extend((start..end).zip(slots.into_iter().zip(hslots)).map(local));
             } else {
                 (start..end)
                     .into_par_iter()
-                    .zip(slots.into_par_iter())
+                    .zip(slots.into_par_iter().zip(hslots.into_par_iter()))
                     .map(local)
                     .collect_into_vec(&mut locals);
             }
@@ -487,7 +495,7 @@ impl Assembler {
                 }
                 let hist = self.dofs.history(e);
                 let nh = hist.len();
-                out.hist_new[hist].copy_from_slice(&loc.hist[..nh]);
+                out.hist_new[hist].copy_from_slice(&hbuf[off * hstride..off * hstride + nh]);
                 out.min_det_f = out.min_det_f.min(loc.min_det_f);
                 if let Some(k) = tangent.as_deref_mut() {
                     let ks = &kbuf[off * stride..off * stride + nd * nd];
@@ -587,6 +595,7 @@ impl Assembler {
         frozen: Option<&[Branch]>,
         e: usize,
         k_out: Option<&mut [S]>,
+        h_out: &mut [S],
     ) -> Local<S> {
         let mut loc = Local::empty();
         let Some(family) = self.dofs.element_family[e] else {
@@ -635,7 +644,7 @@ impl Assembler {
             let mut out = ElementOutput {
                 force: &mut loc.force[..nd],
                 tangent: k_out,
-                hist_new: &mut loc.hist[..nh],
+                hist_new: &mut h_out[..nh],
                 branches: &mut loc.branches[..ng],
                 yield_ratio: &mut loc.yield_ratio[..ng],
                 cauchy: Matrix3::zeros(),

@@ -82,7 +82,7 @@
 //! | `gbar_A`, `F0`, `J0` | element averages (F-bar): gradient, deformation gradient, its det |
 //! | `r`, `Fbar`, `Cbar`, `Ebar` | F-bar factor `(J0/J)^(1/3)`, modified `F`, `C`, Green strain |
 //! | `q_A`, `q0_A`, `v_a` | `F^-T g_A`, `F0^-T gbar_A`, `d ln r / dd_a` |
-use crate::material::{strain_to_voigt, stress_to_voigt, Branch, MaterialLaw, Voigt};
+use crate::material::{strain_to_voigt, stress_to_voigt, Branch, MaterialLaw, Tangent, Voigt};
 use crate::scalar::{det3, inv3, re, Scalar};
 use nalgebra::{Matrix3, Vector3};
 
@@ -129,6 +129,21 @@ pub struct ElementOutput<'a, S: Scalar> {
     pub cauchy: Matrix3<S>,
     /// Smallest det F over the Gauss points (real part).
     pub min_det_f: f64,
+}
+
+impl<S: Scalar> ElementOutput<'_, S> {
+    /// Zero the force and the tangent (if asked) of `ndof` unknowns.
+    fn clear(&mut self, ndof: usize) {
+        debug_assert!(self.force.len() >= ndof);
+        for f in self.force[..ndof].iter_mut() {
+            *f = S::zero();
+        }
+        if let Some(k) = self.tangent.as_deref_mut() {
+            for v in k[..ndof * ndof].iter_mut() {
+                *v = S::zero();
+            }
+        }
+    }
 }
 
 /// Strain measure used by an element.
@@ -504,15 +519,7 @@ impl Solid<'_> {
     ) -> Result<(), ElementFailure> {
         let n_gen = self.generalised_nodes();
         let ndof = 3 * n_gen;
-        debug_assert!(out.force.len() >= ndof);
-        for f in out.force[..ndof].iter_mut() {
-            *f = S::zero();
-        }
-        if let Some(k) = out.tangent.as_deref_mut() {
-            for v in k[..ndof * ndof].iter_mut() {
-                *v = S::zero();
-            }
-        }
+        out.clear(ndof);
         let centre = self.centre(x_ref)?;
         let large = input.kinematics == Kinematics::Large;
         let mut cauchy = Matrix3::<S>::zeros();
@@ -551,18 +558,7 @@ impl Solid<'_> {
                 }
             }
             if let Some(k) = out.tangent.as_deref_mut() {
-                let c = &resp.tangent;
-                for a in 0..n_gen {
-                    for i in 0..3 {
-                        let cb = c * b[a][i] * w; // C B_Ai w
-                        let row = 3 * a + i;
-                        for bb in 0..n_gen {
-                            for j in 0..3 {
-                                k[row * ndof + 3 * bb + j] += b[bb][j].dot(&cb);
-                            }
-                        }
-                    }
-                }
+                add_material_tangent(k, &b[..n_gen], &resp.tangent, w);
                 if large {
                     for a in 0..n_gen {
                         let sg = resp.stress * geo.grads[a] * w;
@@ -598,16 +594,8 @@ impl Solid<'_> {
         let nn = self.interpolation.n_nodes;
         let ng = self.rule.len();
         let ndof = 3 * nn;
-        debug_assert!(out.force.len() >= ndof);
         let large = input.kinematics == Kinematics::Large;
-        for f in out.force[..ndof].iter_mut() {
-            *f = S::zero();
-        }
-        if let Some(k) = out.tangent.as_deref_mut() {
-            for v in k[..ndof * ndof].iter_mut() {
-                *v = S::zero();
-            }
-        }
+        out.clear(ndof);
         // reference geometry of every Gauss point, and the element averages
         let mut grads = [[Vector3::<S>::zeros(); MAX_NODES]; MAX_GAUSS];
         let mut weights = [S::zero(); MAX_GAUSS];
@@ -724,18 +712,7 @@ impl Solid<'_> {
                 }
             }
             if let Some(k) = out.tangent.as_deref_mut() {
-                let c = &resp.tangent;
-                for a in 0..nn {
-                    for i in 0..3 {
-                        let cb = c * b[a][i] * w; // C B_a w
-                        let row = 3 * a + i;
-                        for bb in 0..nn {
-                            for j in 0..3 {
-                                k[row * ndof + 3 * bb + j] += b[bb][j].dot(&cb);
-                            }
-                        }
-                    }
-                }
+                add_material_tangent(k, &b[..nn], &resp.tangent, w);
                 if large {
                     let s_c = resp.stress.component_mul(&cbar).sum(); // S : Cbar
                     let r2 = r * r;
@@ -802,6 +779,23 @@ fn material_point<S: Scalar, M: MaterialLaw>(
     out.branches[gp] = resp.branch;
     out.yield_ratio[gp] = resp.yield_ratio;
     Ok(resp)
+}
+
+/// `K += B^T C B w`, `K` row-major over the unknowns of the rows `b` (three per generalised
+/// node).
+fn add_material_tangent<S: Scalar>(k: &mut [S], b: &[[Voigt<S>; 3]], c: &Tangent<S>, w: S) {
+    let ndof = 3 * b.len();
+    for (a, ba) in b.iter().enumerate() {
+        for (i, bai) in ba.iter().enumerate() {
+            let cb = c * bai * w; // C B_Ai w
+            let row = 3 * a + i;
+            for (bb, bbb) in b.iter().enumerate() {
+                for (j, bbj) in bbb.iter().enumerate() {
+                    k[row * ndof + 3 * bb + j] += bbj.dot(&cb);
+                }
+            }
+        }
+    }
 }
 
 /// `Voigt` row of `sym(a (x) g)` with engineering shears.

@@ -46,15 +46,8 @@ const T: f64 = 0.25;
 /// Elements through the wall of the report's meshes.
 pub const LEVELS: [usize; 4] = [2, 4, 8, 16];
 
-/// The families, each with its shape's standard formulation.
-pub const SHAPES: [Shape; 6] = [
-    Shape::Hex8,
-    Shape::Hex20,
-    Shape::Tet4,
-    Shape::Tet10,
-    Shape::Wedge6,
-    Shape::Wedge15,
-];
+/// The families: every solid shape with its standard formulation.
+pub const SHAPES: [Shape; 6] = Shape::SOLIDS;
 
 /// One mesh of one family.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
