@@ -33,7 +33,8 @@ OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests", "m
 
 
 def surface_at(dim_tags, axis, value):
-    """The surface of `dim_tags` (dim 2) whose bounding box (OCC pads it by 1e-7) is flat at `axis` = `value`."""
+    """The surface of `dim_tags` (dim 2) flat at `axis` = `value` (OCC pads its bounding
+    boxes by 1e-7)."""
     found = []
     for dim, tag in dim_tags:
         box = gmsh.model.getBoundingBox(dim, tag)

@@ -20,10 +20,10 @@
 //! back. Gmsh's reference nodes (`gmsh.model.mesh.getElementProperties`, the "node ordering"
 //! section of the Gmsh manual) at fricsens' natural coordinates give the permutations:
 //! tet10 lists the mid-edge nodes of edges `01, 12, 20, 03, 23, 13` (fricsens: `01, 12, 20,
-//! 03, 13, 23`: the last two swapped); hex20 lists the mid-edge nodes of edges `01, 03, 04, 12, 15, 23,
-//! 26, 37, 45, 47, 56, 67` (fricsens: `01, 12, 23, 30, 45, 56, 67, 74, 04, 15, 26, 37`);
-//! wedge15 those of `01, 02, 03, 12, 14, 25, 34, 35, 45` (fricsens: `01, 12, 20, 34, 45, 53,
-//! 03, 14, 25`). The surface types number as fricsens' face families.
+//! 03, 13, 23`: the last two swapped); hex20 those of `01, 03, 04, 12, 15, 23, 26, 37, 45, 47,
+//! 56, 67` (fricsens: `01, 12, 23, 30, 45, 56, 67, 74, 04, 15, 26, 37`); wedge15 those of `01,
+//! 02, 03, 12, 14, 25, 34, 35, 45` (fricsens: `01, 12, 20, 34, 45, 53, 03, 14, 25`). The
+//! surface types number as fricsens' face families.
 //!
 //! Sets: a physical group of dimension 3 is an element set (its solids) and a node set
 //! (their nodes); of dimension 2 a face set (its triangles and quadrangles) and a node set; of
@@ -73,7 +73,7 @@ fn solid_type(shape: Shape) -> Option<i32> {
         Shape::Hex20 => 17,
         Shape::Wedge6 => 6,
         Shape::Wedge15 => 18,
-        _ => return None,
+        Shape::Point1 | Shape::Line2 => return None,
     })
 }
 
@@ -84,9 +84,6 @@ fn face_type(family: FaceFamily) -> i32 {
         FaceFamily::Tri6 => 9,
         FaceFamily::Quad4 => 3,
         FaceFamily::Quad8 => 16,
-        // a family registered later: its surface type here
-        #[allow(unreachable_patterns)]
-        _ => 0,
     }
 }
 
@@ -1121,11 +1118,12 @@ mod tests {
         assert!(element_type(0).is_none() && element_type(20).is_none());
     }
 
-    /// Gmsh's reference nodes of types 4, 11, 5, 17, 6, 18 as `gmsh.model.mesh.getElementProperties`
-    /// lists them (gmsh 4.15.2; the manual's node-ordering figures show the same): tetrahedra
-    /// in `(u, v, w)` with corner 0 at the origin, hexahedra in `[-1, 1]^3`, prisms a
-    /// triangle `(u, v)` swept along `w in [-1, 1]`, which are fricsens' natural coordinates
-    /// of each shape. Permuted by [`gmsh_order`], they must be fricsens' natural nodes.
+    /// Gmsh's reference nodes of types 4, 11, 5, 17, 6, 18 as
+    /// `gmsh.model.mesh.getElementProperties` lists them (gmsh 4.15.2; the manual's
+    /// node-ordering figures show the same): tetrahedra in `(u, v, w)` with corner 0 at the
+    /// origin, hexahedra in `[-1, 1]^3`, prisms a triangle `(u, v)` swept along
+    /// `w in [-1, 1]`, which are fricsens' natural coordinates of each shape. Permuted by
+    /// [`gmsh_order`], they must be fricsens' natural nodes.
     #[test]
     fn gmsh_orders_put_gmsh_reference_nodes_at_fricsens_natural_nodes() {
         const TET10: [[f64; 3]; 10] = [

@@ -873,11 +873,18 @@ fn non_finite_coordinates_and_duplicate_elements() {
 
 /// A campaign of the library's mesh fuzzer (`fricsens::studies::mesh_fuzz`, also
 /// `fricsens fuzz-meshes`): its built-in seeds (a block written as .msh ASCII, binary and
-/// .inp), the hand-written .inp (with its include) and real Gmsh binary output.
+/// .inp), the hand-written .inp (with its include) and real Gmsh output (hex8 binary, hex20
+/// ASCII, tet10 binary MSH; wedge15 .inp).
 fn fuzz(n: usize, seed: u64) {
     use fricsens::studies::mesh_fuzz::{builtin_seeds, run, seed_from, MeshFuzzOptions};
     let mut seeds = builtin_seeds().unwrap();
-    for f in ["hand.inp", "gmsh_box_bin.msh"] {
+    for f in [
+        "hand.inp",
+        "gmsh_box_bin.msh",
+        "quad_hex20.msh",
+        "quad_wedge15.inp",
+        "quad_tet10_bin.msh",
+    ] {
         seeds.push(seed_from(&fixtures().join(f)).unwrap());
     }
     let dir = scratch(&format!("fuzz-{seed}"));
