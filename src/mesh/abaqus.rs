@@ -12,27 +12,35 @@
 //! are refused with a typed error: write a flat input file (in Abaqus/CAE, untick "Use
 //! parts and assemblies in input files"; Gmsh and CalculiX files are flat).
 //!
-//! Elements: `C3D8` and its variants (`C3D8R`, `C3D8I`, `C3D8H`, `C3D8RH`, ...) are hex8
-//! solids. Plane, membrane, shell and surface elements with 3 or 4 nodes (`CPS4`, `CPE4`,
-//! `CAX4`, `S4`, `S4R`, `M3D4`, `SFM3D4`, `R3D4`, their 3-node and reduced variants; Gmsh
-//! writes a physical surface as `CPS4` elements) only define sets: an element set of them is a
-//! face set. Truss and beam elements (`T3D2`, `B31`, ...) likewise: an element set of them is
-//! a node set. Any other type (`C3D4`, `C3D10`, `C3D20`, ...) is
-//! [`ImportError::UnsupportedElement`].
+//! Elements: the solids `C3D8` (hex8), `C3D20` (hex20), `C3D4` (tet4), `C3D10` (tet10), `C3D6`
+//! (wedge6) and `C3D15` (wedge15), and their variants (letters after the name: `C3D8R`,
+//! `C3D8I`, `C3D8H`, `C3D20R`, `C3D20RH`, `C3D10M`, `C3D10H`, `C3D4H`, `C3D6H`, ...; not the
+//! variable-node `C3D15V`), node order as fricsens' (Abaqus numbers as fricsens does). Plane,
+//! membrane, shell and surface elements with 3, 4, 6 or 8 nodes (`CPS4`, `CPE4`, `CAX4`, `S4`,
+//! `S4R`, `M3D4`, `SFM3D4`, `R3D4`, `CPS8`, `S8R`, `CPS6`, `STRI65`, their 3-node and reduced
+//! variants; Gmsh writes a physical surface as `CPS3`, `CPS4`, `CPS6` or `CPS8` elements) only
+//! define sets: an element set of them is a face set. Truss and beam elements (`T3D2`, `B31`,
+//! `T3D3`, `B32`, ...) likewise: an element set of them is a node set. Any other type
+//! (`C3D27`, `C3D5`, `C3D15V`, ...) is [`ImportError::UnsupportedElement`].
+//!
+//! Element-based surfaces name sides `S1`..`S6`, numbered per shape as the Abaqus and CalculiX
+//! manuals number them ([`super::import`] maps each to its face).
 //!
 //! Set names are case-insensitive, as in Abaqus: the reader keeps a name's first spelling
 //! (`*NSET, NSET=Top` then `*NSET, NSET=TOP` is one set `Top`), and
 //! [`super::import::MeshFile::add_to`] matches the element set name case-insensitively.
 //!
-//! The writer writes `*NODE`, one `*ELEMENT, TYPE=C3D8, ELSET=BODY` per body, a `*NSET` per
+//! The writer writes `*NODE`, one `*ELEMENT, TYPE=C3D.., ELSET=BODY` per body (its shape's
+//! type: `C3D8`, `C3D20`, `C3D4`, `C3D10`, `C3D6`, `C3D15`; at most 16 entries a data line, an
+//! element of more nodes continued on the next line), a `*NSET` per
 //! node set and a `*SURFACE, TYPE=ELEMENT` per face set, its lines `element id, Sn` (no helper
 //! element sets, which would read back as sets of their own). The sets of each body
 //! are written without the `BODY.` prefix (sets of one name in several bodies are written as
 //! one), so that reading back with prefix `BODY` and element set `BODY` gives the same names.
 
 use super::import::{
-    hex8_side_of_face, FileElement, FileFace, FileNode, Format, ImportError, MeshFile,
-    OtherElement, Place,
+    side_of_face, FileElement, FileFace, FileNode, Format, ImportError, MeshFile, OtherElement,
+    Place,
 };
 use super::Mesh;
 use crate::element::Shape;
@@ -40,25 +48,51 @@ use nalgebra::Vector3;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
-const SUPPORTED: &str = "C3D8 and its variants (C3D8R, C3D8I, C3D8H, ...) as solids; 3- and 4-node plane, membrane, shell and surface elements (CPS4, S4R, M3D4, SFM3D4, R3D4, ...) and 2-node trusses and beams (T3D2, B31) for sets";
+const SUPPORTED: &str = "C3D8, C3D20, C3D4, C3D10, C3D6, C3D15 and their variants (C3D8R, C3D8I, C3D20R, C3D10M, C3D4H, ...) as solids; 3-, 4-, 6- and 8-node plane, membrane, shell and surface elements (CPS4, S4R, M3D4, SFM3D4, R3D4, CPS6, CPS8, S8R, ...) and 2- and 3-node trusses and beams (T3D2, B31, T3D3, B32) for sets";
 
-/// How an element type enters: `Ok(Some(n))` a hex8 solid (`n` = 8), `Ok(None)` with node
-/// count for set-only elements, error for others.
+/// How an element type enters: a solid of a shape, or, with its node count, a set-only
+/// surface or line element.
 enum Kind {
-    Solid,
+    Solid(Shape),
     Surface(usize),
     Line(usize),
 }
 
+/// The Abaqus solid type of each shape (the writer's), and the reader's base names.
+const SOLID_TYPES: [(&str, Shape); 6] = [
+    ("C3D10", Shape::Tet10),
+    ("C3D15", Shape::Wedge15),
+    ("C3D20", Shape::Hex20),
+    ("C3D4", Shape::Tet4),
+    ("C3D6", Shape::Wedge6),
+    ("C3D8", Shape::Hex8),
+];
+
+/// The Abaqus type the writer gives a solid shape (`None` for a discrete one).
+pub(crate) fn abaqus_type(shape: Shape) -> Option<&'static str> {
+    SOLID_TYPES
+        .iter()
+        .find(|(_, s)| *s == shape)
+        .map(|(name, _)| *name)
+}
+
 fn kind(t: &str) -> Option<Kind> {
     let t = t.to_ascii_uppercase();
-    if let Some(rest) = t.strip_prefix("C3D8") {
-        // C3D8, C3D8R, C3D8I, C3D8H, C3D8RH, C3D8T, C3D8P, ...: letters only after C3D8
-        return rest
-            .chars()
-            .all(|c| c.is_ascii_alphabetic())
-            .then_some(Kind::Solid);
+    for (base, shape) in SOLID_TYPES {
+        if let Some(rest) = t.strip_prefix(base) {
+            // C3D8R, C3D8I, C3D20RH, C3D10M, C3D4H, C3D6T, ...: letters only after the name
+            // (not C3D15V, whose node count varies)
+            let variant = rest.chars().all(|c| c.is_ascii_alphabetic()) && !rest.contains('V');
+            return variant.then_some(Kind::Solid(shape));
+        }
     }
+    const SURF8: [&str; 16] = [
+        "CPS8", "CPS8R", "CPE8", "CPE8R", "CPE8H", "CPE8RH", "CAX8", "CAX8R", "CAX8H", "CAX8RH",
+        "S8R", "S8R5", "M3D8", "M3D8R", "SFM3D8", "SFM3D8R",
+    ];
+    const SURF6: [&str; 10] = [
+        "CPS6", "CPS6M", "CPE6", "CPE6M", "CPE6H", "CAX6", "CAX6M", "STRI65", "M3D6", "SFM3D6",
+    ];
     const SURF4: [&str; 16] = [
         "CPS4", "CPS4R", "CPS4I", "CPE4", "CPE4R", "CPE4I", "CPE4H", "CAX4", "CAX4R", "S4", "S4R",
         "M3D4", "M3D4R", "SFM3D4", "SFM3D4R", "R3D4",
@@ -67,12 +101,20 @@ fn kind(t: &str) -> Option<Kind> {
         "CPS3", "CPE3", "CAX3", "S3", "S3R", "M3D3", "SFM3D3", "R3D3", "STRI3",
     ];
     const LINE2: [&str; 6] = ["T3D2", "T2D2", "B31", "B21", "B31H", "B21H"];
-    if SURF4.contains(&t.as_str()) {
+    const LINE3: [&str; 6] = ["T3D3", "T2D3", "B32", "B22", "B32H", "B22H"];
+    let t = t.as_str();
+    if SURF8.contains(&t) {
+        Some(Kind::Surface(8))
+    } else if SURF6.contains(&t) {
+        Some(Kind::Surface(6))
+    } else if SURF4.contains(&t) {
         Some(Kind::Surface(4))
-    } else if SURF3.contains(&t.as_str()) {
+    } else if SURF3.contains(&t) {
         Some(Kind::Surface(3))
-    } else if LINE2.contains(&t.as_str()) {
+    } else if LINE2.contains(&t) {
         Some(Kind::Line(2))
+    } else if LINE3.contains(&t) {
+        Some(Kind::Line(3))
     } else {
         None
     }
@@ -377,7 +419,7 @@ impl<'f> Reader<'f> {
             });
         };
         let nn = match kind {
-            Kind::Solid => 8,
+            Kind::Solid(shape) => shape.n_nodes(),
             Kind::Surface(n) | Kind::Line(n) => n,
         };
         let elset = self.set_param(p, "ELSET", at)?;
@@ -398,12 +440,12 @@ impl<'f> Reader<'f> {
                 nodes.push(self.int(v, *line, &format!("element {id}: node id"))?);
             }
             match kind {
-                Kind::Solid => {
+                Kind::Solid(shape) => {
                     self.element_nodes
                         .insert(id, (self.file.elements.len(), true));
                     self.file.elements.push(FileElement {
                         id,
-                        shape: Shape::Hex8,
+                        shape,
                         nodes,
                         line: *line,
                     });
@@ -697,8 +739,8 @@ fn clip(t: &str) -> String {
     t.chars().take(40).collect()
 }
 
-/// Write `bodies` (name, hex8 group) of `mesh` at coordinates `x` as an Abaqus input file:
-/// `*NODE`, `*ELEMENT, TYPE=C3D8, ELSET=BODY`, `*NSET` and `*SURFACE, TYPE=ELEMENT` for each
+/// Write `bodies` (name, solid group) of `mesh` at coordinates `x` as an Abaqus input file:
+/// `*NODE`, `*ELEMENT, TYPE=C3D.., ELSET=BODY`, `*NSET` and `*SURFACE, TYPE=ELEMENT` for each
 /// body's node and face sets, without the `BODY.` prefix (see the module documentation).
 pub fn write(
     mesh: &Mesh,
@@ -719,19 +761,31 @@ pub fn write(
     }
     // elements, and the faces of each body's elements by sorted nodes
     let mut id = 0usize;
-    let mut faces: HashMap<Vec<usize>, (usize, usize)> = HashMap::new();
+    let mut faces: HashMap<Vec<usize>, (usize, Shape, usize)> = HashMap::new();
     for (name, g, ..) in &plan.bodies {
         let group = &mesh.groups[*g];
-        s.push_str(&format!("*ELEMENT, TYPE=C3D8, ELSET={name}\n"));
+        let Some(ty) = abaqus_type(group.shape) else {
+            return Err(ImportError::Write {
+                file: path.to_path_buf(),
+                message: format!("body '{name}': {} has no Abaqus type", group.shape.name()),
+            });
+        };
+        s.push_str(&format!("*ELEMENT, TYPE={ty}, ELSET={name}\n"));
         for k in 0..group.len() {
             id += 1;
             let e = group.element(k);
-            let line: Vec<String> = e.iter().map(|n| (n + 1).to_string()).collect();
-            s.push_str(&format!("{id}, {}\n", line.join(", ")));
-            for (f, face) in Shape::Hex8.faces().iter().enumerate() {
+            // at most 16 entries a data line: the id and 15 nodes, then 16 nodes a line
+            let ids: Vec<String> = std::iter::once(id)
+                .chain(e.iter().map(|n| n + 1))
+                .map(|v| v.to_string())
+                .collect();
+            let lines: Vec<String> = ids.chunks(16).map(|c| c.join(", ")).collect();
+            s.push_str(&lines.join(",\n"));
+            s.push('\n');
+            for (f, face) in group.shape.faces().iter().enumerate() {
                 let mut key: Vec<usize> = face.nodes.iter().map(|&l| e[l]).collect();
                 key.sort_unstable();
-                faces.entry(key).or_insert((id, f));
+                faces.entry(key).or_insert((id, group.shape, f));
             }
         }
     }
@@ -746,7 +800,7 @@ pub fn write(
             for k in 0..f.len() {
                 let mut key = f.nodes(k).to_vec();
                 key.sort_unstable();
-                let Some(&(e, face)) = faces.get(&key) else {
+                let Some(&(e, shape, face)) = faces.get(&key) else {
                     return Err(ImportError::Write {
                         file: path.to_path_buf(),
                         message: format!(
@@ -755,7 +809,8 @@ pub fn write(
                         ),
                     });
                 };
-                let side = hex8_side_of_face(face).unwrap_or(0);
+                // every face of a solid shape is an Abaqus side
+                let side = side_of_face(shape, face).unwrap_or(0);
                 list.push((e, side));
             }
         }
@@ -784,22 +839,35 @@ pub fn write(
 
 #[cfg(test)]
 mod tests {
-    use super::super::import::hex8_face_of_side;
     use super::*;
 
     #[test]
-    fn abaqus_sides_are_the_hex8_faces() {
-        let mut seen = [false; 6];
-        for s in 1..=6 {
-            let f = hex8_face_of_side(s).unwrap();
-            assert!(!seen[f]);
-            seen[f] = true;
-            assert_eq!(hex8_side_of_face(f), Some(s));
+    fn solid_types_and_their_variants_name_their_shapes() {
+        for (t, shape) in [
+            ("C3D8", Shape::Hex8),
+            ("c3d8r", Shape::Hex8),
+            ("C3D8I", Shape::Hex8),
+            ("C3D20", Shape::Hex20),
+            ("C3D20R", Shape::Hex20),
+            ("C3D20RH", Shape::Hex20),
+            ("C3D4", Shape::Tet4),
+            ("C3D4H", Shape::Tet4),
+            ("C3D10", Shape::Tet10),
+            ("C3D10M", Shape::Tet10),
+            ("C3D10H", Shape::Tet10),
+            ("C3D6", Shape::Wedge6),
+            ("C3D15", Shape::Wedge15),
+            ("C3D15H", Shape::Wedge15),
+        ] {
+            assert!(matches!(kind(t), Some(Kind::Solid(s)) if s == shape), "{t}");
         }
-        // S1 is the face of nodes 1-4 (bottom, -zeta): fricsens face 4 (-z)
-        assert_eq!(hex8_face_of_side(1), Some(4));
-        assert_eq!(hex8_face_of_side(2), Some(5));
-        assert_eq!(hex8_face_of_side(7), None);
-        assert_eq!(hex8_face_of_side(0), None);
+        for t in ["C3D27", "C3D15V", "C3D5", "C3D8X2", "C3D"] {
+            assert!(kind(t).is_none(), "{t}");
+        }
+        for shape in Shape::SOLIDS {
+            let t = abaqus_type(shape).unwrap();
+            assert!(matches!(kind(t), Some(Kind::Solid(s)) if s == shape), "{t}");
+        }
+        assert_eq!(abaqus_type(Shape::Line2), None);
     }
 }

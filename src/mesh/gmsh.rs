@@ -9,34 +9,101 @@
 //! 4.1. Binary files of either byte order are read (the integer 1 after the format line
 //! tells which).
 //!
-//! Element types: 5 (8-node hexahedron) is a solid; 15 (point), 1 (line), 2 (triangle) and
-//! 3 (quadrangle) define sets; any other type is [`ImportError::UnsupportedElement`].
+//! Element types: 4 (4-node tetrahedron, tet4), 11 (10-node tetrahedron, tet10), 5 (8-node
+//! hexahedron, hex8), 17 (20-node hexahedron, hex20), 6 (6-node prism, wedge6) and 18 (15-node
+//! prism, wedge15) are solids; 15 (point), 1 and 8 (2- and 3-node lines), 2 and 9 (3- and
+//! 6-node triangles), 3 and 16 (4- and 8-node quadrangles) define sets; any other type
+//! (27-node hexahedra, 18-node prisms, pyramids, ...) is [`ImportError::UnsupportedElement`].
 //!
-//! Sets: a physical group of dimension 3 is an element set (its hexahedra) and a node set
+//! Node order: Gmsh numbers the corners as fricsens does, and its mid-edge nodes otherwise:
+//! the reader permutes each solid's nodes into fricsens' order (`gmsh_order`) and the writer
+//! back. Gmsh's reference nodes (`gmsh.model.mesh.getElementProperties`, the "node ordering"
+//! section of the Gmsh manual) at fricsens' natural coordinates give the permutations:
+//! tet10 lists the mid-edge nodes of edges `01, 12, 20, 03, 23, 13` (fricsens: `01, 12, 20,
+//! 03, 13, 23`: the last two swapped); hex20 those of `01, 03, 04, 12, 15, 23, 26, 37, 45, 47,
+//! 56, 67` (fricsens: `01, 12, 23, 30, 45, 56, 67, 74, 04, 15, 26, 37`); wedge15 those of `01,
+//! 02, 03, 12, 14, 25, 34, 35, 45` (fricsens: `01, 12, 20, 34, 45, 53, 03, 14, 25`). The
+//! surface types number as fricsens' face families.
+//!
+//! Sets: a physical group of dimension 3 is an element set (its solids) and a node set
 //! (their nodes); of dimension 2 a face set (its triangles and quadrangles) and a node set; of
 //! dimension 1 or 0 a node set. Its name is the one `$PhysicalNames` gives, or, for an unnamed
 //! group, the name Gmsh itself gives it in its Abaqus and UNV exports: `PhysicalPoint{tag}`,
 //! `PhysicalLine{tag}`, `PhysicalSurface{tag}`, `PhysicalVolume{tag}` (so a model exported
 //! as `.msh` and as `.inp` has the same set names). Groups of one name in several dimensions
 //! share one node set (the union). A file without physical groups has no sets: import all its
-//! hexahedra with `add_to(.., None)`.
+//! solids with `add_to(.., None)`.
 //!
-//! The writer writes each body as a volume entity and physical volume of its name (hexahedra),
-//! each face set `BODY.NAME` as a surface entity in physical surface `NAME` (quadrangles,
-//! outward), each node set `BODY.NAME` as a point entity in physical point `NAME` (one point
+//! The writer writes each body (of any solid shape) as a volume entity and physical volume of
+//! its name, its nodes in Gmsh's order, each face set `BODY.NAME` as a surface entity in
+//! physical surface `NAME` (triangles and quadrangles of its faces' families, outward), each
+//! node set `BODY.NAME` as a point entity in physical point `NAME` (one point
 //! element per node). Coordinates are written in Rust's shortest round-trip form, so an ASCII
 //! file reads back bit for bit, like a binary one.
 
 use super::import::{FileElement, FileFace, Format, ImportError, MeshFile, OtherElement, Place};
 use super::Mesh;
-use crate::element::Shape;
+use crate::element::{FaceFamily, Shape};
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 /// What this reader takes.
-const SUPPORTED: &str =
-    "type 5 (8-node hexahedron) as solids; types 15 (point), 1 (2-node line), 2 (3-node triangle), 3 (4-node quadrangle) for sets";
+const SUPPORTED: &str = "types 4 (4-node tetrahedron), 11 (10-node tetrahedron), 5 (8-node hexahedron), 17 (20-node hexahedron), 6 (6-node prism), 18 (15-node prism) as solids; types 15 (point), 1 (2-node line), 8 (3-node line), 2 (3-node triangle), 9 (6-node triangle), 3 (4-node quadrangle), 16 (8-node quadrangle) for sets";
+
+/// The solid shape of a Gmsh element type (`None` for the others).
+fn solid_shape(t: i64) -> Option<Shape> {
+    Some(match t {
+        4 => Shape::Tet4,
+        11 => Shape::Tet10,
+        5 => Shape::Hex8,
+        17 => Shape::Hex20,
+        6 => Shape::Wedge6,
+        18 => Shape::Wedge15,
+        _ => return None,
+    })
+}
+
+/// The Gmsh element type of a solid shape (`None` for a discrete one).
+fn solid_type(shape: Shape) -> Option<i32> {
+    Some(match shape {
+        Shape::Tet4 => 4,
+        Shape::Tet10 => 11,
+        Shape::Hex8 => 5,
+        Shape::Hex20 => 17,
+        Shape::Wedge6 => 6,
+        Shape::Wedge15 => 18,
+        Shape::Point1 | Shape::Line2 => return None,
+    })
+}
+
+/// The Gmsh element type of a face family.
+fn face_type(family: FaceFamily) -> i32 {
+    match family {
+        FaceFamily::Tri3 => 2,
+        FaceFamily::Tri6 => 9,
+        FaceFamily::Quad4 => 3,
+        FaceFamily::Quad8 => 16,
+    }
+}
+
+/// Gmsh's node order of a solid shape: fricsens node `k` is Gmsh node `gmsh_order(shape)[k]`
+/// (the reader's permutation; the writer writes Gmsh node `gmsh_order[k]` from fricsens node
+/// `k`). Corners are numbered alike; the mid-edge nodes differ (module documentation).
+pub(crate) fn gmsh_order(shape: Shape) -> &'static [usize] {
+    const TET10: [usize; 10] = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8];
+    const HEX20: [usize; 20] = [
+        0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 13, 9, 16, 18, 19, 17, 10, 12, 14, 15,
+    ];
+    const WEDGE15: [usize; 15] = [0, 1, 2, 3, 4, 5, 6, 9, 7, 12, 14, 13, 8, 10, 11];
+    const IDENTITY: [usize; 8] = [0, 1, 2, 3, 4, 5, 6, 7];
+    match shape {
+        Shape::Tet10 => &TET10,
+        Shape::Hex20 => &HEX20,
+        Shape::Wedge15 => &WEDGE15,
+        s => &IDENTITY[..s.n_nodes().min(8)],
+    }
+}
 
 /// Name, node count and dimension of a Gmsh element type.
 fn element_type(t: i64) -> Option<(&'static str, usize, i64)> {
@@ -68,8 +135,11 @@ fn element_type(t: i64) -> Option<(&'static str, usize, i64)> {
 fn short_name(t: i64) -> &'static str {
     match t {
         1 => "line2",
+        8 => "line3",
         2 => "tri3",
+        9 => "tri6",
         3 => "quad4",
+        16 => "quad8",
         _ => "point1",
     }
 }
@@ -131,6 +201,14 @@ impl<'a> Cur<'a> {
             }
             self.pos += 1;
         }
+    }
+
+    /// Whether only blank space is left on the current line (or the file ends).
+    fn at_line_end(&self) -> bool {
+        self.b[self.pos.min(self.b.len())..]
+            .iter()
+            .find(|&&c| !matches!(c, b' ' | b'\t' | b'\r'))
+            .is_none_or(|&c| c == b'\n')
     }
 
     /// The next whitespace-separated ASCII token and its line.
@@ -501,7 +579,8 @@ fn read_elements(
                 supported: SUPPORTED,
             });
         };
-        if !matches!(etype, 1 | 2 | 3 | 5 | 15) {
+        let solid = solid_shape(etype);
+        if solid.is_none() && !matches!(etype, 15 | 1 | 8 | 2 | 9 | 3 | 16) {
             return Err(ImportError::UnsupportedElement {
                 at: c.place_of(tat),
                 kind: format!("type {etype}, {tname}"),
@@ -530,25 +609,42 @@ fn read_elements(
         for _ in 0..n {
             let (id, at) = c.size("an element tag")?;
             let mut nodes = Vec::with_capacity(nn);
-            for _ in 0..nn {
-                nodes.push(c.size("an element's node tags")?.0);
+            for k in 0..nn {
+                let (tag, tat) = c.size("an element's node tags")?;
+                // an ASCII file writes each element on its own line: a short line would take
+                // the next element's tags
+                if !c.binary && tat != at {
+                    return Err(c.syntax(
+                        at,
+                        format!("element {id}: {k} node tags on its line, a {tname} has {nn}"),
+                    ));
+                }
+                nodes.push(tag);
+            }
+            if !c.binary && !c.at_line_end() {
+                return Err(c.syntax(
+                    at,
+                    format!(
+                        "element {id}: more than {nn} node tags on its line, a {tname} has {nn}"
+                    ),
+                ));
             }
             for g in &groups {
                 node_sets.entry(g.clone()).or_default().extend(&nodes);
             }
-            if etype == 5 {
+            if let Some(shape) = solid {
                 let k = file.elements.len();
                 for g in &groups {
                     file.element_sets.entry(g.clone()).or_default().push(k);
                 }
                 file.elements.push(FileElement {
                     id,
-                    shape: Shape::Hex8,
-                    nodes,
+                    shape,
+                    nodes: gmsh_order(shape).iter().map(|&g| nodes[g]).collect(),
                     line: at,
                 });
             } else {
-                if etype == 2 || etype == 3 {
+                if matches!(etype, 2 | 9 | 3 | 16) {
                     for g in &groups {
                         file.face_sets
                             .entry(g.clone())
@@ -618,9 +714,9 @@ pub(crate) fn plan<'a>(
         let Some(group) = mesh.groups.get(*g) else {
             return Err(err(format!("body '{name}': no group {g}")));
         };
-        if group.shape != Shape::Hex8 {
+        if solid_type(group.shape).is_none() {
             return Err(err(format!(
-                "body '{name}': group {g} holds {} elements; only hex8 bodies are written",
+                "body '{name}': group {g} holds {} elements; only solid bodies are written",
                 group.shape.name()
             )));
         }
@@ -724,7 +820,7 @@ impl Out {
     }
 }
 
-/// Write `bodies` (name, hex8 group) of `mesh` at coordinates `x` as MSH 4.1, ASCII or binary,
+/// Write `bodies` (name, solid group) of `mesh` at coordinates `x` as MSH 4.1, ASCII or binary,
 /// with each body's sets `NAME.SET` as physical groups `SET` (see the module documentation).
 pub fn write(
     mesh: &Mesh,
@@ -800,29 +896,36 @@ fn write_msh(
             (lo, hi)
         }
     };
+    /// An element: its Gmsh type and its nodes in fricsens' order.
+    type Element<'e> = (i32, &'e [usize]);
+    /// An entity and its elements.
     struct Entity<'e> {
         dim: i32,
         tag: i32,
         phys: i32,
-        elements: Vec<&'e [usize]>,
+        elements: Vec<Element<'e>>,
     }
     let mut points: Vec<Entity> = Vec::new();
     let mut surfaces: Vec<Entity> = Vec::new();
     let mut volumes: Vec<Entity> = Vec::new();
     for (b, (_, g, ns, fs)) in plan.bodies.iter().enumerate() {
         let group = &mesh.groups[*g];
+        // plan() wrote only solid groups
+        let etype = solid_type(group.shape).unwrap_or(0);
         volumes.push(Entity {
             dim: 3,
             tag: b as i32 + 1,
             phys: b as i32 + 1,
-            elements: (0..group.len()).map(|k| group.element(k)).collect(),
+            elements: (0..group.len())
+                .map(|k| (etype, group.element(k)))
+                .collect(),
         });
         for (s, f) in fs {
             surfaces.push(Entity {
                 dim: 2,
                 tag: surfaces.len() as i32 + 1,
                 phys: surf_tags[s],
-                elements: (0..f.len()).map(|k| f.nodes(k)).collect(),
+                elements: f.iter().map(|f| (face_type(f.family), f.nodes)).collect(),
             });
         }
         for (s, v) in ns {
@@ -830,7 +933,7 @@ fn write_msh(
                 dim: 0,
                 tag: points.len() as i32 + 1,
                 phys: point_tags[s],
-                elements: v.chunks(1).collect(),
+                elements: v.chunks(1).map(|n| (15, n)).collect(),
             });
         }
     }
@@ -841,7 +944,7 @@ fn write_msh(
     o.nl();
     for e in points.iter().chain(&surfaces).chain(&volumes) {
         o.int(e.tag);
-        let (lo, hi) = bbox(&mut e.elements.iter().flat_map(|el| el.iter().copied()));
+        let (lo, hi) = bbox(&mut e.elements.iter().flat_map(|el| el.1.iter().copied()));
         for v in lo {
             o.f64(v);
         }
@@ -906,30 +1009,43 @@ fn write_msh(
     }
     o.text("$EndNodes\n");
     // elements
-    // the hexahedra first, so that they are numbered 1.. as by the Abaqus writer
+    // the solids first, so that they are numbered 1.. as by the Abaqus writer; one block per
+    // run of elements of one type in an entity (a wedge's face set mixes triangles and
+    // quadrangles), so that the elements keep their order
     let all: Vec<&Entity> = volumes.iter().chain(&surfaces).chain(&points).collect();
+    let mut blocks: Vec<(&Entity, i32, &[Element])> = Vec::new();
+    for e in &all {
+        for run in e.elements.chunk_by(|a, b| a.0 == b.0) {
+            blocks.push((e, run[0].0, run));
+        }
+    }
     let total: usize = all.iter().map(|e| e.elements.len()).sum();
     o.text("$Elements\n");
-    for v in [all.len(), total, usize::from(total > 0), total] {
+    for v in [blocks.len(), total, usize::from(total > 0), total] {
         o.size(v);
     }
     o.nl();
     let mut id = 0usize;
-    for e in all {
-        let etype = match e.dim {
-            0 => 15,
-            2 => 3,
-            _ => 5,
-        };
+    for (e, etype, run) in blocks {
         o.int(e.dim);
         o.int(e.tag);
         o.int(etype);
-        o.size(e.elements.len());
+        o.size(run.len());
         o.nl();
-        for el in &e.elements {
+        // Gmsh node j of a solid is fricsens node order^-1 (j): write node k at order[k]
+        let order = solid_shape(i64::from(etype)).map(gmsh_order);
+        let mut nodes = Vec::new();
+        for (_, el) in run {
             id += 1;
             o.size(id);
-            for &n in el.iter() {
+            nodes.clear();
+            nodes.extend_from_slice(el);
+            if let Some(order) = order {
+                for (k, &g) in order.iter().enumerate() {
+                    nodes[g] = el[k];
+                }
+            }
+            for &n in &nodes {
                 o.size(n + 1);
             }
             o.nl();
@@ -988,9 +1104,100 @@ mod tests {
 
     #[test]
     fn every_supported_type_has_its_node_count() {
-        for (t, n) in [(1, 2), (2, 3), (3, 4), (5, 8), (15, 1)] {
+        for (t, n) in [(1, 2), (8, 3), (2, 3), (9, 6), (3, 4), (16, 8), (15, 1)] {
             assert_eq!(element_type(t).map(|e| e.1), Some(n));
         }
+        for shape in Shape::SOLIDS {
+            let t = solid_type(shape).unwrap();
+            assert_eq!(solid_shape(i64::from(t)), Some(shape));
+            assert_eq!(
+                element_type(i64::from(t)).map(|e| e.1),
+                Some(shape.n_nodes())
+            );
+        }
         assert!(element_type(0).is_none() && element_type(20).is_none());
+    }
+
+    /// Gmsh's reference nodes of types 4, 11, 5, 17, 6, 18 as
+    /// `gmsh.model.mesh.getElementProperties` lists them (gmsh 4.15.2; the manual's
+    /// node-ordering figures show the same): tetrahedra in `(u, v, w)` with corner 0 at the
+    /// origin, hexahedra in `[-1, 1]^3`, prisms a triangle `(u, v)` swept along
+    /// `w in [-1, 1]`, which are fricsens' natural coordinates of each shape. Permuted by
+    /// [`gmsh_order`], they must be fricsens' natural nodes.
+    #[test]
+    fn gmsh_orders_put_gmsh_reference_nodes_at_fricsens_natural_nodes() {
+        const TET10: [[f64; 3]; 10] = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.5, 0.0, 0.0],
+            [0.5, 0.5, 0.0],
+            [0.0, 0.5, 0.0],
+            [0.0, 0.0, 0.5],
+            [0.0, 0.5, 0.5],
+            [0.5, 0.0, 0.5],
+        ];
+        const HEX20: [[f64; 3]; 20] = [
+            [-1.0, -1.0, -1.0],
+            [1.0, -1.0, -1.0],
+            [1.0, 1.0, -1.0],
+            [-1.0, 1.0, -1.0],
+            [-1.0, -1.0, 1.0],
+            [1.0, -1.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [-1.0, 1.0, 1.0],
+            [0.0, -1.0, -1.0],
+            [-1.0, 0.0, -1.0],
+            [-1.0, -1.0, 0.0],
+            [1.0, 0.0, -1.0],
+            [1.0, -1.0, 0.0],
+            [0.0, 1.0, -1.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 1.0, 0.0],
+            [0.0, -1.0, 1.0],
+            [-1.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [0.0, 1.0, 1.0],
+        ];
+        const PRISM15: [[f64; 3]; 15] = [
+            [0.0, 0.0, -1.0],
+            [1.0, 0.0, -1.0],
+            [0.0, 1.0, -1.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [0.5, 0.0, -1.0],
+            [0.0, 0.5, -1.0],
+            [0.0, 0.0, 0.0],
+            [0.5, 0.5, -1.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.5, 0.0, 1.0],
+            [0.0, 0.5, 1.0],
+            [0.5, 0.5, 1.0],
+        ];
+        // the linear types are the first nodes of the quadratic ones
+        for (shape, gmsh) in [
+            (Shape::Tet4, &TET10[..4]),
+            (Shape::Tet10, &TET10[..]),
+            (Shape::Hex8, &HEX20[..8]),
+            (Shape::Hex20, &HEX20[..]),
+            (Shape::Wedge6, &PRISM15[..6]),
+            (Shape::Wedge15, &PRISM15[..]),
+        ] {
+            let order = gmsh_order(shape);
+            assert_eq!(order.len(), shape.n_nodes());
+            let mut sorted = order.to_vec();
+            sorted.sort_unstable();
+            assert_eq!(
+                sorted,
+                (0..shape.n_nodes()).collect::<Vec<_>>(),
+                "{shape:?}"
+            );
+            for (k, xi) in shape.natural_nodes().iter().enumerate() {
+                assert_eq!(gmsh[order[k]], *xi, "{shape:?} node {k}");
+            }
+        }
     }
 }

@@ -45,14 +45,19 @@
 //!   copy of the set would lose it silently).
 //! * **Checks.** Node coordinates finite; node and element ids unique; every element's nodes
 //!   exist; no two nodes of the body closer than `1e-9` times the body's bounding-box diagonal
-//!   (an unmerged mesh; found with a spatial hash); a positive Jacobian determinant at each of
-//!   the eight Gauss points of every hex8; every face of a face set oriented out of its element.
+//!   (an unmerged mesh; found with a spatial hash); a positive Jacobian determinant at each
+//!   Gauss point of every solid (the points of its shape's standard rule,
+//!   [`ElementFamily::standard`]); every face of a face set oriented out of its element.
+//! * **Sides.** Abaqus side `Sn` of an element is the face of [`Shape::faces`] with the corners
+//!   of the Abaqus/CalculiX face table of its shape (`abaqus_sides` here); a quadratic element's
+//!   face carries its mid-side nodes. A side the shape does not have (`S5` of a tetrahedron)
+//!   is [`ImportError::UnknownSide`].
 //!
 //! Every error names the file and, where it applies, the line (the byte offset in a binary MSH
 //! file) and the entity: node id, element id, set name, Gauss point.
 
 use super::{FaceSet, Mesh, MeshError};
-use crate::element::{hex8, Shape};
+use crate::element::{ElementFamily, Shape};
 use nalgebra::{Matrix3, Vector3};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::fmt;
@@ -357,14 +362,15 @@ pub enum ImportError {
         /// Why it matters (the node set holding it, or that Gmsh never writes one).
         why: String,
     },
-    /// A hex8 with a non-positive Jacobian determinant (inverted or degenerate).
+    /// A solid with a non-positive Jacobian determinant (inverted or degenerate).
     #[error("{at}: element {element}: Jacobian determinant {det:e} <= 0 at Gauss point {gauss_point} (xi = {xi:?}): the element is inverted or degenerate")]
     InvertedElement {
         /// The element's definition.
         at: Place,
         /// The element id.
         element: u64,
-        /// The Gauss point (0..8, in [`hex8::gauss_points`] order).
+        /// The Gauss point, in the order of the shape's standard rule (a hex8's in
+        /// [`crate::element::hex8::gauss_points`] order).
         gauss_point: usize,
         /// Its natural coordinates.
         xi: [f64; 3],
@@ -394,6 +400,22 @@ pub enum ImportError {
         set: String,
         /// The face (`nodes [..]` or `side Sn of element e`).
         face: String,
+    },
+    /// An Abaqus side the element's shape does not have.
+    #[error("{at}: face set '{set}': element {element} is a {shape}, which has sides S1..S{sides}, not S{side}")]
+    UnknownSide {
+        /// The face's definition.
+        at: Place,
+        /// The set.
+        set: String,
+        /// The element id.
+        element: u64,
+        /// The element's shape.
+        shape: &'static str,
+        /// The side asked for (1-based).
+        side: usize,
+        /// How many sides the shape has.
+        sides: usize,
     },
     /// A face whose normal does not point out of its element.
     #[error("{at}: face set '{set}': face {face} of element {element} does not point out of the element")]
@@ -490,31 +512,50 @@ pub struct ImportedBody {
     pub element_ids: Vec<u64>,
 }
 
-/// Abaqus C3D8 sides S1..S6 as 0-based local nodes.
-pub(crate) const ABAQUS_HEX8_SIDES: [[usize; 4]; 6] = [
-    [0, 1, 2, 3],
-    [4, 7, 6, 5],
-    [0, 4, 5, 1],
-    [1, 5, 6, 2],
-    [2, 6, 7, 3],
-    [3, 7, 4, 0],
-];
-
-/// The face of [`Shape::faces`] (its index) with the nodes of Abaqus side `side` (1-based).
-pub(crate) fn hex8_face_of_side(side: usize) -> Option<usize> {
-    let s = ABAQUS_HEX8_SIDES.get(side.checked_sub(1)?)?;
-    let mut s = *s;
-    s.sort_unstable();
-    Shape::Hex8.faces().iter().position(|f| {
-        let mut n = f.nodes.to_vec();
-        n.sort_unstable();
-        n == s
-    })
+/// Abaqus sides `S1`, `S2`, ... of a solid shape as 0-based local corner nodes: the face tables
+/// of the Abaqus and CalculiX manuals (C3D8/C3D20: `S1 (1, 2, 3, 4)`, `S2 (5, 8, 7, 6)`,
+/// `S3 (1, 5, 6, 2)`, `S4 (2, 6, 7, 3)`, `S5 (3, 7, 8, 4)`, `S6 (4, 8, 5, 1)`; C3D4/C3D10:
+/// `S1 (1, 2, 3)`, `S2 (1, 4, 2)`, `S3 (2, 4, 3)`, `S4 (3, 4, 1)`; C3D6/C3D15: `S1 (1, 2, 3)`,
+/// `S2 (4, 6, 5)`, `S3 (1, 4, 5, 2)`, `S4 (2, 5, 6, 3)`, `S5 (3, 6, 4, 1)`), corners only (a
+/// quadratic element's side is the face of the same corners). None for a discrete shape.
+pub(crate) fn abaqus_sides(shape: Shape) -> &'static [&'static [usize]] {
+    const HEX: [&[usize]; 6] = [
+        &[0, 1, 2, 3],
+        &[4, 7, 6, 5],
+        &[0, 4, 5, 1],
+        &[1, 5, 6, 2],
+        &[2, 6, 7, 3],
+        &[3, 7, 4, 0],
+    ];
+    const TET: [&[usize]; 4] = [&[0, 1, 2], &[0, 3, 1], &[1, 3, 2], &[2, 3, 0]];
+    const WEDGE: [&[usize]; 5] = [
+        &[0, 1, 2],
+        &[3, 5, 4],
+        &[0, 3, 4, 1],
+        &[1, 4, 5, 2],
+        &[2, 5, 3, 0],
+    ];
+    match shape.corners() {
+        Shape::Hex8 => &HEX,
+        Shape::Tet4 => &TET,
+        Shape::Wedge6 => &WEDGE,
+        _ => &[],
+    }
 }
 
-/// The Abaqus side (1-based) of face `f` of [`Shape::faces`] of a hex8.
-pub(crate) fn hex8_side_of_face(f: usize) -> Option<usize> {
-    (1..=6).find(|&s| hex8_face_of_side(s) == Some(f))
+/// The face of [`Shape::faces`] (its index) with the corners of Abaqus side `side` (1-based)
+/// of `shape`; `None` for a side the shape does not have.
+pub(crate) fn face_of_side(shape: Shape, side: usize) -> Option<usize> {
+    let corners = sorted(abaqus_sides(shape).get(side.checked_sub(1)?)?);
+    shape
+        .faces()
+        .iter()
+        .position(|f| sorted(&f.nodes[..f.family.n_corners()]) == corners)
+}
+
+/// The Abaqus side (1-based) of face `f` of [`Shape::faces`] of `shape`.
+pub(crate) fn side_of_face(shape: Shape, f: usize) -> Option<usize> {
+    (1..=abaqus_sides(shape).len()).find(|&s| face_of_side(shape, s) == Some(f))
 }
 
 fn sorted<T: Ord + Copy>(v: &[T]) -> Vec<T> {
@@ -523,14 +564,18 @@ fn sorted<T: Ord + Copy>(v: &[T]) -> Vec<T> {
     k
 }
 
-/// Jacobian determinant of the hex8 reference map at `xi`.
-pub(crate) fn hex8_det(x: &[[f64; 3]; 8], xi: [f64; 3]) -> f64 {
-    let d = hex8::shape_derivatives(xi);
+/// Jacobian determinant of the reference map of a `shape` element with nodes `x` (in the
+/// shape's node order) at natural coordinates `xi` (`NaN` for a discrete shape).
+pub(crate) fn reference_det(shape: Shape, x: &[[f64; 3]], xi: [f64; 3]) -> f64 {
+    let Some(solid) = ElementFamily::standard(shape).solid() else {
+        return f64::NAN;
+    };
+    let d = (solid.interpolation.derivatives)(xi);
     let mut j = Matrix3::zeros();
-    for a in 0..8 {
+    for (xa, da) in x.iter().zip(&d).take(solid.interpolation.n_nodes) {
         for r in 0..3 {
             for c in 0..3 {
-                j[(r, c)] += x[a][r] * d[a][c];
+                j[(r, c)] += xa[r] * da[c];
             }
         }
     }
@@ -824,7 +869,8 @@ impl MeshFile {
                     .get(&face_key(ids.iter().copied()).unwrap_or_default())
                     .map_or(0, |v| v.iter().filter(|&&(j, _)| in_body[j]).count());
                 if on_body == 1 {
-                    self.check_outward("boundary", e.line, e, &ids, &node_index)?;
+                    let corners = &ids[..face.family.n_corners()];
+                    self.check_outward("boundary", e.line, e, corners, &node_index)?;
                 }
             }
         }
@@ -1008,21 +1054,22 @@ impl MeshFile {
         Ok(())
     }
 
-    /// Positive Jacobian determinant at every Gauss point.
+    /// Positive Jacobian determinant at every Gauss point of the shape's standard rule.
     fn check_jacobian(
         &self,
         e: &FileElement,
         node_index: &HashMap<u64, usize>,
     ) -> Result<(), ImportError> {
-        if e.shape != Shape::Hex8 {
+        let Some(solid) = ElementFamily::standard(e.shape).solid() else {
             return Ok(());
-        }
-        let mut x = [[0.0; 3]; 8];
-        for (a, id) in e.nodes.iter().take(8).enumerate() {
-            x[a] = self.nodes[node_index[id]].x;
-        }
-        for (g, xi) in hex8::gauss_points().into_iter().enumerate() {
-            let det = hex8_det(&x, xi);
+        };
+        let x: Vec<[f64; 3]> = e
+            .nodes
+            .iter()
+            .map(|id| self.nodes[node_index[id]].x)
+            .collect();
+        for (g, &xi) in solid.rule.points.iter().enumerate() {
+            let det = reference_det(e.shape, &x, xi);
             if det.is_nan() || det <= 0.0 {
                 return Err(ImportError::InvertedElement {
                     at: self.place(e.line),
@@ -1094,7 +1141,8 @@ impl MeshFile {
                 let e = &self.elements[k];
                 let topo = &e.shape.faces()[f];
                 let ids: Vec<u64> = topo.nodes.iter().map(|&l| e.nodes[l]).collect();
-                self.check_outward(name, face.line(), e, &ids, node_index)?;
+                let corners = &ids[..topo.family.n_corners()];
+                self.check_outward(name, face.line(), e, corners, node_index)?;
                 let nodes: Vec<usize> = ids.iter().map(|id| node_ids[id]).collect();
                 set.push(topo.family, &nodes)
                     .map_err(|source| ImportError::Mesh {
@@ -1142,12 +1190,15 @@ impl MeshFile {
                     return Err(not_found());
                 };
                 let e = &self.elements[k];
-                let f = match e.shape {
-                    Shape::Hex8 => hex8_face_of_side(*side),
-                    _ => None,
-                };
-                let Some(f) = f else {
-                    return Err(not_found());
+                let Some(f) = face_of_side(e.shape, *side) else {
+                    return Err(ImportError::UnknownSide {
+                        at,
+                        set: set.to_string(),
+                        element: *element,
+                        shape: e.shape.name(),
+                        side: *side,
+                        sides: abaqus_sides(e.shape).len(),
+                    });
                 };
                 let ids: Vec<u64> = e.shape.faces()[f]
                     .nodes
@@ -1182,7 +1233,8 @@ impl MeshFile {
         }
     }
 
-    /// The face `ids` of element `e` points out of it: (face centre - element centre) . n > 0.
+    /// The face of corners `ids` (in the face's cyclic order) of element `e` points out of
+    /// it: (face centre - element centre) . n > 0, the element centre the mean of its corners.
     fn check_outward(
         &self,
         set: &str,
@@ -1192,8 +1244,9 @@ impl MeshFile {
         node_index: &HashMap<u64, usize>,
     ) -> Result<(), ImportError> {
         let pos = |id: &u64| Vector3::from(self.nodes[node_index[id]].x);
+        let corners = &e.nodes[..e.shape.corners().n_nodes().min(e.nodes.len())];
         let xe: Vector3<f64> =
-            e.nodes.iter().map(pos).sum::<Vector3<f64>>() / e.nodes.len().max(1) as f64;
+            corners.iter().map(pos).sum::<Vector3<f64>>() / corners.len().max(1) as f64;
         let xf: Vec<Vector3<f64>> = ids.iter().map(pos).collect();
         let centre = xf.iter().sum::<Vector3<f64>>() / xf.len().max(1) as f64;
         // the face normal: sum of the corner cross products (Newell), any polygon
@@ -1219,15 +1272,97 @@ impl MeshFile {
 mod tests {
     use super::*;
 
+    /// The natural nodes of `shape` mapped by `x -> (a x, b y, c z) + d`: an affine map of
+    /// determinant `a b c`.
+    fn stretched(shape: Shape, abc: [f64; 3]) -> Vec<[f64; 3]> {
+        shape
+            .natural_nodes()
+            .iter()
+            .map(|p| {
+                [
+                    abc[0] * p[0] + 1.0,
+                    abc[1] * p[1] - 2.0,
+                    abc[2] * p[2] + 0.5,
+                ]
+            })
+            .collect()
+    }
+
     #[test]
-    fn the_jacobian_of_a_box_is_its_volume_over_eight() {
-        // a 2 x 3 x 5 box: det = 30 / 8 everywhere; mirrored, -30 / 8
-        let x = hex8::NODE_XI.map(|p| [1.0 + p[0], 1.5 * (1.0 + p[1]), 2.5 * (1.0 + p[2])]);
-        for xi in hex8::gauss_points() {
-            assert!((hex8_det(&x, xi) - 30.0 / 8.0).abs() < 1e-14);
+    fn the_jacobian_of_an_affine_map_is_its_determinant_for_every_shape() {
+        // an affine image of the natural element: det J = a b c at every point, -a b c mirrored
+        for shape in Shape::SOLIDS {
+            let x = stretched(shape, [1.0, 1.5, 2.5]);
+            let m = stretched(shape, [-1.0, 1.5, 2.5]);
+            let solid = ElementFamily::standard(shape).solid().unwrap();
+            for &xi in solid.rule.points {
+                assert!(
+                    (reference_det(shape, &x, xi) - 3.75).abs() < 1e-13,
+                    "{shape:?}"
+                );
+                assert!(
+                    (reference_det(shape, &m, xi) + 3.75).abs() < 1e-13,
+                    "{shape:?}"
+                );
+            }
         }
-        let m = x.map(|p| [-p[0], p[1], p[2]]);
-        assert!((hex8_det(&m, [0.0; 3]) + 30.0 / 8.0).abs() < 1e-14);
+        assert!(reference_det(Shape::Line2, &[[0.0; 3]; 2], [0.0; 3]).is_nan());
+    }
+
+    #[test]
+    fn abaqus_sides_are_faces_of_their_shapes_one_for_one() {
+        // the manuals' tables as 1-based corners, each side's face holds exactly them
+        let tables: [(Shape, &[&[usize]]); 3] = [
+            (
+                Shape::Hex8,
+                &[
+                    &[1, 2, 3, 4],
+                    &[5, 8, 7, 6],
+                    &[1, 5, 6, 2],
+                    &[2, 6, 7, 3],
+                    &[3, 7, 8, 4],
+                    &[4, 8, 5, 1],
+                ],
+            ),
+            (
+                Shape::Tet4,
+                &[&[1, 2, 3], &[1, 4, 2], &[2, 4, 3], &[3, 4, 1]],
+            ),
+            (
+                Shape::Wedge6,
+                &[
+                    &[1, 2, 3],
+                    &[4, 6, 5],
+                    &[1, 4, 5, 2],
+                    &[2, 5, 6, 3],
+                    &[3, 6, 4, 1],
+                ],
+            ),
+        ];
+        for (linear, table) in tables {
+            for shape in Shape::SOLIDS.into_iter().filter(|s| s.corners() == linear) {
+                assert_eq!(abaqus_sides(shape).len(), table.len());
+                let mut seen = vec![false; shape.faces().len()];
+                for (k, corners) in table.iter().enumerate() {
+                    let f = face_of_side(shape, k + 1).unwrap();
+                    assert!(!seen[f], "{shape:?} S{}", k + 1);
+                    seen[f] = true;
+                    assert_eq!(side_of_face(shape, f), Some(k + 1));
+                    let face = &shape.faces()[f];
+                    let mut got = face.nodes[..face.family.n_corners()].to_vec();
+                    got.sort_unstable();
+                    let mut want: Vec<usize> = corners.iter().map(|c| c - 1).collect();
+                    want.sort_unstable();
+                    assert_eq!(got, want, "{shape:?} S{}", k + 1);
+                }
+                assert!(seen.iter().all(|&s| s), "{shape:?}");
+                assert_eq!(face_of_side(shape, 0), None);
+                assert_eq!(face_of_side(shape, table.len() + 1), None);
+            }
+        }
+        // S1 of a hex8 is its -z face (nodes 1-4), fricsens face 4
+        assert_eq!(face_of_side(Shape::Hex8, 1), Some(4));
+        assert!(abaqus_sides(Shape::Point1).is_empty());
     }
 
     #[test]

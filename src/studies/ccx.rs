@@ -25,10 +25,12 @@
 //! * `*CONTROLS` with fricsens' force tolerance as CalculiX's residual and correction ratios,
 //!   fricsens' iteration limit as its iteration limit, and no cutback (see
 //!   [`ExportOptions`]);
-//! * contact: the slave surface is made of the free element faces whose four nodes are hitting
-//!   nodes (a nodal surface if they do not cover the hitting nodes), the master of the target
-//!   faces, each an element face `(element, S1..S6)` (the Abaqus sides the importer reads) on
-//!   the target body's boundary, so that CalculiX takes its outward normal.
+//! * contact: the slave surface is made of the free element faces all of whose nodes (corners
+//!   and, on a quadratic element, mid-sides) are hitting nodes (a nodal surface if they do not
+//!   cover the hitting nodes), the master of the target faces (quad4 faces only), each an
+//!   element face `(element, Sn)` (the Abaqus sides of the element's shape, which the importer
+//!   reads; faces found by their sorted corner nodes) on the target body's boundary, so that
+//!   CalculiX takes its outward normal.
 //!   - A rigid target is node-to-face penalty contact (`TYPE=NODE TO SURFACE`, large
 //!     sliding). A [`RigidSurface::RoundedBox`] is meshed: its side facing the hitting nodes
 //!     (the flat face, its two rounded edges and one radius of the adjacent faces), extruded
@@ -218,13 +220,20 @@ pub struct Deck {
     pub times: Vec<f64>,
 }
 
-// CalculiX face `k` (S1..S6) of a hex8, as local node indices: the Abaqus sides the importer reads
-use crate::mesh::import::ABAQUS_HEX8_SIDES as CCX_FACES;
+// CalculiX sides S1.. of an element of any solid shape: the Abaqus sides the importer reads,
+// each the face of `Shape::faces` with the side's corners
+use crate::mesh::import::{abaqus_sides, face_of_side};
 
-fn sorted4(f: &[usize; 4]) -> [usize; 4] {
-    let mut s = *f;
-    s.sort_unstable();
-    s
+/// A face by its sorted corner nodes (three or four), padded with `usize::MAX`.
+type CornerKey = [usize; 4];
+
+fn corner_key(corners: &[usize]) -> CornerKey {
+    let mut k = [usize::MAX; 4];
+    for (slot, &n) in k.iter_mut().zip(corners) {
+        *slot = n;
+    }
+    k.sort_unstable();
+    k
 }
 
 /// Write lists of integers, 16 a line (CalculiX reads at most 16 entries per set line).
@@ -388,12 +397,24 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
             }
         }
     }
-    // every face of every element, to find the free faces and their CalculiX numbers
-    let mut face_of: HashMap<[usize; 4], Vec<(usize, usize)>> = HashMap::new();
-    for (e, (_, c)) in model.mesh.elements().enumerate() {
-        for (k, f) in CCX_FACES.iter().enumerate() {
-            let nodes = [c[f[0]], c[f[1]], c[f[2]], c[f[3]]];
-            face_of.entry(sorted4(&nodes)).or_default().push((e, k));
+    // every face of every element by its sorted corners, to find the free faces and their
+    // CalculiX sides: (element, side 1.., the face's local nodes, corners and mid-sides)
+    type Side = (usize, usize, &'static [usize]);
+    let mut face_of: HashMap<CornerKey, Vec<Side>> = HashMap::new();
+    for (e, (shape, c)) in model.mesh.elements().enumerate() {
+        for side in 1..=abaqus_sides(shape).len() {
+            let Some(f) = face_of_side(shape, side) else {
+                continue;
+            };
+            let face = &shape.faces()[f];
+            let corners: Vec<usize> = face.nodes[..face.family.n_corners()]
+                .iter()
+                .map(|&l| c[l])
+                .collect();
+            face_of
+                .entry(corner_key(&corners))
+                .or_default()
+                .push((e, side, face.nodes));
         }
     }
     let mut contact_text = String::new();
@@ -409,18 +430,22 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         let sig_inf = opts.tension_fraction * young_max.max(f64::MIN_POSITIVE);
         median_area.push(a_med);
         normal_stiffness.push(k_n);
-        // slave surface: free faces whose four nodes are hitting nodes
+        // slave surface: free faces all of whose nodes (corners and mid-sides) are hitting
+        // nodes
         let hitting: HashSet<usize> = pair.hitting.iter().copied().collect();
-        let mut slave: Vec<(usize, usize)> = face_of
-            .iter()
-            .filter(|(f, owners)| owners.len() == 1 && f.iter().all(|n| hitting.contains(n)))
-            .map(|(_, owners)| owners[0])
+        let face_nodes = |&(e, _, local): &Side| {
+            let c = model.mesh.element_nodes(e);
+            local.iter().map(move |&l| c[l])
+        };
+        let mut slave: Vec<Side> = face_of
+            .values()
+            .filter(|owners| {
+                owners.len() == 1 && face_nodes(&owners[0]).all(|n| hitting.contains(&n))
+            })
+            .map(|owners| owners[0])
             .collect();
         slave.sort_unstable();
-        let covered: HashSet<usize> = slave
-            .iter()
-            .flat_map(|&(e, k)| CCX_FACES[k].map(|l| model.mesh.element_nodes(e)[l]))
-            .collect();
+        let covered: HashSet<usize> = slave.iter().flat_map(face_nodes).collect();
         let element_slave = !slave.is_empty() && covered.len() == hitting.len();
         // face to face between deformable bodies: surface to surface (it needs an element-face
         // slave surface; hitting nodes that are not whole faces stay node to surface)
@@ -429,8 +454,8 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         tension.push(if faces_target { 0.0 } else { sig_inf });
         if element_slave {
             let _ = writeln!(contact_text, "*SURFACE,NAME=SLAVE{ci},TYPE=ELEMENT");
-            for (e, k) in &slave {
-                let _ = writeln!(contact_text, "{},S{}", e + 1, k + 1);
+            for (e, side, _) in &slave {
+                let _ = writeln!(contact_text, "{},S{side}", e + 1);
             }
         } else {
             let _ = writeln!(contact_text, "*NSET,NSET=NSLAVE{ci}");
@@ -442,14 +467,23 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         match &pair.target {
             Target::Faces { faces } => {
                 for k in 0..faces.len() {
+                    let family = faces.face(k).family;
+                    if family != crate::element::FaceFamily::Quad4 {
+                        return Err(CcxError::Unsupported(format!(
+                            "pair '{}': target face {k} is a {} face; only quad4 target faces \
+                             are exported",
+                            pair.name,
+                            family.name()
+                        )));
+                    }
                     let f = &crate::contact::quad_nodes(faces, k);
-                    let owners = face_of.get(&sorted4(f)).ok_or_else(|| {
+                    let owners = face_of.get(&corner_key(f)).ok_or_else(|| {
                         CcxError::Unsupported(format!(
                             "pair '{}': target face {k} (nodes {f:?}) is not an element face",
                             pair.name
                         ))
                     })?;
-                    let &[(e, k)] = owners.as_slice() else {
+                    let &[(e, side, _)] = owners.as_slice() else {
                         return Err(CcxError::Unsupported(format!(
                             "pair '{}': target face {k} (nodes {f:?}) is shared by {} elements, \
                              not a boundary face",
@@ -457,7 +491,7 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
                             owners.len()
                         )));
                     };
-                    let _ = writeln!(contact_text, "{},S{}", e + 1, k + 1);
+                    let _ = writeln!(contact_text, "{},S{side}", e + 1);
                 }
                 reference_nodes.push(None);
             }

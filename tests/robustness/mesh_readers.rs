@@ -4,6 +4,7 @@
 //! the line or entity), and a fuzzer mutating small seed files (no input may panic; a mutant
 //! that ever does is kept under `tests/corpus/meshes/`).
 
+use fricsens::element::Shape;
 use fricsens::mesh::import::{FileFace, ImportError, ImportedBody, MeshFile};
 use fricsens::mesh::{abaqus, gmsh, Axis, BlockSpec, Mesh, Zone};
 use nalgebra::Vector3;
@@ -475,18 +476,172 @@ fn msh_2_2_is_refused_saying_how_to_write_4_1() {
 
 #[test]
 fn unsupported_element_types_are_named() {
-    let text = std::fs::read_to_string(fixtures().join("gmsh_tet4.msh")).unwrap();
+    // Gmsh: a 27-node hexahedron, an 18-node prism, a pyramid in place of the cube's hex8
+    for (t, name) in [
+        (12, "27-node second order hexahedron"),
+        (13, "18-node second order prism"),
+        (7, "5-node pyramid"),
+    ] {
+        let text = one_hex().replace("\n3 1 5 1\n", &format!("\n3 1 {t} 1\n"));
+        let p = file_with(&format!("unsupported-{t}"), "unsupported.msh", &text);
+        let header = line_of(&text, &format!("3 1 {t} 1"));
+        let e = rejects(
+            &p,
+            None,
+            &[
+                &format!("type {t}, {name}"),
+                "20-node hexahedron",
+                &format!("line {header}"),
+            ],
+        );
+        assert!(matches!(e, ImportError::UnsupportedElement { .. }), "{e}");
+    }
+    // Abaqus: C3D27, and the variable-node C3D15V
+    for ty in ["C3D27", "C3D15V"] {
+        let text = std::fs::read_to_string(fixtures().join("c3d10.inp"))
+            .unwrap()
+            .replace("TYPE=C3D10", &format!("TYPE={ty}"));
+        let p = file_with(&format!("unsupported-{ty}"), "unsupported.inp", &text);
+        let e = rejects(&p, None, &[ty, "line 13", "C3D20"]);
+        assert!(matches!(e, ImportError::UnsupportedElement { .. }), "{e}");
+    }
+}
+
+#[test]
+fn a_wrong_node_count_for_its_type_names_the_element_and_its_line() {
+    // Gmsh: a tet10 of quad_tet10.msh with a node tag too few, and one too many
+    let text = std::fs::read_to_string(fixtures().join("quad_tet10.msh")).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let header = lines.iter().position(|l| *l == "$Elements").unwrap();
+    // the first element line of the tetrahedra's block (type 11)
+    let block = (header..lines.len())
+        .find(|&k| {
+            let f: Vec<&str> = lines[k].split_whitespace().collect();
+            f.len() == 4 && f[0] == "3" && f[2] == "11"
+        })
+        .unwrap();
+    let line = block + 2; // 1-based line of the block's first element
+    let first: Vec<&str> = lines[block + 1].split_whitespace().collect();
+    assert_eq!(first.len(), 11);
+    let id = first[0];
+    for (case, replaced) in [
+        ("short", first[..10].join(" ")),
+        ("long", format!("{} 1", first.join(" "))),
+    ] {
+        let mut l = lines.clone();
+        l[block + 1] = &replaced;
+        let p = file_with(
+            &format!("count-{case}"),
+            "count.msh",
+            &(l.join("\n") + "\n"),
+        );
+        let e = rejects(
+            &p,
+            None,
+            &[
+                &format!("element {id}:"),
+                "10-node second order tetrahedron has 10",
+                &format!("line {line}"),
+            ],
+        );
+        assert!(matches!(e, ImportError::Syntax { .. }), "{e}");
+    }
+    // Abaqus: a C3D10 with nine nodes, a C3D20 continued with a node too few
+    let text = std::fs::read_to_string(fixtures().join("c3d10.inp"))
+        .unwrap()
+        .replace("9, 10\n", "9\n");
+    let p = file_with("count-inp", "count.inp", &text);
     let e = rejects(
-        &fixtures().join("gmsh_tet4.msh"),
+        &p,
         None,
-        &["type 4, 4-node tetrahedron", "8-node hexahedron"],
+        &["C3D10", "an id and 10 nodes, found 10 values", "line 14"],
     );
-    assert!(matches!(e, ImportError::UnsupportedElement { .. }));
-    // the block header of the tetrahedra
-    let header = text.lines().position(|l| l.starts_with("3 1 4 ")).unwrap() + 1;
-    assert!(e.to_string().contains(&format!("line {header}")), "{e}");
-    let e = rejects(&fixtures().join("c3d10.inp"), None, &["C3D10", "line 13"]);
-    assert!(matches!(e, ImportError::UnsupportedElement { .. }));
+    assert!(matches!(e, ImportError::Syntax { .. }), "{e}");
+    let hex = std::fs::read_to_string(fixtures().join("quad_hex20.inp")).unwrap();
+    let at = hex.find("*ELEMENT, type=C3D20").unwrap();
+    let line = 2 + hex[..at].lines().count();
+    let start = at + hex[at..].find('\n').unwrap() + 1;
+    let second = start + hex[start..].find('\n').unwrap() + 1;
+    let end = second + hex[second..].find('\n').unwrap();
+    // drop the continuation line's last node
+    let cut = second + hex[second..end].rfind(',').unwrap();
+    let text = format!("{}{}", &hex[..cut], &hex[end..]);
+    let p = file_with("count-c3d20", "count20.inp", &text);
+    let e = rejects(
+        &p,
+        None,
+        &[
+            "C3D20",
+            "an id and 20 nodes, found 20 values",
+            &format!("line {line}"),
+        ],
+    );
+    assert!(matches!(e, ImportError::Syntax { .. }), "{e}");
+}
+
+#[test]
+fn an_unknown_side_names_the_element_its_shape_and_the_line() {
+    // S5 of a tetrahedron (it has S1..S4), S6 of a wedge (S1..S5), S7 of anything
+    let tet = std::fs::read_to_string(fixtures().join("c3d10.inp")).unwrap();
+    let text = format!("{tet}*SURFACE, NAME=top\n1, S5\n");
+    let p = file_with("side-tet", "side.inp", &text);
+    let e = rejects(
+        &p,
+        None,
+        &[
+            "face set 'top'",
+            "element 1 is a tet10",
+            "S1..S4, not S5",
+            "line 16",
+        ],
+    );
+    assert!(matches!(e, ImportError::UnknownSide { .. }), "{e}");
+    let wedge = std::fs::read_to_string(fixtures().join("quad_wedge6.inp")).unwrap();
+    let first = wedge
+        .lines()
+        .skip_while(|l| !l.contains("C3D6"))
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .next()
+        .unwrap()
+        .to_string();
+    let text = format!("{wedge}*SURFACE, NAME=w\n{first}, S6\n");
+    let line = text.lines().count();
+    let p = file_with("side-wedge", "side.inp", &text);
+    let e = rejects(
+        &p,
+        Some("box"),
+        &[
+            &format!("element {first} is a wedge6"),
+            "S1..S5, not S6",
+            &format!("line {line}"),
+        ],
+    );
+    assert!(matches!(e, ImportError::UnknownSide { .. }), "{e}");
+    let text = format!("{tet}*SURFACE, NAME=top\n1, S7\n");
+    let p = file_with("side-seven", "side.inp", &text);
+    let e = rejects(&p, None, &["side 'S7' is not S1..S6", "line 16"]);
+    assert!(matches!(e, ImportError::Syntax { .. }), "{e}");
+}
+
+#[test]
+fn an_inverted_tet10_names_the_element_and_the_gauss_point() {
+    // two corners swapped (with their mid-edge nodes): a reflection, det < 0 everywhere
+    let text = std::fs::read_to_string(fixtures().join("c3d10.inp"))
+        .unwrap()
+        .replace(
+            "1, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10",
+            "1, 2, 1, 3, 4, 5, 7, 6, 9, 8, 10",
+        );
+    let p = file_with("inverted-tet10", "inverted.inp", &text);
+    // (line 13 of c3d10.inp is its *ELEMENT keyword, the element on line 14)
+    let e = rejects(&p, None, &["element 1", "Gauss point 0", "line 14"]);
+    match e {
+        // the unit tetrahedron mirrored: det J = -1 (six times its volume, negative)
+        ImportError::InvertedElement { det, .. } => assert!((det + 1.0).abs() < 1e-12, "{det}"),
+        e => panic!("{e}"),
+    }
 }
 
 #[test]
@@ -718,11 +873,18 @@ fn non_finite_coordinates_and_duplicate_elements() {
 
 /// A campaign of the library's mesh fuzzer (`fricsens::studies::mesh_fuzz`, also
 /// `fricsens fuzz-meshes`): its built-in seeds (a block written as .msh ASCII, binary and
-/// .inp), the hand-written .inp (with its include) and real Gmsh binary output.
+/// .inp), the hand-written .inp (with its include) and real Gmsh output (hex8 binary, hex20
+/// ASCII, tet10 binary MSH; wedge15 .inp).
 fn fuzz(n: usize, seed: u64) {
     use fricsens::studies::mesh_fuzz::{builtin_seeds, run, seed_from, MeshFuzzOptions};
     let mut seeds = builtin_seeds().unwrap();
-    for f in ["hand.inp", "gmsh_box_bin.msh"] {
+    for f in [
+        "hand.inp",
+        "gmsh_box_bin.msh",
+        "quad_hex20.msh",
+        "quad_wedge15.inp",
+        "quad_tet10_bin.msh",
+    ] {
         seeds.push(seed_from(&fixtures().join(f)).unwrap());
     }
     let dir = scratch(&format!("fuzz-{seed}"));
@@ -847,5 +1009,495 @@ fn meshes_of_two_bodies_that_overlap_at_the_start_are_refused_naming_nodes_and_d
         "1.000e-1",
     ] {
         assert!(message.contains(needle), "{needle:?} not in {message}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Every solid shape: Gmsh's first- and second-order meshes of one box
+// (tools/make_quadratic_meshes.py)
+// ---------------------------------------------------------------------------------------
+
+/// The fixtures of `tools/make_quadratic_meshes.py` and the shape each holds: the box
+/// [`BOX`] with physical volume "box" and surfaces "xmin" and "zmax".
+const SHAPES: [(&str, Shape); 6] = [
+    ("quad_tet4", Shape::Tet4),
+    ("quad_tet10", Shape::Tet10),
+    ("quad_hex8", Shape::Hex8),
+    ("quad_hex20", Shape::Hex20),
+    ("quad_wedge6", Shape::Wedge6),
+    ("quad_wedge15", Shape::Wedge15),
+];
+
+/// The box they mesh: `[0, 2] x [0, 1] x [0, 0.5]`, volume 1, surface 7.
+const BOX: [f64; 3] = [2.0, 1.0, 0.5];
+
+/// Round-off allowance of coordinates of order one.
+const TOL: f64 = 1e-12;
+
+/// Every Gmsh export of every fixture: `.msh`, `.inp` and the binary `.msh` of tet10.
+fn shape_files() -> Vec<(PathBuf, Shape)> {
+    let mut v = Vec::new();
+    for (stem, shape) in SHAPES {
+        for ext in ["msh", "inp"] {
+            v.push((fixtures().join(format!("{stem}.{ext}")), shape));
+        }
+    }
+    v.push((fixtures().join("quad_tet10_bin.msh"), Shape::Tet10));
+    v
+}
+
+/// The coordinates of element `e`'s nodes.
+fn element_x(m: &Mesh, x: &[Vector3<f64>], e: usize) -> Vec<Vector3<f64>> {
+    m.element_nodes(e).iter().map(|&n| x[n]).collect()
+}
+
+/// The independent oracles of an imported box body `box` of `shape` elements (see
+/// `gmsh_meshes_of_every_solid_shape_fill_the_box_with_straight_edges_and_outward_sides`).
+fn check_box(m: &Mesh, what: &str, shape: Shape) {
+    use fricsens::element::{ElementFamily, FaceFamily};
+    let x = m.coordinates::<f64>(&m.block_geometry());
+    assert_eq!(m.groups.len(), 1, "{what}");
+    assert_eq!(m.groups[0].shape, shape, "{what}");
+    // volumes: each positive, together the box's
+    let family = ElementFamily::standard(shape);
+    let mut volume = 0.0;
+    for e in 0..m.n_elements() {
+        let v = family
+            .reference_volume(&element_x(m, &x, e))
+            .unwrap_or_else(|err| panic!("{what}: element {e}: {err}"));
+        assert!(v > 0.0, "{what}: element {e} has volume {v}");
+        volume += v;
+    }
+    let want = BOX[0] * BOX[1] * BOX[2];
+    assert!((volume - want).abs() < TOL, "{what}: volume {volume}");
+    // straight edges: each mid-edge node (the edge table's order) halfway between the
+    // edge's corners, one mid-edge node per edge of the mesh, every node a corner or one
+    let corners = shape.corners().n_nodes();
+    let mut corner_nodes = BTreeSet::new();
+    let mut mids: BTreeMap<(usize, usize), usize> = BTreeMap::new();
+    for e in 0..m.n_elements() {
+        let c = m.element_nodes(e);
+        corner_nodes.extend(c[..corners].iter().copied());
+        if !shape.is_quadratic() {
+            continue;
+        }
+        for (k, [a, b]) in shape.edges().iter().enumerate() {
+            let mid = c[corners + k];
+            let halfway = (x[c[*a]] + x[c[*b]]) * 0.5;
+            assert!(
+                (x[mid] - halfway).norm() < TOL,
+                "{what}: element {e}, edge {k}: mid node at {:?}, the edge's middle at {:?}",
+                x[mid],
+                halfway
+            );
+            let key = (c[*a].min(c[*b]), c[*a].max(c[*b]));
+            assert_eq!(*mids.entry(key).or_insert(mid), mid, "{what}: edge {key:?}");
+        }
+    }
+    assert_eq!(corner_nodes.len() + mids.len(), m.n_nodes(), "{what}");
+    // the two sides: on their planes, of the side's area, each face's normal weights outward
+    let faces_of = |name: &str| &m.face_sets[&format!("box.{name}")];
+    let triangles = matches!(shape.corners(), Shape::Tet4);
+    for (name, axis, at, sign, area, triangle) in [
+        ("xmin", 0, 0.0, -1.0, BOX[1] * BOX[2], triangles),
+        (
+            "zmax",
+            2,
+            BOX[2],
+            1.0,
+            BOX[0] * BOX[1],
+            shape.corners() != Shape::Hex8,
+        ),
+    ] {
+        let mut normal = Vector3::zeros();
+        normal[axis] = sign;
+        let mut total = Vector3::zeros();
+        let mut total_area = 0.0;
+        let faces = faces_of(name);
+        assert!(!faces.is_empty(), "{what}: {name}");
+        for f in faces.iter() {
+            let want = match (triangle, shape.is_quadratic()) {
+                (true, false) => FaceFamily::Tri3,
+                (true, true) => FaceFamily::Tri6,
+                (false, false) => FaceFamily::Quad4,
+                (false, true) => FaceFamily::Quad8,
+            };
+            assert_eq!(f.family, want, "{what}: {name}");
+            let p: Vec<Vector3<f64>> = f.nodes.iter().map(|&n| x[n]).collect();
+            assert!(
+                p.iter().all(|q| (q[axis] - at).abs() < TOL),
+                "{what}: {name}"
+            );
+            let w: Vector3<f64> = f.family.normal_weights(&p)[..f.nodes.len()].iter().sum();
+            let a = f.family.area(&p);
+            assert!(
+                (w - normal * a).norm() < TOL,
+                "{what}: {name}: face {:?} has normal weights {w:?}, not {a} times {normal:?}",
+                f.nodes
+            );
+            total += w;
+            total_area += a;
+        }
+        assert!(
+            (total - normal * area).norm() < TOL,
+            "{what}: {name}: {total:?}"
+        );
+        assert!(
+            (total_area - area).abs() < TOL,
+            "{what}: {name}: {total_area}"
+        );
+        // the side's node set: every node of the mesh on the plane
+        let on_plane: Vec<usize> = (0..m.n_nodes())
+            .filter(|&n| (x[n][axis] - at).abs() < TOL)
+            .collect();
+        assert_eq!(
+            m.node_sets[&format!("box.{name}")],
+            on_plane,
+            "{what}: {name}"
+        );
+    }
+    // the boundary: a closed surface (its normal weights sum to zero) around the box's
+    // volume (the divergence theorem for x / 3: the weights against x sum to 3 V)
+    let boundary = faces_of("boundary");
+    let (mut closed, mut flux, mut area) = (Vector3::zeros(), 0.0, 0.0);
+    for f in boundary.iter() {
+        let p: Vec<Vector3<f64>> = f.nodes.iter().map(|&n| x[n]).collect();
+        let w = f.family.normal_weights(&p);
+        for (a, q) in p.iter().enumerate() {
+            closed += w[a];
+            flux += q.dot(&w[a]);
+        }
+        area += f.family.area(&p);
+    }
+    assert!(closed.norm() < TOL, "{what}: {closed:?}");
+    assert!((flux - 3.0 * want).abs() < TOL, "{what}: {flux}");
+    let surface = 2.0 * (BOX[0] * BOX[1] + BOX[0] * BOX[2] + BOX[1] * BOX[2]);
+    assert!((area - surface).abs() < TOL, "{what}: {area}");
+}
+
+#[test]
+fn gmsh_meshes_of_every_solid_shape_fill_the_box_with_straight_edges_and_outward_sides() {
+    // Oracles: the box's volume (each element's reference volume positive, their sum 1), its
+    // straight edges (each mid-edge node halfway between its edge's corners, in fricsens'
+    // edge order: a wrong permutation of Gmsh's nodes puts a mid-edge node elsewhere), its
+    // sides' areas and outward normals (sum of the consistent normal weights = area times
+    // the unit normal), and the divergence theorem on the boundary
+    for (path, shape) in shape_files() {
+        let what = path.file_name().unwrap().to_string_lossy().to_string();
+        let (m, _) = import(&path, "box", Some("box")).unwrap_or_else(|e| panic!("{e}"));
+        check_box(&m, &what, shape);
+    }
+}
+
+#[test]
+fn gmsh_msh_and_inp_exports_of_one_model_have_the_same_elements_node_for_node() {
+    // Gmsh's INP export writes its elements in Abaqus' node order, its MSH export in Gmsh's:
+    // the two readers must give each element the same nodes in the same order (by Gmsh's
+    // node ids, which both exports share), which checks the MSH reader's permutations
+    // against Gmsh's own
+    let elements = |path: &Path| {
+        let (m, b) = import(path, "box", Some("box")).unwrap_or_else(|e| panic!("{e}"));
+        let id: BTreeMap<usize, u64> = b.node_ids.iter().map(|(&i, &n)| (n, i)).collect();
+        let x = m.coordinates::<f64>(&m.block_geometry());
+        let mut v: Vec<Vec<u64>> = (0..m.n_elements())
+            .map(|e| m.element_nodes(e).iter().map(|n| id[n]).collect())
+            .collect();
+        v.sort();
+        let coordinates: BTreeMap<u64, Vector3<f64>> =
+            b.node_ids.iter().map(|(&i, &n)| (i, x[n])).collect();
+        (v, coordinates)
+    };
+    for (stem, _) in SHAPES {
+        let (a, xa) = elements(&fixtures().join(format!("{stem}.msh")));
+        let (b, xb) = elements(&fixtures().join(format!("{stem}.inp")));
+        assert_eq!(a, b, "{stem}");
+        assert_eq!(xa.len(), xb.len(), "{stem}");
+        for (id, p) in &xa {
+            assert!((p - xb[id]).norm() < 1e-9, "{stem}: node {id}");
+        }
+    }
+}
+
+#[test]
+fn every_solid_shape_round_trips_through_gmsh_ascii_binary_and_abaqus() {
+    let dir = scratch("shapes-round-trip");
+    for (stem, shape) in SHAPES {
+        let (m, _) = import(&fixtures().join(format!("{stem}.msh")), "box", Some("box"))
+            .unwrap_or_else(|e| panic!("{e}"));
+        let x = m.coordinates::<f64>(&m.block_geometry());
+        let bodies = vec![("box".to_string(), 0)];
+        let files = [
+            dir.join(format!("{stem}.msh")),
+            dir.join(format!("{stem}_bin.msh")),
+            dir.join(format!("{stem}.inp")),
+        ];
+        gmsh::write(&m, &x, &bodies, &files[0], false).unwrap();
+        gmsh::write(&m, &x, &bodies, &files[1], true).unwrap();
+        abaqus::write(&m, &x, &bodies, &files[2]).unwrap();
+        for file in &files {
+            let (m2, body) = import(file, "box", Some("box")).unwrap_or_else(|e| panic!("{e}"));
+            let what = format!("{}", file.display());
+            assert_eq!(m2.groups[0].shape, shape, "{what}");
+            assert_eq!(m2.n_nodes(), m.n_nodes(), "{what}");
+            assert_eq!(m2.n_elements(), m.n_elements(), "{what}");
+            let x2 = m2.coordinates::<f64>(&m2.block_geometry());
+            // the writers number node n as n + 1
+            let map = |n: usize| body.node_ids[&(n as u64 + 1)];
+            for n in 0..m.n_nodes() {
+                for c in 0..3 {
+                    assert_eq!(x2[map(n)][c].to_bits(), x[n][c].to_bits(), "{what}");
+                }
+            }
+            for e in 0..m.n_elements() {
+                let mapped: Vec<usize> = m.element_nodes(e).iter().map(|&n| map(n)).collect();
+                assert_eq!(mapped, m2.element_nodes(e), "{what} element {e}");
+            }
+            for set in ["xmin", "zmax", "boundary"] {
+                let name = format!("box.{set}");
+                assert_eq!(
+                    face_set(&m, &name, &map),
+                    face_set(&m2, &name, &|n| n),
+                    "{what} face set {set}"
+                );
+                let families = |m: &Mesh| {
+                    let mut v: Vec<_> = m.face_sets[&name].iter().map(|f| f.family).collect();
+                    v.sort_by_key(|f| f.name());
+                    v
+                };
+                assert_eq!(families(&m), families(&m2), "{what} face set {set}");
+                let mut nodes: Vec<usize> = m.node_sets[&name].iter().map(|&n| map(n)).collect();
+                nodes.sort_unstable();
+                assert_eq!(nodes, m2.node_sets[&name], "{what} node set {set}");
+            }
+            check_box(&m2, &what, shape);
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn gmsh_ascii_and_binary_second_order_files_read_alike() {
+    let a = fricsens::mesh::read(&fixtures().join("quad_tet10.msh")).unwrap();
+    let b = fricsens::mesh::read(&fixtures().join("quad_tet10_bin.msh")).unwrap();
+    let (ca, cb) = (contents(&a), contents(&b));
+    // Gmsh writes ASCII coordinates to 16 significant digits: equal to 1e-15, not bit for bit
+    assert_eq!(ca.0.len(), cb.0.len());
+    for ((ia, xa), (ib, xb)) in ca.0.iter().zip(&cb.0) {
+        assert_eq!(ia, ib);
+        for c in 0..3 {
+            let (p, q) = (f64::from_bits(xa[c]), f64::from_bits(xb[c]));
+            assert!((p - q).abs() <= 1e-15 * p.abs().max(1.0), "node {ia}");
+        }
+    }
+    assert_eq!(
+        (ca.1, ca.2, ca.3, ca.4, ca.5),
+        (cb.1, cb.2, cb.3, cb.4, cb.5)
+    );
+}
+
+#[test]
+fn gmsh_tet4_and_a_hand_written_c3d10_are_read_whole() {
+    // the unit cube of gmsh_tet4.msh (no physical group: every solid) and the one tet10 of
+    // c3d10.inp, the unit tetrahedron with straight edges: volumes 1 and 1/6
+    use fricsens::element::ElementFamily;
+    for (file, shape, volume) in [
+        ("gmsh_tet4.msh", Shape::Tet4, 1.0),
+        ("c3d10.inp", Shape::Tet10, 1.0 / 6.0),
+    ] {
+        let (m, _) = import(&fixtures().join(file), "b", None).unwrap_or_else(|e| panic!("{e}"));
+        let x = m.coordinates::<f64>(&m.block_geometry());
+        assert_eq!(m.groups[0].shape, shape, "{file}");
+        let v: f64 = (0..m.n_elements())
+            .map(|e| {
+                ElementFamily::standard(shape)
+                    .reference_volume(&element_x(&m, &x, e))
+                    .unwrap()
+            })
+            .sum();
+        assert!((v - volume).abs() < TOL, "{file}: {v}");
+        // a closed boundary of four (unit tetrahedron) or 2 x 6 (the cube) triangles a side
+        let faces = &m.face_sets["b.boundary"];
+        let mut closed = Vector3::zeros();
+        for f in faces.iter() {
+            let p: Vec<Vector3<f64>> = f.nodes.iter().map(|&n| x[n]).collect();
+            closed += f.family.normal_weights(&p)[..p.len()]
+                .iter()
+                .sum::<Vector3<f64>>();
+        }
+        assert!(closed.norm() < TOL, "{file}: {closed:?}");
+    }
+}
+
+/// One element of Abaqus type `ty` on nodes `x` (ids 1..), element set `E`, with a surface
+/// `s` on side `side`.
+fn one_element_inp(ty: &str, x: &[[f64; 3]], side: &str) -> String {
+    let mut s = String::from("*NODE\n");
+    for (k, p) in x.iter().enumerate() {
+        s.push_str(&format!("{}, {}, {}, {}\n", k + 1, p[0], p[1], p[2]));
+    }
+    let ids: Vec<String> = (1..=x.len()).map(|n| n.to_string()).collect();
+    // 16 entries a line at most: the id and 15 nodes, then the rest
+    let (first, rest) = ids.split_at(ids.len().min(15));
+    s.push_str(&format!(
+        "*ELEMENT, TYPE={ty}, ELSET=E\n1, {}",
+        first.join(", ")
+    ));
+    if !rest.is_empty() {
+        s.push_str(&format!(",\n{}", rest.join(", ")));
+    }
+    s.push_str(&format!("\n*SURFACE, NAME=s\n1, {side}\n"));
+    s
+}
+
+/// The middle of each pair of 1-based nodes of `corners`.
+fn with_mids(corners: &[[f64; 3]], edges: &[[usize; 2]]) -> Vec<[f64; 3]> {
+    let mut v = corners.to_vec();
+    for [a, b] in edges {
+        let (p, q) = (corners[a - 1], corners[b - 1]);
+        v.push([
+            0.5 * (p[0] + q[0]),
+            0.5 * (p[1] + q[1]),
+            0.5 * (p[2] + q[2]),
+        ]);
+    }
+    v
+}
+
+#[test]
+fn abaqus_sides_of_quadratic_elements_are_their_faces_with_mid_side_nodes_outward() {
+    // One element of each quadratic type, nodes in the order of the Abaqus manual (corners,
+    // then the middles of its edge list), and each side of the manual's face table
+    // (1-based corners and the mid-side nodes of the face's edges): the face set holds that
+    // face, with its area and outward unit normal (sum of its consistent normal weights)
+    let r2 = 0.5_f64.sqrt();
+    let r3 = 1.0 / 3.0_f64.sqrt();
+    type Side = (&'static str, &'static [u64], &'static [u64], [f64; 3], f64);
+    let tet: Vec<[f64; 3]> = with_mids(
+        &[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ],
+        &[[1, 2], [2, 3], [3, 1], [1, 4], [2, 4], [3, 4]],
+    );
+    let tet_sides: [Side; 4] = [
+        ("S1", &[1, 2, 3], &[5, 6, 7], [0.0, 0.0, -1.0], 0.5),
+        ("S2", &[1, 2, 4], &[5, 8, 9], [0.0, -1.0, 0.0], 0.5),
+        ("S3", &[2, 3, 4], &[6, 9, 10], [r3, r3, r3], 0.75_f64.sqrt()),
+        ("S4", &[1, 3, 4], &[7, 8, 10], [-1.0, 0.0, 0.0], 0.5),
+    ];
+    // the unit right triangle swept over z in [0, 2]
+    let wedge: Vec<[f64; 3]> = with_mids(
+        &[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 2.0],
+            [1.0, 0.0, 2.0],
+            [0.0, 1.0, 2.0],
+        ],
+        &[
+            [1, 2],
+            [2, 3],
+            [3, 1],
+            [4, 5],
+            [5, 6],
+            [6, 4],
+            [1, 4],
+            [2, 5],
+            [3, 6],
+        ],
+    );
+    let wedge_sides: [Side; 5] = [
+        ("S1", &[1, 2, 3], &[7, 8, 9], [0.0, 0.0, -1.0], 0.5),
+        ("S2", &[4, 5, 6], &[10, 11, 12], [0.0, 0.0, 1.0], 0.5),
+        ("S3", &[1, 2, 4, 5], &[7, 10, 13, 14], [0.0, -1.0, 0.0], 2.0),
+        (
+            "S4",
+            &[2, 3, 5, 6],
+            &[8, 11, 14, 15],
+            [r2, r2, 0.0],
+            2.0 * 2.0_f64.sqrt(),
+        ),
+        ("S5", &[1, 3, 4, 6], &[9, 12, 13, 15], [-1.0, 0.0, 0.0], 2.0),
+    ];
+    // the box [0, 1] x [0, 2] x [0, 3]
+    let hex: Vec<[f64; 3]> = with_mids(
+        &[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 2.0, 0.0],
+            [0.0, 2.0, 0.0],
+            [0.0, 0.0, 3.0],
+            [1.0, 0.0, 3.0],
+            [1.0, 2.0, 3.0],
+            [0.0, 2.0, 3.0],
+        ],
+        &[
+            [1, 2],
+            [2, 3],
+            [3, 4],
+            [4, 1],
+            [5, 6],
+            [6, 7],
+            [7, 8],
+            [8, 5],
+            [1, 5],
+            [2, 6],
+            [3, 7],
+            [4, 8],
+        ],
+    );
+    let hex_sides: [Side; 6] = [
+        ("S1", &[1, 2, 3, 4], &[9, 10, 11, 12], [0.0, 0.0, -1.0], 2.0),
+        ("S2", &[5, 6, 7, 8], &[13, 14, 15, 16], [0.0, 0.0, 1.0], 2.0),
+        ("S3", &[1, 2, 5, 6], &[9, 13, 17, 18], [0.0, -1.0, 0.0], 3.0),
+        ("S4", &[2, 3, 6, 7], &[10, 14, 18, 19], [1.0, 0.0, 0.0], 6.0),
+        ("S5", &[3, 4, 7, 8], &[11, 15, 19, 20], [0.0, 1.0, 0.0], 3.0),
+        (
+            "S6",
+            &[1, 4, 5, 8],
+            &[12, 16, 17, 20],
+            [-1.0, 0.0, 0.0],
+            6.0,
+        ),
+    ];
+    // (Abaqus type, nodes, sides)
+    type Case<'a> = (&'a str, &'a [[f64; 3]], &'a [Side]);
+    let cases: [Case; 5] = [
+        ("C3D10M", &tet, &tet_sides),
+        ("C3D15", &wedge, &wedge_sides),
+        ("C3D20R", &hex, &hex_sides),
+        ("C3D4", &tet[..4], &tet_sides),
+        ("C3D8", &hex[..8], &hex_sides),
+    ];
+    for (ty, x, sides) in cases {
+        for &(side, corners, mids, normal, area) in sides {
+            let what = format!("{ty} {side}");
+            let p = file_with(
+                &format!("side-{ty}-{side}"),
+                "one.inp",
+                &one_element_inp(ty, x, side),
+            );
+            let (m, b) = import(&p, "t", Some("e")).unwrap_or_else(|e| panic!("{what}: {e}"));
+            let faces = &m.face_sets["t.s"];
+            assert_eq!(faces.len(), 1, "{what}");
+            let f = faces.face(0);
+            let nc = f.family.n_corners();
+            let ids: Vec<u64> = f.nodes.iter().map(|&n| id_of(&b, n)).collect();
+            let mut c = ids[..nc].to_vec();
+            c.sort_unstable();
+            assert_eq!(c, corners, "{what}");
+            let mut mid = ids[nc..].to_vec();
+            mid.sort_unstable();
+            let want: &[u64] = if x.len() > 8 { mids } else { &[] };
+            assert_eq!(mid, want, "{what}");
+            let xm = m.coordinates::<f64>(&m.block_geometry());
+            let pts: Vec<Vector3<f64>> = f.nodes.iter().map(|&n| xm[n]).collect();
+            let w: Vector3<f64> = f.family.normal_weights(&pts)[..pts.len()].iter().sum();
+            let n = Vector3::from(normal);
+            assert!((w - n * area).norm() < TOL, "{what}: {w:?}");
+        }
     }
 }

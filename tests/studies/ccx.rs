@@ -717,3 +717,124 @@ fn a_calculix_run_past_its_time_limit_is_stopped_and_reported() {
         "the output's tail is not shown: {e}"
     );
 }
+
+/// Sides S1.. of each CalculiX solid type as 1-based corners, from the Abaqus / CalculiX
+/// manuals (written out here rather than taken from the importer, as [`C3D8_SIDES`]).
+fn manual_sides(ty: &str) -> Vec<Vec<usize>> {
+    let tet: &[&[usize]] = &[&[1, 2, 3], &[1, 4, 2], &[2, 4, 3], &[3, 4, 1]];
+    let wedge: &[&[usize]] = &[
+        &[1, 2, 3],
+        &[4, 6, 5],
+        &[1, 4, 5, 2],
+        &[2, 5, 6, 3],
+        &[3, 6, 4, 1],
+    ];
+    let t: Vec<Vec<usize>> = if ty.starts_with("C3D4") || ty.starts_with("C3D10") {
+        tet.iter().map(|s| s.to_vec()).collect()
+    } else if ty.starts_with("C3D6") || ty.starts_with("C3D15") {
+        wedge.iter().map(|s| s.to_vec()).collect()
+    } else {
+        C3D8_SIDES.iter().map(|s| s.to_vec()).collect()
+    };
+    t
+}
+
+#[test]
+fn slave_surfaces_of_every_solid_shape_are_its_sides_on_the_contact_face() {
+    // The sliding block with its slider (the hitting body) made of each solid shape, the base
+    // hex8 (quad4 target faces): the slave surface is element-based, each (element, Sn) names
+    // by the manuals' tables a boundary face of corners among the hitting nodes on the
+    // slider's bottom y = 0, and together they cover the bottom once (their areas sum to its
+    // 1.5 x 0.5); the master sides are the base's top faces (areas summing to 8 x 0.5)
+    use fricsens::element::Shape;
+    use fricsens::scene::{sliding_block, BodyGeometry};
+    for (shape, ty) in [
+        (Shape::Hex20, "C3D20R"),
+        (Shape::Tet4, "C3D4"),
+        (Shape::Tet10, "C3D10"),
+        (Shape::Wedge6, "C3D6"),
+        (Shape::Wedge15, "C3D15"),
+    ] {
+        let mut s = sliding_block(Some(0.3));
+        let BodyGeometry::Block(b) = &mut s.bodies[1].geometry else {
+            panic!("a generated slider")
+        };
+        b.element = shape;
+        s.bodies[1].formulation = None;
+        let model = s.build().unwrap_or_else(|e| panic!("{shape:?}: {e}"));
+        let deck = export(&model, &ExportOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(deck.element_types, vec!["C3D8I", ty], "{shape:?}");
+        assert!(
+            deck.text.contains("TYPE=SURFACE TO SURFACE"),
+            "{shape:?}: no element-based slave surface"
+        );
+        let d = parse_deck(&deck.text);
+        // every side of every element of the model, by sorted corners, and its owners
+        let corners = |e: usize, side: usize| -> Vec<usize> {
+            let (c, set) = &d.elements[&e];
+            let ty = if set == "B0" { "C3D8I" } else { ty };
+            let mut f: Vec<usize> = manual_sides(ty)[side - 1]
+                .iter()
+                .map(|&l| c[l - 1] - 1)
+                .collect();
+            f.sort_unstable();
+            f
+        };
+        let mut owners: HashMap<Vec<usize>, usize> = HashMap::new();
+        for e in 1..=model.mesh.n_elements() {
+            let set = &d.elements[&e].1;
+            let ty = if set == "B0" { "C3D8I" } else { ty };
+            for side in 1..=manual_sides(ty).len() {
+                *owners.entry(corners(e, side)).or_insert(0) += 1;
+            }
+        }
+        // the area of a planar face of three or four corners (in any order) in the plane
+        // y = const: the convex hull's area in x, z
+        let area = |f: &[usize]| -> f64 {
+            let mut p: Vec<[f64; 2]> = f.iter().map(|&n| [d.x(n)[0], d.x(n)[2]]).collect();
+            let c = p.iter().fold([0.0, 0.0], |a, q| [a[0] + q[0], a[1] + q[1]]);
+            let c = [c[0] / p.len() as f64, c[1] / p.len() as f64];
+            p.sort_by(|a, b| {
+                let t = |q: &[f64; 2]| (q[1] - c[1]).atan2(q[0] - c[0]);
+                t(a).total_cmp(&t(b))
+            });
+            (0..p.len())
+                .map(|k| {
+                    let (a, b) = (p[k], p[(k + 1) % p.len()]);
+                    0.5 * (a[0] * b[1] - b[0] * a[1])
+                })
+                .sum::<f64>()
+                .abs()
+        };
+        let pair = &model.contacts[0];
+        let hitting: BTreeSet<usize> = pair.hitting.iter().copied().collect();
+        for (surface, body, y, want) in [("SLAVE0", "B1", 0.0, 0.75), ("MASTER0", "B0", 0.0, 4.0)] {
+            let mut seen = BTreeSet::new();
+            let mut total = 0.0;
+            for &(e, side) in &d.surfaces[surface] {
+                assert_eq!(d.elements[&e].1, body, "{shape:?} {surface} element {e}");
+                let f = corners(e, side);
+                assert_eq!(
+                    owners[&f], 1,
+                    "{shape:?} {surface} ({e}, S{side}) is interior"
+                );
+                assert!(
+                    f.iter().all(|&n| d.x(n)[1] == y),
+                    "{shape:?} {surface} ({e}, S{side}) is not on y = {y}"
+                );
+                if surface == "SLAVE0" {
+                    assert!(
+                        f.iter().all(|n| hitting.contains(n)),
+                        "{shape:?} ({e}, S{side})"
+                    );
+                }
+                assert!(seen.insert(f.clone()), "{shape:?} {surface}: a face twice");
+                total += area(&f);
+            }
+            assert!(
+                (total - want).abs() < 1e-12,
+                "{shape:?} {surface}: area {total}"
+            );
+        }
+    }
+}
