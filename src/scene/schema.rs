@@ -206,6 +206,12 @@ impl From<BodySpec> for BodyToml {
         };
         match b.geometry {
             BodyGeometry::Block(block) => {
+                // a block's shape is known here: its standard formulation is written out, so
+                // a scene file that left it out is told which one it got
+                // (`Scene::defaulted`); a mesh file's shapes are known once it is read
+                t.formulation = t.formulation.or_else(|| {
+                    crate::element::ElementFamily::standard(block.element).formulation()
+                });
                 t.element = (block.element != crate::element::Shape::Hex8).then_some(block.element);
                 t.origin = Some(block.origin);
                 t.x = Some(block.x);
@@ -953,6 +959,16 @@ impl Scene {
         let (given, full) = (parse(text)?, parse(&scene.to_toml()?)?);
         let mut out = Vec::new();
         defaulted_keys(&full, Some(&given), "", &mut out);
+        // a body read from a mesh file takes the standard formulation of each of its shapes,
+        // which only the file tells
+        for (i, b) in scene.bodies.iter().enumerate() {
+            if let (None, BodyGeometry::Mesh(_)) = (b.formulation, &b.geometry) {
+                out.push(format!(
+                    "bodies[{i}].formulation = each shape's standard (hex8 \"incompatible-modes\", hex20 \"reduced\", tet4, tet10, wedge6, wedge15 \"full\")"
+                ));
+            }
+        }
+        out.sort();
         Ok(out)
     }
 
