@@ -186,7 +186,7 @@ fn a_scene_file_is_told_which_settings_it_left_to_their_defaults() {
             "{body}'s formulation not in {d:#?}"
         );
     }
-    for want in ["solver.max_iterations = 30"] {
+    for want in ["prescribed[0].value = 0.0", "solver.max_iterations = 30"] {
         assert!(d.iter().any(|l| l == want), "{want:?} not in {d:#?}");
     }
     for absent in [
