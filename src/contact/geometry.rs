@@ -25,7 +25,8 @@
 //! * (7) `g = x^t − x^h`; (8) the paper's penetration `g = g · n`;
 //! * (9) `t_α · g = 0`: the closest-point condition. Here it is solved as
 //!   `r_α(ξ) = (x − x̄(ξ)) · t_α(ξ) = 0` by Newton's method with the full second-order matrix
-//!   `H_αβ = t_α · t_β − (x − x̄) · x̄_{,αβ}` (a bilinear quad has `x̄_{,12} ≠ 0`);
+//!   `H_αβ = t_α · t_β − (x − x̄) · x̄_{,αβ}` (a bilinear quad has `x̄_{,12} ≠ 0`, a quadratic
+//!   face every `x̄_{,αβ}`; a tri3 none);
 //! * (10), (11) the variation of (9) at fixed `ξ`-dependence,
 //!   `H_αβ dξ^β = t_α · (dx − dx̄|_ξ) + (x − x̄) · dt_α|_ξ`:
 //!   this is exactly what the derivative parts of the final Newton correction solve (see below).
@@ -33,7 +34,7 @@
 //! # Sign conventions
 //!
 //! * `normal` is the unit outward normal of the *target* body (for a rigid body: pointing towards
-//!   the deformable body). For a quad segment it is `t_1 × t_2 / |t_1 × t_2|`, so segments must
+//!   the deformable body). For a face segment it is `t_1 × t_2 / |t_1 × t_2|`, so segments must
 //!   be numbered counter-clockwise seen from outside the target body.
 //! * `gap = (x − point) · normal`: positive = separated, negative = penetration. This is the
 //!   paper's `g` of eq. (8) with the opposite sign (`gap = −g`).
@@ -58,6 +59,22 @@
 //! chose.
 //!
 //! # Segment validity
+//!
+//! # Faces of every family ([`Segment`])
+//!
+//! A target face is a quad4, quad8, tri3 or tri6 ([`crate::element::FaceFamily`]); its map
+//! `x̄(ξ) = Σ N_a(ξ) x_a` over its natural domain (the square `[−1, 1]²`, or the unit triangle
+//! `ξ ≥ 0`, `ξ¹ + ξ² ≤ 1`) is the family's interpolation, curved for the quadratic ones, and the
+//! projection is onto that curved surface itself. The quad4 keeps the arithmetic below (bit
+//! for bit as before the other families came); every family shares the Newton iterations, the
+//! final correction in `S` and the search. The boundary of a face is its edges, straight lines
+//! in `ξ`: on a straight edge the closest point is closed-form, on a curved one it is found by
+//! a one-dimensional Newton on `|x − x̄(ξ(u))|²` (from the best of five samples, kept in
+//! `[0, 1]`, the ends candidates too), and its derivative parts by one Newton step in `S`,
+//! `u = u₀ + r · x̄_u / (x̄_u · x̄_u − r · x̄_uu)`, the implicit-function-theorem derivative. A
+//! face other than the quad4 is accepted when its Jacobian `t_1 × t_2` is positive along its
+//! centre normal at every node and at the centre. The hysteresis of [`SEGMENT_KEEP`] is half as
+//! wide in `ξ` on a triangle, whose domain is.
 //!
 //! A quad segment is accepted when its coordinates are finite and every corner Jacobian
 //! `(x_{a+1} − x_a) × (x_{a−1} − x_a)` is positive along the centre normal (beyond

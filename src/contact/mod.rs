@@ -1,8 +1,8 @@
 //! Node-to-segment frictional contact.
 //!
 //! A contact pair joins a set of hitting (slave) nodes of a deformable body to a target (master)
-//! surface: the bilinear quad faces of a deformable body, or an analytic rigid surface moving
-//! with a prescribed translation `d(t)`.
+//! surface: the faces of a deformable body (quad4, quad8, tri3, tri6; the quadratic ones curved),
+//! or an analytic rigid surface moving with a prescribed translation `d(t)`.
 //!
 //! ## Normal contact
 //! For each hitting node the closest-point projection onto the target gives the contact point
@@ -144,8 +144,8 @@ pub struct RigidMotion {
 /// What the hitting nodes touch.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Target {
-    /// Faces of a deformable body (outward oriented; the kernel's face geometry is the
-    /// bilinear quad: quad4 faces, see [`quad_nodes`]).
+    /// Faces of a deformable body (outward oriented; any face family, projected onto by
+    /// [`geometry::closest_on_segments`]).
     Faces {
         /// The target faces.
         faces: FaceSet,

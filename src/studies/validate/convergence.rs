@@ -335,4 +335,5 @@ pub fn write_convergence(s: &mut String, rows: &[ConvergenceRow]) {
             order(&mine, |q| q.d_radius)
         );
     }
+    let _ = writeln!(s);
 }
