@@ -316,13 +316,17 @@ impl Scene {
                     format!("the bodies have more than {MAX_ELEMENTS} elements in all"),
                 ));
             }
-            bodies.push(Body {
+            let body = Body {
                 name: b.name().to_string(),
                 group,
                 material: b.material.clone(),
                 kinematics: b.kinematics,
                 formulation: b.formulation,
-            });
+            };
+            // a formulation the body's shape does not take (`reduced` on hex8, ...)
+            body.family(&mesh)
+                .map_err(|e| invalid(&format!("{at}.formulation"), e.to_string()))?;
+            bodies.push(body);
         }
         for (i, f) in self.free_nodes.iter().enumerate() {
             for (c, v) in f.x.iter().enumerate() {

@@ -544,3 +544,46 @@ fn every_family_converges_at_its_order_on_lames_cylinder() {
         }
     }
 }
+
+#[test]
+fn a_formulation_the_shape_does_not_take_is_a_typed_error_naming_the_body() {
+    // every shape against every formulation: a scene builds exactly when the shape takes it
+    for shape in Shape::SOLIDS {
+        for f in fricsens::element::Formulation::ALL {
+            let text = format!(
+                r#"
+name = "one-block"
+[[bodies]]
+name = "b"
+element = "{}"
+formulation = "{}"
+origin = [0.0, 0.0, 0.0]
+x = {{ length = 1.0, zones = [ {{ fraction = 1.0, elements = 1, ratio = 1.0 }} ] }}
+y = {{ length = 1.0, zones = [ {{ fraction = 1.0, elements = 1, ratio = 1.0 }} ] }}
+z = {{ length = 1.0, zones = [ {{ fraction = 1.0, elements = 1, ratio = 1.0 }} ] }}
+material = {{ law = "svk", E = 1000.0, nu = 0.3 }}
+[[steps]]
+end = 1.0
+increments = 1
+"#,
+                shape.name(),
+                f.name()
+            );
+            let built = fricsens::scene::Scene::from_toml(&text, "one-block.toml")
+                .expect("the scene parses")
+                .build();
+            let takes = ElementFamily::new(shape, Some(f)).is_ok();
+            match built {
+                Ok(_) => assert!(takes, "{shape:?} built with {f:?}"),
+                Err(e) => {
+                    assert!(!takes, "{shape:?} refused {f:?}: {e}");
+                    let message = e.to_string();
+                    assert!(
+                        message.contains("bodies[0].formulation") && message.contains(f.name()),
+                        "{message}"
+                    );
+                }
+            }
+        }
+    }
+}
