@@ -344,8 +344,8 @@ impl FaceSet {
     }
 }
 
-/// Most nodes of a face of any family.
-pub const MAX_FACE_NODES: usize = 8;
+/// Most nodes of a face of any family (the face families' own bound).
+pub use crate::element::face::MAX_FACE_NODES;
 
 /// Node coordinates of one face, on the stack.
 #[derive(Clone, Copy, Debug)]
