@@ -89,14 +89,18 @@ pub fn state_fields<S: Scalar>(
         let mut friction = vec![S::zero(); 3 * n];
         for (p, pair) in model.contacts.iter().enumerate() {
             let first = asm.contact_flat(p);
+            let range = first..(first + pair.hitting.len()).min(c.normal_force.len());
+            let force = &c.normal_force[range.clone()];
+            let p_nominal = pair.nodal_pressures(force, &c.area[range.clone()]);
+            let p_current = pair.nodal_pressures(force, &c.current_area[range]);
             for (i, &node) in pair.hitting.iter().enumerate() {
                 let f = first + i;
                 if f >= c.normal_force.len() {
                     continue;
                 }
                 normal[node] += c.normal_force[f];
-                nominal[node] += c.normal_force[f] / c.area[f];
-                current[node] += c.normal_force[f] / c.current_area[f];
+                nominal[node] += p_nominal[i];
+                current[node] += p_current[i];
                 for j in 0..3 {
                     friction[node_dof(node, j)] += c.traction[f][j];
                 }

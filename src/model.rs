@@ -372,6 +372,9 @@ pub struct Lifted<S: Scalar> {
     /// Tributary area of each hitting node of each contact pair at these reference
     /// coordinates (the pair's `area` where it has no faces).
     pub area: Vec<Vec<S>>,
+    /// The area each hitting node of each contact pair reads its pressure over, at these
+    /// reference coordinates ([`ContactPair::pressure_areas_at`]).
+    pub pressure_area: Vec<Vec<S>>,
     /// Magnitudes of the pressure loads.
     pub pressures: Vec<S>,
     /// The elements whose material parameters differ from their body's (a material field),
@@ -497,8 +500,9 @@ impl Model {
         let mut hist = 0;
         for (b, body) in self.bodies.iter().enumerate() {
             let nh = body.material.history_len();
-            // a formulation the shape does not take is refused where the model is made
-            // (`Model::check_families`); numbered here as the shape's standard one
+            // a formulation the shape does not take is refused where the model is made and
+            // by `Solver::new` (`Model::check_families`); numbered here as the shape's
+            // standard one
             let shape = self.mesh.groups[body.group].shape;
             let family = body
                 .family(&self.mesh)
@@ -799,9 +803,13 @@ impl Model {
                 None => c.area.iter().map(|a| S::lift(*a)).collect(),
             })
             .collect();
+        let pressure_area = (self.contacts.iter())
+            .map(|c| c.pressure_areas_at(|n| coords[n]))
+            .collect();
         Lifted {
             coords,
             area,
+            pressure_area,
             shape,
             pressures,
             material,

@@ -75,6 +75,25 @@ pub fn write_history_csv(path: &Path, model: &Model, res: &Results) -> Result<()
     std::fs::write(path, s).map_err(io(path))
 }
 
+/// The nominal and current contact pressures of `pair`'s hitting nodes, whose results start
+/// at `first` in `c` ([`crate::contact::ContactPair::nodal_pressures`]; empty when `c` holds
+/// none of them).
+fn pressures(
+    pair: &crate::contact::ContactPair,
+    c: &crate::contact::assembly::ContactEval<f64>,
+    first: usize,
+) -> (Vec<f64>, Vec<f64>) {
+    let range = first..first + pair.hitting.len();
+    if range.end > c.normal_force.len() {
+        return (Vec::new(), Vec::new());
+    }
+    let f = &c.normal_force[range.clone()];
+    (
+        pair.nodal_pressures(f, &c.area[range.clone()]),
+        pair.nodal_pressures(f, &c.current_area[range]),
+    )
+}
+
 /// Write `contact.csv`, long format: one row per hitting node of every pair at every stored
 /// increment, with the node's number, its reference (`X`, `Y`, `Z`) and current (`x`, `y`,
 /// `z`) coordinates, its state (0 open, 1 closed frictionless, 2 stick, 3 slip), normal force,
@@ -92,6 +111,7 @@ pub fn write_contact_csv(path: &Path, model: &Model, res: &Results) -> Result<()
         };
         for (p, pair) in model.contacts.iter().enumerate() {
             let first = res.contact_flat.get(p).copied().unwrap_or(0);
+            let (nominal, current) = pressures(pair, c, first);
             for (i, &n) in pair.hitting.iter().enumerate() {
                 let f = first + i;
                 if f >= c.choice.len() {
@@ -111,8 +131,8 @@ pub fn write_contact_csv(path: &Path, model: &Model, res: &Results) -> Result<()
                     r[2] + u[2],
                     c.choice[f].state.code(),
                     c.normal_force[f],
-                    c.normal_force[f] / c.area[f],
-                    c.normal_force[f] / c.current_area[f],
+                    nominal[i],
+                    current[i],
                     fr[0],
                     fr[1],
                     fr[2]
@@ -299,6 +319,7 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
     let mut force = vec![0.0; 3 * n];
     for (p, pair) in model.contacts.iter().enumerate() {
         let first = res.contact_flat.get(p).copied().unwrap_or(0);
+        let (p_nominal, p_current) = pressures(pair, c, first);
         for (i, &node) in pair.hitting.iter().enumerate() {
             let f = first + i;
             if f >= c.choice.len() {
@@ -306,8 +327,8 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
             }
             state[node] = c.choice[f].state.code();
             normal[node] += c.normal_force[f];
-            nominal[node] += c.normal_force[f] / c.area[f];
-            current[node] += c.normal_force[f] / c.current_area[f];
+            nominal[node] += p_nominal[i];
+            current[node] += p_current[i];
             for j in 0..3 {
                 // three components per node, as the nodal unknowns
                 friction[crate::model::node_dof(node, j)] += c.traction[f][j];

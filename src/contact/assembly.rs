@@ -284,8 +284,8 @@ pub(crate) fn evaluate<S: Scalar>(
             elastic_stick: false,
         };
         if let Some(faces) = &pair.hitting_faces {
-            // the current tributary areas, for the Cauchy pressure
-            let current = faces.tributary_areas_at(|n| node_pos(lifted, z, n), &pair.hitting);
+            // the current pressure areas, for the Cauchy pressure
+            let current = faces.pressure_areas_at(|n| node_pos(lifted, z, n), &pair.hitting);
             let first = layout.flat[p];
             out.current_area[first..first + current.len()].copy_from_slice(&current);
         }
@@ -300,7 +300,7 @@ pub(crate) fn evaluate<S: Scalar>(
             }
             par.area = lifted.area[p][i];
             par.friction_params = lifted.friction_of(p, i);
-            out.area[flat] = par.area;
+            out.area[flat] = lifted.pressure_area[p][i];
             par.eps_t = eps_t * pair.tangential_weight[i];
             let block = &layout.blocks[p][i];
             let lam_dof = layout.lambda[p] + i;

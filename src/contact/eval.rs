@@ -11,10 +11,12 @@ pub struct ContactEval<S: Scalar> {
     pub choice: Vec<ContactChoice>,
     /// Normal force per hitting node.
     pub normal_force: Vec<S>,
-    /// Tributary area per hitting node at the evaluation's design, in the reference
-    /// configuration (nominal pressure = normal force over it).
+    /// Pressure area per hitting node at the evaluation's design, in the reference
+    /// configuration (nominal pressure = normal force over it;
+    /// [`crate::element::FaceFamily::pressure_share`]: the tributary area on linear faces,
+    /// zero at the corners of quadratic ones).
     pub area: Vec<S>,
-    /// Tributary area per hitting node in the current (deformed) configuration (Cauchy, or
+    /// Pressure area per hitting node in the current (deformed) configuration (Cauchy, or
     /// true, pressure = normal force over it; what CalculiX and Abaqus report). One for a
     /// node-set pair, like `area`.
     pub current_area: Vec<S>,

@@ -260,6 +260,56 @@ impl ContactPair {
             .filter_map(|(k, (m, dof))| dof.map(|dof| (k, dof, m)))
     }
 
+    /// The area each hitting node reads its contact pressure over, with node `n` at `x(n)`
+    /// (reference coordinates at a design, or deformed ones): its faces' pressure shares
+    /// ([`FaceFamily::pressure_share`]; zero at the corners of quadratic faces), or `area`
+    /// for a node set.
+    pub fn pressure_areas_at<S: Scalar>(&self, x: impl Fn(usize) -> Vector3<S>) -> Vec<S> {
+        match &self.hitting_faces {
+            Some(faces) => faces.pressure_areas_at(x, &self.hitting),
+            None => self.area.iter().map(|a| S::lift(*a)).collect(),
+        }
+    }
+
+    /// The contact pressure of every hitting node: its normal force `force[i]` over its
+    /// pressure area `area[i]`; a node without one (a corner of quadratic faces only, whose
+    /// share of a face's load the mid-sides carry) takes the mean pressure of the nodes that
+    /// share a hitting face with it and have one. Generic, so that derivatives follow.
+    pub fn nodal_pressures<S: Scalar>(&self, force: &[S], area: &[S]) -> Vec<S> {
+        let mut p: Vec<S> = (force.iter().zip(area))
+            .map(|(f, a)| if a.value() > 0.0 { *f / *a } else { S::zero() })
+            .collect();
+        let Some(faces) = &self.hitting_faces else {
+            return p;
+        };
+        if area.iter().all(|a| a.value() > 0.0) {
+            return p;
+        }
+        let local: std::collections::HashMap<usize, usize> = (self.hitting.iter().enumerate())
+            .map(|(i, n)| (*n, i))
+            .collect();
+        let mut around: Vec<Vec<usize>> = vec![Vec::new(); self.hitting.len()];
+        for k in 0..faces.len() {
+            let ids: Vec<usize> = (faces.nodes(k).iter())
+                .filter_map(|n| local.get(n).copied())
+                .collect();
+            for &i in ids.iter().filter(|i| area[**i].value() <= 0.0) {
+                for &j in ids.iter().filter(|j| area[**j].value() > 0.0) {
+                    if !around[i].contains(&j) {
+                        around[i].push(j);
+                    }
+                }
+            }
+        }
+        for (i, near) in around.iter().enumerate() {
+            if !near.is_empty() {
+                let sum = near.iter().fold(S::zero(), |s, j| s + force[*j] / area[*j]);
+                p[i] = sum / near.len() as f64;
+            }
+        }
+        p
+    }
+
     /// Whether the normal law is the augmented Lagrangian (one multiplier estimate per node).
     pub fn augmented(&self) -> bool {
         matches!(self.normal, NormalLaw::Augmented { .. })

@@ -19,6 +19,29 @@
 //!
 //! (exact on an undistorted face; the tests integrate `N_a^2` to check them). A pressure load
 //! keeps the consistent weights, which are what the virtual work of a pressure is.
+//!
+//! ## How a contact pressure is read from the nodes' forces
+//! The shares above scale the penalty laws; the contact *pressure* of a hitting node is its
+//! normal force over another area, its **pressure share** ([`FaceFamily::pressure_share`]):
+//! the share of a uniform pressure's load that a node-to-segment contact transmits to the
+//! node. On quad4, tri3 and tri6 faces that is the consistent weight (`1/4`, `1/3`; on a tri6
+//! `0` at the corners and `1/3` at the mid-sides), so a uniform pressure is read exactly. On a
+//! quad8 the consistent corner weight `-1/12` is a pull, which a contact cannot exert: the
+//! corners open (by a fraction of the elastic approach) and the four mid-sides carry the face's
+//! load, a quarter each on a face of even aspect (measured on the Hertz block: every corner
+//! open, the mid-sides within 1 % of `p A / 4`). The pressure shares are therefore:
+//!
+//! | family | corner | mid-side |
+//! |---|---|---|
+//! | quad4 | 1/4 | - |
+//! | tri3 | 1/3 | - |
+//! | quad8 | 0 | 1/4 |
+//! | tri6 | 0 | 1/3 |
+//!
+//! A corner node of a quadratic face carries no pressure share; its pressure is the mean of
+//! its faces' mid-side nodes' ([`crate::contact::ContactPair::nodal_pressures`]). The HRZ
+//! shares would misread a uniform pressure by the ratio of the two tables (mid-sides of a
+//! tri6 by 57/48, of a quad8 by 19/16).
 
 // the Gauss rules' digits as published (rounded to f64 on reading)
 #![allow(clippy::excessive_precision)]
@@ -374,6 +397,20 @@ impl FaceFamily {
         }
     }
 
+    /// The share of a face's area `area` a node `a` of the face reads its contact pressure over
+    /// (the module docs' second table): the consistent weights where they are not a pull,
+    /// the mid-sides' quarter on a quad8.
+    pub fn pressure_share<S: Scalar>(self, area: S, a: usize) -> S {
+        let corner = a < self.n_corners();
+        match self {
+            FaceFamily::Quad4 => area / 4.0,
+            FaceFamily::Tri3 => area / 3.0,
+            FaceFamily::Quad8 | FaceFamily::Tri6 if corner => S::zero(),
+            FaceFamily::Quad8 => area / 4.0,
+            FaceFamily::Tri6 => area / 3.0,
+        }
+    }
+
     /// The consistent nodal weights of a unit normal traction, `int N_a (x_s x x_t) ds dt`
     /// (the area vector each node carries; negative at quad8's corners, which is what the
     /// virtual work of a pressure is). Quad4 keeps its own 2x2 loop, bit for bit as before.
@@ -538,6 +575,42 @@ mod tests {
             }
             let sum: f64 = (0..nn).map(|a| family.tributary_share(1.0, a)).sum();
             assert!((sum - 1.0).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn pressure_shares_are_the_transmissible_consistent_loads() {
+        // the consistent load share int N_a dA / A of a uniform pressure on the undistorted
+        // face: the pressure share wherever it is not a pull; a quad8's corners (-1/12) open
+        // and its mid-sides take a quarter each
+        for family in FaceFamily::ALL {
+            let nn = family.n_nodes();
+            let mut c = [0.0; MAX_FACE_NODES];
+            let mut area = 0.0;
+            for (st, w) in family.rule() {
+                let (n, _) = family.shape(*st);
+                area += w;
+                for a in 0..nn {
+                    c[a] += w * n[a];
+                }
+            }
+            for (a, ca) in c.iter().enumerate().take(nn) {
+                let consistent = ca / area;
+                let share = family.pressure_share(1.0, a);
+                let corner = a < family.n_corners();
+                if family == FaceFamily::Quad8 {
+                    let want = if corner { -1.0 / 12.0 } else { 1.0 / 3.0 };
+                    assert!((consistent - want).abs() < 1e-14, "quad8 node {a}");
+                    assert_eq!(share, if corner { 0.0 } else { 0.25 });
+                } else {
+                    assert!((share - consistent).abs() < 1e-14, "{family:?} node {a}");
+                }
+                if !family.is_quadratic() {
+                    assert_eq!(share, family.tributary_share(1.0, a), "{family:?}");
+                }
+            }
+            let sum: f64 = (0..nn).map(|a| family.pressure_share(1.0, a)).sum();
+            assert!((sum - 1.0).abs() < 1e-15, "{family:?}");
         }
     }
 

@@ -307,6 +307,27 @@ impl FaceSet {
         x: impl Fn(usize) -> Vector3<S>,
         nodes: &[usize],
     ) -> Vec<S> {
+        self.shared_areas_at(x, nodes, FaceFamily::tributary_share)
+    }
+
+    /// The area each of `nodes` reads its contact pressure over, at coordinates `x(n)`: each
+    /// face's area shared by its family's pressure shares ([`FaceFamily::pressure_share`]:
+    /// the tributary areas on quad4 and tri3 faces; none at the corners of quadratic ones).
+    pub fn pressure_areas_at<S: Scalar>(
+        &self,
+        x: impl Fn(usize) -> Vector3<S>,
+        nodes: &[usize],
+    ) -> Vec<S> {
+        self.shared_areas_at(x, nodes, FaceFamily::pressure_share)
+    }
+
+    /// Each face's area at `x(n)` shared among `nodes` by `share(family, area, node of face)`.
+    fn shared_areas_at<S: Scalar>(
+        &self,
+        x: impl Fn(usize) -> Vector3<S>,
+        nodes: &[usize],
+        share: impl Fn(FaceFamily, S, usize) -> S,
+    ) -> Vec<S> {
         // position of each node in `nodes` (the first, as a linear search would find)
         let mut index = HashMap::with_capacity(nodes.len());
         for (k, n) in nodes.iter().enumerate() {
@@ -323,7 +344,7 @@ impl FaceSet {
             let a = family.area(&corners[..face.len()]);
             for (l, n) in face.iter().enumerate() {
                 if let Some(&j) = index.get(n) {
-                    area[j] += family.tributary_share(a, l);
+                    area[j] += share(family, a, l);
                 }
             }
         }

@@ -591,8 +591,14 @@ impl Scene {
                     let at = |i: usize| x[c.hitting[i]][along.index()];
                     let mut order: Vec<usize> = (0..c.hitting.len()).collect();
                     order.sort_by(|a, b| at(*a).total_cmp(&at(*b)));
+                    // the corners of quadratic faces have no pressure area: no point of their
+                    // own, and no station of corners alone
+                    let share = c.pressure_areas_at(|n| x[n]);
                     let stations: Vec<Vec<usize>> = match per {
-                        ProfilePoints::Node => order.iter().map(|i| vec![*i]).collect(),
+                        ProfilePoints::Node => (order.iter())
+                            .filter(|i| share[**i] > 0.0)
+                            .map(|i| vec![*i])
+                            .collect(),
                         ProfilePoints::Station => {
                             let extent = match (order.first(), order.last()) {
                                 (Some(a), Some(b)) => at(*b) - at(*a),
@@ -605,6 +611,7 @@ impl Scene {
                                     _ => stations.push(vec![i]),
                                 }
                             }
+                            stations.retain(|s| s.iter().any(|i| share[*i] > 0.0));
                             stations
                         }
                     };

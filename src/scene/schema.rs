@@ -642,7 +642,8 @@ pub enum ProfilePoints {
     /// (to 1e-9 of the profile's extent), their total normal force over their total area.
     #[default]
     Station,
-    /// One value per hitting node.
+    /// One value per hitting node (but the corners of quadratic faces, which read no
+    /// pressure of their own: [`crate::element::FaceFamily::pressure_share`]).
     Node,
 }
 

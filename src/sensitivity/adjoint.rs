@@ -1285,7 +1285,7 @@ impl<'a> Sweep<'a> {
                         }
                         x
                     };
-                    let areas = faces.tributary_areas_at(seeded, &pair.hitting);
+                    let areas = faces.pressure_areas_at(seeded, &pair.hitting);
                     let g = node_dof(nd, comp);
                     for (c, cot) in cots.iter().enumerate() {
                         let v: f64 = (areas.iter().zip(&cot[carea.clone()]))

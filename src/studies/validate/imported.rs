@@ -166,6 +166,9 @@ pub fn hertz_cylinders(meshes: &Path, reverse: bool) -> Result<Vec<OracleRow>, I
     let res = sensitivities(&model, name, &["upper.E"], Method::Ddm, 0.0)?;
     let last = res.increments.last().expect("increments");
     let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+    let share: Vec<Vec<f64>> = (model.contacts.iter())
+        .map(|c| c.pressure_areas_at(|n| x[n]))
+        .collect();
     // nodal normal forces f = p A at the hitting nodes, their x, the peak pressure
     let (mut force, mut moment2) = (0.0, 0.0);
     let mut peak = (0.0f64, 0.0f64);
@@ -180,7 +183,7 @@ pub fn hertz_cylinders(meshes: &Path, reverse: bool) -> Result<Vec<OracleRow>, I
         {
             // a station's nodes share their x
             let n = model.contacts[pair].hitting[nodes[0]];
-            let area = nodes.iter().map(|i| model.contacts[pair].area[*i]);
+            let area = nodes.iter().map(|i| share[pair][*i]);
             let f = last.values[r] * area.sum::<f64>();
             force += f;
             moment2 += f * x[n].x * x[n].x;
