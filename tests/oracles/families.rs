@@ -448,6 +448,12 @@ kind = "reaction"
 name = "bottom"
 set = "lower.zmin"
 component = "z"
+[[responses]]
+kind = "pressure-profile"
+name = "p"
+pair = "interface"
+along = "x"
+per = "node"
 "#,
         block("lower", lower_shape, 0.0),
         block("upper", upper_shape, 1.0)
@@ -469,7 +475,10 @@ fn stacked_blocks_of_every_shape_carry_the_press_through_their_contact() {
     // quadratic target faces (a hex8 on a hex20 or tet10, a tet4 on a wedge15) leave the
     // faces' mid-side nodes free to bulge between them: node-to-segment sees nothing there,
     // and this coarse stack carries 0.53-0.62 of the force (measured); the invariant there
-    // is equilibrium, top reaction = -bottom reaction.
+    // is equilibrium, top reaction = -bottom reaction. Where the state is uniform, every
+    // hitting node reads the stress E e as its contact pressure: its normal force over its
+    // pressure area (on tri6 faces the consistent shares, nothing at the corners; a corner
+    // reads the mean of its faces' mid-sides).
     let e = 0.005;
     let exact = 1000.0 * e * 4.0;
     for (lower, upper, uniform) in [
@@ -503,6 +512,31 @@ fn stacked_blocks_of_every_shape_carry_the_press_through_their_contact() {
                 "{lower:?} under {upper:?}: top reaction {top}, exact {}",
                 -exact
             );
+            let stress = 1000.0 * e;
+            let mut read = 0;
+            for (r, resp) in model.responses.iter().enumerate() {
+                if resp.name.starts_with("p[") {
+                    let p = res.response_value(&model, r, k);
+                    assert!(
+                        (p - stress).abs() < 1e-8 * stress,
+                        "{lower:?} under {upper:?}: {} = {p}",
+                        resp.name
+                    );
+                    read += 1;
+                }
+            }
+            let pair = &model.contacts[0];
+            let c = &res.contact[k];
+            let n = pair.hitting.len();
+            let p = pair.nodal_pressures(&c.normal_force[..n], &c.area[..n]);
+            assert!(read > 0 && read <= n);
+            for (i, p) in p.iter().enumerate() {
+                assert!(
+                    (p - stress).abs() < 1e-8 * stress,
+                    "{lower:?} under {upper:?}: node {} reads {p}",
+                    pair.hitting[i]
+                );
+            }
             let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
             let z = res.states.last().unwrap();
             for (n, p) in x.iter().enumerate() {
