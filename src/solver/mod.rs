@@ -205,6 +205,15 @@ pub enum ModelError {
         /// The component (0, 1, 2 for x, y, z).
         component: usize,
     },
+    /// A body whose element shape does not take its formulation (a model made in code; a
+    /// scene file's is refused when it is built).
+    #[error("body '{body}': {source}")]
+    Formulation {
+        /// The body's name.
+        body: String,
+        /// What is wrong.
+        source: crate::element::FormulationError,
+    },
 }
 
 /// Why an analysis stopped.

@@ -47,6 +47,9 @@ pub struct Solver<'m> {
 impl<'m> Solver<'m> {
     /// Number the unknowns, build the pattern and its symbolic factorization.
     pub fn new(model: &'m Model) -> Result<Self, AnalysisError> {
+        model
+            .check_families()
+            .map_err(|(body, source)| ModelError::Formulation { body, source })?;
         let assembler = Assembler::new(model, &[])?;
         let constrained = constrained_unknowns(model, &assembler)?;
         let lifted = model.lifted::<f64>(&[]);

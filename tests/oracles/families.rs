@@ -610,6 +610,20 @@ increments = 1
             match built {
                 Ok(_) => assert!(takes, "{shape:?} built with {f:?}"),
                 Err(e) => {
+                    // the same model made in code reaches the solver, which refuses it too
+                    let model = one_body_model(
+                        block_of(shape),
+                        Material::Svk(StVenantKirchhoff::new(1000.0, 0.3)),
+                        Kinematics::Small,
+                        f,
+                    );
+                    match fricsens::solver::Solver::new(&model) {
+                        Err(fricsens::solver::AnalysisError::Model(
+                            fricsens::solver::ModelError::Formulation { body, .. },
+                        )) => assert_eq!(body, "b"),
+                        Err(other) => panic!("{shape:?} with {f:?} in code: {other}"),
+                        Ok(_) => panic!("{shape:?} with {f:?} in code: the solver took it"),
+                    }
                     assert!(!takes, "{shape:?} refused {f:?}: {e}");
                     let message = e.to_string();
                     assert!(
