@@ -635,3 +635,56 @@ increments = 1
         }
     }
 }
+
+#[test]
+fn hertz_on_hex20_and_tet10_blocks_within_two_percent_with_fewer_unknowns_than_hex8() {
+    // the report's study (fricsens validate) on its coarser meshes: a and p0 against Hertz
+    // (oracles.md section 4) within the 2 %, with fewer unknowns than the fewest the
+    // hex8 block needs for it; DDM's dp0/dE = p0 / (2 E) within 2 % as well
+    use fricsens::studies::validate::hertz_families::row;
+    let within = |r: &fricsens::studies::validate::hertz_families::HertzRow| {
+        r.half_width_error < 0.02 && r.peak_error < 0.02
+    };
+    let hex8 = [3, 6]
+        .into_iter()
+        .map(|n| row(Shape::Hex8, n).unwrap())
+        .find(within)
+        .expect("hex8 within 2 % on 6 elements across a");
+    for (shape, n) in [(Shape::Hex20, 6), (Shape::Tet10, 3)] {
+        let r = row(shape, n).unwrap();
+        println!("{r:?}");
+        assert!(within(&r) && r.d_peak_error < 0.02, "{r:?}");
+        assert!(
+            r.unknowns < hex8.unknowns,
+            "{shape:?}: {} unknowns, hex8 {}",
+            r.unknowns,
+            hex8.unknowns
+        );
+    }
+}
+
+#[test]
+fn dp_dmu_along_a_curved_punch_agrees_between_ddm_sdm_and_fdm() {
+    // the smoothness study's scene (fricsens validate) on a coarse hex20 punch and slab:
+    // central SDM and central FDM, independent of DDM, give its profile of dp/dmu. FDM's
+    // reruns converge to a relative force tolerance of 1e-9, so their noise over the step
+    // 2 beta mu is about 1e-9 / 1e-4 = 1e-5 of the derivative; central SDM's truncation is of
+    // order beta^2 = 1e-8
+    use fricsens::studies::validate::smoothness::rows;
+    let dir = std::env::temp_dir().join(format!("fricsens-smoothness-{}", std::process::id()));
+    let rows = rows((Shape::Hex20, 0.5), (Shape::Hex20, 0.5), &dir).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(rows.len(), 3);
+    let ddm = &rows[0];
+    assert!(ddm.x.len() >= 8, "{} stations in contact", ddm.x.len());
+    for (r, tol) in [(&rows[1], 1e-6), (&rows[2], 1e-4)] {
+        assert_eq!(r.x, ddm.x);
+        assert!(
+            r.max_deviation <= tol * ddm.max_abs,
+            "{}: {} against max {}",
+            r.method,
+            r.max_deviation,
+            ddm.max_abs
+        );
+    }
+}

@@ -15,6 +15,10 @@ pub struct HertzSpec {
     pub half_width: f64,
     /// Elements across the target half-width.
     pub elements_across: usize,
+    /// The block's element shape, in its standard formulation (hex8: incompatible modes).
+    pub element: crate::element::Shape,
+    /// Elements outside the fine zone: along x (graded away from it) and down the block.
+    pub far_elements: [usize; 2],
 }
 
 impl Default for HertzSpec {
@@ -25,6 +29,8 @@ impl Default for HertzSpec {
             nu: 0.3,
             half_width: 0.5,
             elements_across: 12,
+            element: crate::element::Shape::Hex8,
+            far_elements: [12, 14],
         }
     }
 }
@@ -48,37 +54,44 @@ pub fn hertz(h: &HertzSpec) -> Scene {
     let depth = 20.0 * a;
     let fine = h.elements_across * 2; // fine zone 0..2a
     let thickness = a / h.elements_across as f64;
+    let mut block = block_body(
+        "block",
+        [0.0, -depth, 0.0],
+        [
+            graded(side, 0.2, fine, h.far_elements[0], 8.0),
+            Axis {
+                length: depth,
+                zones: vec![
+                    Zone {
+                        fraction: 0.9,
+                        elements: h.far_elements[1],
+                        ratio: 1.0 / 10.0,
+                    },
+                    Zone {
+                        fraction: 0.1,
+                        elements: fine,
+                        ratio: 1.0,
+                    },
+                ],
+            },
+            Axis::uniform(thickness, 1),
+        ],
+        Material::Svk(StVenantKirchhoff::new(h.young, h.nu)),
+        Kinematics::Small,
+    );
+    if h.element != crate::element::Shape::Hex8 {
+        if let Some(b) = block.block_mut() {
+            b.element = h.element;
+        }
+        block.formulation = None;
+    }
     Scene {
         name: "hertz".into(),
         description: format!(
             "Hertz line contact, plane strain: rigid cylinder R = {} on an elastic block E = {}, nu = {}, P = {:.6e} per unit length for a = {}.",
             h.radius, h.young, h.nu, h.load(), a
         ),
-        bodies: vec![block_body(
-            "block",
-            [0.0, -depth, 0.0],
-            [
-                graded(side, 0.2, fine, 12, 8.0),
-                Axis {
-                    length: depth,
-                    zones: vec![
-                        Zone {
-                            fraction: 0.9,
-                            elements: 14,
-                            ratio: 1.0 / 10.0,
-                        },
-                        Zone {
-                            fraction: 0.1,
-                            elements: fine,
-                            ratio: 1.0,
-                        },
-                    ],
-                },
-                Axis::uniform(thickness, 1),
-            ],
-            Material::Svk(StVenantKirchhoff::new(h.young, h.nu)),
-            Kinematics::Small,
-        )],
+        bodies: vec![block],
         free_nodes: vec![],
         springs: vec![],
         prescribed: vec![

@@ -29,10 +29,12 @@ pub mod anatomy;
 pub mod auto_step;
 pub mod convergence;
 mod figures;
+pub mod hertz_families;
 pub mod imported;
 pub mod partial;
 pub mod refinement;
 mod report;
+pub mod smoothness;
 pub mod tangent;
 pub mod taylor;
 use figures::*;
@@ -309,6 +311,14 @@ pub struct Validation {
     /// full validation).
     #[serde(default)]
     pub convergence: Vec<convergence::ConvergenceRow>,
+    /// Hertz's line contact on hex8, hex20 and tet10 blocks ([`hertz_families`]; the full
+    /// validation).
+    #[serde(default)]
+    pub hertz_families: Vec<hertz_families::HertzRow>,
+    /// The smoothness of `dp/dmu` along a curved punch's contact surface ([`smoothness`]; the
+    /// full validation).
+    #[serde(default)]
+    pub smoothness: Vec<smoothness::SmoothnessRow>,
 }
 
 /// The leaf spring's ten design parameters of the batched cost measurement: friction,
@@ -859,6 +869,10 @@ pub enum Job {
     Refinement,
     /// The element families' convergence orders ([`convergence`]).
     Convergence,
+    /// Hertz on hex8, hex20 and tet10 blocks ([`hertz_families`]).
+    HertzFamilies,
+    /// The smoothness of the sensitivities along a contact surface ([`smoothness`]).
+    Smoothness,
 }
 
 /// The imported-geometry checks, each a job of its own.
@@ -886,6 +900,8 @@ impl Job {
             Job::BatchedRefined => "batched cost, refined leaf-spring".into(),
             Job::Refinement => "shape parameters: cantilever refinement, refined SDM".into(),
             Job::Convergence => "element families: convergence orders on Lame's cylinder".into(),
+            Job::HertzFamilies => "element families: Hertz on hex8, hex20 and tet10".into(),
+            Job::Smoothness => "element families: smoothness of dp/dmu on a curved punch".into(),
         }
     }
 }
@@ -920,6 +936,8 @@ pub fn plan(scenes: &[Scene], opts: &ValidateOptions) -> Vec<Job> {
         }
         jobs.push(Job::Refinement);
         jobs.push(Job::Convergence);
+        jobs.push(Job::HertzFamilies);
+        jobs.push(Job::Smoothness);
     }
     jobs
 }
@@ -952,6 +970,10 @@ pub enum JobOutput {
     Refinement(refinement::RefinementStudy),
     /// [`Job::Convergence`].
     Convergence(Vec<convergence::ConvergenceRow>),
+    /// [`Job::HertzFamilies`].
+    HertzFamilies(Vec<hertz_families::HertzRow>),
+    /// [`Job::Smoothness`].
+    Smoothness(Vec<smoothness::SmoothnessRow>),
 }
 
 /// Run one job.
@@ -997,6 +1019,10 @@ pub fn run_job(
             opts.floor,
         )?),
         Job::Convergence => JobOutput::Convergence(convergence::study(&convergence::LEVELS)?),
+        Job::HertzFamilies => JobOutput::HertzFamilies(hertz_families::study()?),
+        Job::Smoothness => JobOutput::Smoothness(smoothness::study(
+            &opts.out.join("data").join(smoothness::FOLDER),
+        )?),
     })
 }
 
@@ -1080,6 +1106,8 @@ fn finish(
     let mut batched = Vec::new();
     let mut shape = None;
     let mut converged = Vec::new();
+    let mut hertz = Vec::new();
+    let mut smooth = Vec::new();
     for o in outputs {
         match o {
             JobOutput::Scene {
@@ -1110,6 +1138,24 @@ fn finish(
                 )?;
                 converged = rows;
             }
+            JobOutput::HertzFamilies(rows) => {
+                crate::studies::plot::write_svg(
+                    &hertz_families::figure(&rows),
+                    &figs.join(hertz_families::FIGURE),
+                )?;
+                hertz = rows;
+            }
+            JobOutput::Smoothness(rows) => {
+                crate::studies::plot::write_svg(
+                    &smoothness::figure(&rows),
+                    &figs.join(smoothness::FIGURE),
+                )?;
+                crate::studies::plot::write_svg(
+                    &smoothness::figure_methods(&rows),
+                    &figs.join(smoothness::FIGURE_METHODS),
+                )?;
+                smooth = rows;
+            }
             JobOutput::Refinement(r) => {
                 crate::studies::plot::write_svg(
                     &refinement::figure(&r),
@@ -1133,6 +1179,8 @@ fn finish(
         batched,
         refinement: shape,
         convergence: converged,
+        hertz_families: hertz,
+        smoothness: smooth,
     };
     // the indentation's pressure profile after sliding, for figures 4 and 5 and the report
     let indentation = validation
