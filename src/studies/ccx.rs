@@ -367,8 +367,14 @@ pub fn export(model: &Model, opts: &ExportOptions) -> Result<Deck, CcxError> {
         let _ = writeln!(s, "*ELEMENT,TYPE={ty},ELSET=B{b}");
         for e in model.mesh.group_elements(body.group) {
             let c = model.mesh.element_nodes(e);
-            let ids: Vec<String> = c.iter().map(|n| (n + 1).to_string()).collect();
-            let _ = writeln!(s, "{},{}", e + 1, ids.join(","));
+            // at most 16 entries a data line (CalculiX refuses more): the id and 15 nodes,
+            // then the rest on continuation lines (a quadratic element's 20 nodes)
+            let ids: Vec<String> = std::iter::once(e + 1)
+                .chain(c.iter().map(|n| n + 1))
+                .map(|v| v.to_string())
+                .collect();
+            let lines: Vec<String> = ids.chunks(16).map(|l| l.join(",")).collect();
+            let _ = writeln!(s, "{}", lines.join(",\n"));
         }
         match &body.material {
             Material::Svk(_) => {
@@ -1226,6 +1232,29 @@ pub struct CompareOptions {
     pub time_limit: Option<f64>,
 }
 
+/// A comparison in a few numbers (`ccx.json`), for the verification report's table of the
+/// comparisons side by side.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct CcxSummary {
+    /// Scene name (what regenerates the comparison).
+    pub scene: String,
+    /// CalculiX element types, one per body.
+    pub element_types: Vec<String>,
+    /// fricsens' element families, one per body.
+    pub families: Vec<String>,
+    /// fricsens' unknowns.
+    pub unknowns: usize,
+    /// Nodes of CalculiX's deck.
+    pub ccx_nodes: usize,
+    /// fricsens' primal wall time (s).
+    pub fricsens_seconds: f64,
+    /// CalculiX's primal wall time (s).
+    pub ccx_seconds: f64,
+    /// The largest difference between the two codes' compared quantities over the history,
+    /// over the quantity's largest fricsens value, the worst quantity's.
+    pub largest_difference: f64,
+}
+
 /// The comparison's data, per increment and in all.
 #[derive(Clone, Debug)]
 pub struct Comparison {
@@ -1284,7 +1313,7 @@ pub struct Comparison {
     pub threads: usize,
     /// fricsens' force tolerance (also written as CalculiX's ratios).
     pub force_tol: f64,
-    /// fricsens' hex8 formulation of each body.
+    /// fricsens' element family of each body (shape and formulation).
     pub formulations: Vec<String>,
     /// The export options used.
     pub export: ExportOptions,
@@ -1712,7 +1741,10 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
         formulations: model
             .bodies
             .iter()
-            .map(|b| format!("{:?}", b.formulation))
+            .map(|b| {
+                b.family(&model.mesh)
+                    .map_or_else(|e| e.to_string(), |f| f.name().to_string())
+            })
             .collect(),
         export: opts.export.clone(),
         ccx_version: ccx_version(&opts.ccx).unwrap_or_else(|| "(version unknown)".into()),
@@ -1745,8 +1777,45 @@ pub fn relative_difference(a: &[f64], b: &[f64]) -> (f64, usize) {
 const AXES: [&str; 3] = ["x", "y", "z"];
 
 impl Comparison {
+    /// How the elements of the two codes compare, for the report.
+    fn element_note(&self) -> &'static str {
+        if self.formulations.iter().any(|f| f.contains("incompatible")) {
+            "the same incompatible-mode idea, not the same implementation (Taylor's modes vs Wilson-Taylor / Simo-Armero)"
+        } else {
+            "the same interpolation and Gauss rule, each code's own implementation"
+        }
+    }
+
     fn column(v: &[Vec<f64>], i: usize) -> Vec<f64> {
         v.iter().map(|f| f[i]).collect()
+    }
+
+    /// The comparison in a few numbers.
+    pub fn summary(&self) -> CcxSummary {
+        let largest_difference = (0..self.quantities.len())
+            .map(|i| {
+                let diff = (self.fricsens.iter().zip(&self.ccx))
+                    .map(|(f, c)| (f[i] - c[i]).abs())
+                    .filter(|d| d.is_finite())
+                    .fold(0.0, f64::max);
+                diff / Self::largest(&self.fricsens, i).max(f64::MIN_POSITIVE)
+            })
+            .fold(0.0, f64::max);
+        CcxSummary {
+            scene: self.scene.clone(),
+            element_types: self
+                .deck
+                .element_types
+                .iter()
+                .map(|t| t.to_string())
+                .collect(),
+            families: self.formulations.clone(),
+            unknowns: self.unknowns,
+            ccx_nodes: self.deck.nodes,
+            fricsens_seconds: self.fricsens_primal_seconds,
+            ccx_seconds: self.ccx_seconds,
+            largest_difference,
+        }
     }
 
     fn largest(v: &[Vec<f64>], i: usize) -> f64 {
@@ -1897,7 +1966,7 @@ impl Comparison {
 
     /// The Markdown report, starting with `## Against CalculiX`.
     pub fn markdown(&self) -> String {
-        let mut s = String::from("## Against CalculiX\n\n");
+        let mut s = format!("## Against CalculiX: {}\n\n", self.scene);
         let d = &self.deck;
         let sym = &self.symbol;
         let n_inc = self.times.len();
@@ -1915,7 +1984,7 @@ impl Comparison {
         let _ = writeln!(s, "| | fricsens | CalculiX |\n|---|---|---|");
         let _ = writeln!(
             s,
-            "| unknowns | {} (incl. incompatible modes and multipliers) | {} nodes, {} elements{} |",
+            "| unknowns | {} (incl. multipliers and any incompatible modes) | {} nodes, {} elements{} |",
             self.unknowns,
             d.nodes,
             d.elements,
@@ -2181,10 +2250,11 @@ impl Comparison {
             .fold(0.0, f64::max);
         let _ = writeln!(
             s,
-            "\nWhy they differ. (1) Normal contact: fricsens enforces impenetrability with a Lagrange multiplier per hitting node; CalculiX's node-to-face contact is a penalty, `p = K d` with K = {k_n:.3e} N/mm^3 ({:.0} x fricsens' constraint scale over the median tributary area {a:.3} mm^2), so the block sinks into the slab by p / K in addition to the prescribed indentation: a softer response by about (p / K) / indentation. (2) Friction: both are Coulomb with an elastic stick range; fricsens' tangential stiffness per node over the median tributary area gives CalculiX's stick slope {lam:.3e} N/mm^3, equal on the fine region, larger where the nodes' areas are larger. (3) Elements: {} in CalculiX for fricsens' {}; the same incompatible-mode idea, not the same implementation (Taylor's modes vs Wilson-Taylor / Simo-Armero). (4) Geometry: fricsens' rigid block is analytic (a rounded box); CalculiX's is meshed with {} facets per rounded edge and {} along the flat face. (5) Tolerance: the same number, on different norms (fricsens: Euclidean norm of the free residual over the reference force; CalculiX: the largest residual component over the mean element nodal force). The largest force is {fy:.4e} N.\n",
+            "\nWhy they differ. (1) Normal contact: fricsens enforces impenetrability with a Lagrange multiplier per hitting node; CalculiX's node-to-face contact is a penalty, `p = K d` with K = {k_n:.3e} N/mm^3 ({:.0} x fricsens' constraint scale over the median tributary area {a:.3} mm^2), so the block sinks into the slab by p / K in addition to the prescribed indentation: a softer response by about (p / K) / indentation. (2) Friction: both are Coulomb with an elastic stick range; fricsens' tangential stiffness per node over the median tributary area gives CalculiX's stick slope {lam:.3e} N/mm^3, equal on the fine region, larger where the nodes' areas are larger. (3) Elements: {} in CalculiX for fricsens' {}; {}. (4) Geometry: fricsens' rigid block is analytic (a rounded box); CalculiX's is meshed with {} facets per rounded edge and {} along the flat face. (5) Tolerance: the same number, on different norms (fricsens: Euclidean norm of the free residual over the reference force; CalculiX: the largest residual component over the mean element nodal force). The largest force is {fy:.4e} N.\n",
             self.export.normal_factor,
             d.element_types.join(", "),
             self.formulations.join(", "),
+            self.element_note(),
             self.export.arc_segments,
             self.export.flat_segments,
         );
@@ -2251,10 +2321,11 @@ impl Comparison {
         };
         let _ = writeln!(
             s,
-            "\nWhy they differ. (1) Normal contact: fricsens enforces impenetrability with a Lagrange multiplier per hitting node against the target faces (node to segment); CalculiX's is a surface-to-surface penalty (`TYPE=SURFACE TO SURFACE`), `p = K d` at the integration points of the slave faces, with K = {k_n:.3e} N/mm^3 ({:.0} x fricsens' constraint scale over the median tributary area {a:.3e} mm^2), so the bodies overlap by p / K.{friction} (3) Contact discretization: fricsens' hitting nodes meet the target facets, CalculiX's slave-face integration points do; over a contact patch a few elements wide the two resolve the pressure differently, and where one body slides over the other's facets both histories wiggle as nodes and integration points cross facet edges. (4) Elements: {} in CalculiX for fricsens' {}; the same incompatible-mode idea, not the same implementation (Taylor's modes vs Wilson-Taylor / Simo-Armero). (5) Tolerance: the same number, on different norms (fricsens: Euclidean norm of the free residual over the reference force; CalculiX: the largest residual component over the mean element nodal force).{adjust}\n",
+            "\nWhy they differ. (1) Normal contact: fricsens enforces impenetrability with a Lagrange multiplier per hitting node against the target faces (node to segment); CalculiX's is a surface-to-surface penalty (`TYPE=SURFACE TO SURFACE`), `p = K d` at the integration points of the slave faces, with K = {k_n:.3e} N/mm^3 ({:.0} x fricsens' constraint scale over the median tributary area {a:.3e} mm^2), so the bodies overlap by p / K.{friction} (3) Contact discretization: fricsens' hitting nodes meet the target facets, CalculiX's slave-face integration points do; over a contact patch a few elements wide the two resolve the pressure differently, and where one body slides over the other's facets both histories wiggle as nodes and integration points cross facet edges. (4) Elements: {} in CalculiX for fricsens' {}; {}. (5) Tolerance: the same number, on different norms (fricsens: Euclidean norm of the free residual over the reference force; CalculiX: the largest residual component over the mean element nodal force).{adjust}\n",
             self.export.normal_factor,
             d.element_types.join(", "),
             self.formulations.join(", "),
+            self.element_note(),
         );
         let (p_mean, p_max) = self.pressure;
         if p_mean > 0.0 {
@@ -2278,7 +2349,7 @@ impl Comparison {
         }
     }
 
-    /// Write `ccx.csv`, `ccx.svg` and `ccx.md` into `dir`.
+    /// Write `ccx.csv`, `ccx.svg`, `ccx.md` and `ccx.json` ([`CcxSummary`]) into `dir`.
     ///
     /// # Errors
     /// [`CcxError::Io`] and [`CcxError::Plot`].
@@ -2289,6 +2360,9 @@ impl Comparison {
         crate::studies::plot::write_svg(&self.figure(), &dir.join("ccx.svg"))?;
         let p = dir.join("ccx.md");
         std::fs::write(&p, self.markdown()).map_err(io_err(&p))?;
+        let p = dir.join("ccx.json");
+        let json = serde_json::to_string_pretty(&self.summary()).expect("serialisable");
+        std::fs::write(&p, json).map_err(io_err(&p))?;
         Ok(())
     }
 }

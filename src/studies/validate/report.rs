@@ -373,6 +373,8 @@ pub(super) fn report(
         s.push_str(&l.section());
     }
     super::convergence::write_convergence(&mut s, &val.convergence);
+    super::hertz_families::write_hertz_families(&mut s, &val.hertz_families);
+    super::smoothness::write_smoothness(&mut s, &val.smoothness);
     // sections written by `fricsens scaling` and `fricsens ccx` (long, or needing CalculiX):
     // included as they were last generated
     for (file, what) in [
@@ -380,7 +382,12 @@ pub(super) fn report(
         ("scaling/scaling.md", "fricsens scaling"),
         ("adjoint/adjoint.md", "fricsens adjoint-study"),
         ("ccx/ccx.md", "fricsens ccx"),
+        ("ccx-hex20/ccx.md", "fricsens ccx"),
+        ("ccx-tet10/ccx.md", "fricsens ccx"),
     ] {
+        if file == "ccx/ccx.md" {
+            ccx_side_by_side(&mut s, &opts.out);
+        }
         if let Ok(text) = std::fs::read_to_string(opts.out.join(file)) {
             let dir = file.split('/').next().unwrap_or("");
             let _ = writeln!(
@@ -832,4 +839,38 @@ fn write_taylor(s: &mut String, val: &Validation, opts: &ValidateOptions) {
             );
         }
     }
+}
+
+/// The CalculiX comparisons the report includes (`OUT/ccx*/ccx.json`, written by `fricsens
+/// ccx`), side by side: one row each.
+fn ccx_side_by_side(s: &mut String, out: &std::path::Path) {
+    use std::fmt::Write;
+    let rows: Vec<crate::studies::ccx::CcxSummary> = ["ccx", "ccx-hex20", "ccx-tet10"]
+        .iter()
+        .filter_map(|d| std::fs::read_to_string(out.join(d).join("ccx.json")).ok())
+        .filter_map(|t| serde_json::from_str(&t).ok())
+        .collect();
+    if rows.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "## Against CalculiX, side by side\n\nThe comparisons below (written by `fricsens ccx SCENE --out validation/DIR`; the quadratic meshes are `scenes/indentation-hex20.toml` and `scenes/indentation-tet10.toml`, the indentation on hex20 and tet10 elements of twice the size), in a few numbers: primal wall times, their ratio, and the largest difference between the two codes' forces over the history, over the largest force.\n\n| scene | CalculiX elements | fricsens family | fricsens unknowns | CalculiX nodes | fricsens primal (s) | CalculiX primal (s) | ratio | largest force difference |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    for r in &rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2e} |",
+            r.scene,
+            r.element_types.join(", "),
+            r.families.join(", "),
+            r.unknowns,
+            r.ccx_nodes,
+            r.fricsens_seconds,
+            r.ccx_seconds,
+            r.ccx_seconds / r.fricsens_seconds.max(1e-12),
+            r.largest_difference
+        );
+    }
+    let _ = writeln!(s);
 }
