@@ -838,3 +838,49 @@ fn slave_surfaces_of_every_solid_shape_are_its_sides_on_the_contact_face() {
         }
     }
 }
+
+#[test]
+fn quadratic_indentations_write_their_elements_on_continuation_lines() {
+    // the shipped quadratic indentations: C3D20R and C3D10 with every element's id and nodes,
+    // no data line over CalculiX's 16 entries (it stops at a longer one)
+    for (file, ty, nodes) in [
+        ("indentation-hex20.toml", "C3D20R", 20),
+        ("indentation-tet10.toml", "C3D10", 10),
+    ] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes")
+            .join(file);
+        let model = Scene::from_file(&path).unwrap().build().unwrap();
+        let deck = export(&model, &ExportOptions::default()).unwrap();
+        assert_eq!(deck.element_types, vec![ty], "{file}");
+        let header = format!("*ELEMENT,TYPE={ty}");
+        let data: Vec<&str> = (deck.text.lines())
+            .skip_while(|l| !l.starts_with(&header))
+            .skip(1)
+            .take_while(|l| !l.starts_with('*'))
+            .collect();
+        for l in &data {
+            assert!(
+                l.split(',').filter(|e| !e.trim().is_empty()).count() <= 16,
+                "{file}: {l}"
+            );
+        }
+        // the entries, continuation lines joined: an id and its nodes per element
+        let entries: Vec<usize> = (data.join(",").split(','))
+            .filter(|e| !e.trim().is_empty())
+            .map(|e| e.trim().parse().unwrap())
+            .collect();
+        assert_eq!(
+            entries.len(),
+            model.mesh.n_elements() * (nodes + 1),
+            "{file}"
+        );
+        for (k, element) in entries.chunks(nodes + 1).enumerate() {
+            let want: Vec<usize> = (model.mesh.element_nodes(k).iter())
+                .map(|n| n + 1)
+                .collect();
+            assert_eq!(element[0], k + 1);
+            assert_eq!(&element[1..], &want[..], "{file}: element {}", k + 1);
+        }
+    }
+}
