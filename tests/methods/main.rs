@@ -13,6 +13,7 @@ mod adjoint;
 mod anatomy;
 mod beta_auto;
 mod examples;
+mod families;
 mod field_params;
 mod fields;
 mod methods;
