@@ -292,8 +292,8 @@ enum Command {
         #[arg(long)]
         notes: Option<PathBuf>,
     },
-    /// The mesh readers' fuzzer: mutants of a block written as MSH 4.1 ASCII, binary and
-    /// .inp, and of any --file, read and imported; none may panic, and every refusal must name
+    /// The mesh readers' fuzzer: mutants of a block of hex8, hex20 and tet10 elements written
+    /// as MSH 4.1 ASCII, binary and .inp, and of any --file, read and imported; none may panic, and every refusal must name
     /// its file. Writes mesh-fuzz.md and mesh-fuzz.json; keeps each panicking mutant in
     /// --corpus. Exits 1 if any mutant panicked.
     FuzzMeshes {

@@ -12,6 +12,7 @@
 //!
 //! `fricsens fuzz-meshes` runs it from the command line; the test suite runs 2,000 mutants.
 
+use crate::element::Shape;
 use crate::mesh::import::ImportError;
 use crate::mesh::{abaqus, gmsh, Axis, BlockSpec, Mesh, Zone};
 use std::collections::BTreeMap;
@@ -136,28 +137,10 @@ pub struct SeedFile {
     pub bytes: Vec<u8>,
 }
 
-/// The built-in seeds: a graded 2 x 2 x 2 block at an odd origin (full mantissas), written as
-/// MSH 4.1 ASCII, MSH 4.1 binary and `.inp`, with its six sides as sets.
+/// The built-in seeds: a graded 2 x 2 x 2 block at an odd origin (full mantissas), of hex8,
+/// hex20 and tet10 elements (the quadratic ones' node orders and `.inp` continuation lines),
+/// each written as MSH 4.1 ASCII, MSH 4.1 binary and `.inp`, with its six sides as sets.
 pub fn builtin_seeds() -> Result<Vec<SeedFile>, ImportError> {
-    let mut m = Mesh::default();
-    m.add_block(BlockSpec {
-        element: crate::element::Shape::Hex8,
-        name: "b".into(),
-        origin: [0.3, -1.7, 2.1],
-        x: Axis {
-            length: 1.1,
-            zones: vec![Zone {
-                fraction: 1.0,
-                elements: 2,
-                ratio: 3.0,
-            }],
-        },
-        y: Axis::uniform(0.7, 2),
-        z: Axis::uniform(0.9 / 7.0, 2),
-    })
-    .expect("a valid block");
-    let x = m.coordinates::<f64>(&m.block_geometry());
-    let bodies = vec![("b".to_string(), 0)];
     // one folder per call, so that concurrent callers do not share files
     static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -168,26 +151,47 @@ pub fn builtin_seeds() -> Result<Vec<SeedFile>, ImportError> {
         message: e.to_string(),
     })?;
     let mut out = Vec::new();
-    for (name, ext, k) in [
-        ("block.msh (ASCII)", "msh", 0),
-        ("block.msh (binary)", "msh", 1),
-        ("block.inp", "inp", 2),
-    ] {
-        let path = dir.join(format!("seed-{k}.{ext}"));
-        match k {
-            0 => gmsh::write(&m, &x, &bodies, &path, false)?,
-            1 => gmsh::write(&m, &x, &bodies, &path, true)?,
-            _ => abaqus::write(&m, &x, &bodies, &path)?,
+    for shape in [Shape::Hex8, Shape::Hex20, Shape::Tet10] {
+        let mut m = Mesh::default();
+        m.add_block(BlockSpec {
+            element: shape,
+            name: "b".into(),
+            origin: [0.3, -1.7, 2.1],
+            x: Axis {
+                length: 1.1,
+                zones: vec![Zone {
+                    fraction: 1.0,
+                    elements: 2,
+                    ratio: 3.0,
+                }],
+            },
+            y: Axis::uniform(0.7, 2),
+            z: Axis::uniform(0.9 / 7.0, 2),
+        })
+        .expect("a valid block");
+        let x = m.coordinates::<f64>(&m.block_geometry());
+        let bodies = vec![("b".to_string(), 0)];
+        for (name, ext, k) in [
+            ("block.msh (ASCII)", "msh", 0),
+            ("block.msh (binary)", "msh", 1),
+            ("block.inp", "inp", 2),
+        ] {
+            let path = dir.join(format!("seed-{}-{k}.{ext}", shape.name()));
+            match k {
+                0 => gmsh::write(&m, &x, &bodies, &path, false)?,
+                1 => gmsh::write(&m, &x, &bodies, &path, true)?,
+                _ => abaqus::write(&m, &x, &bodies, &path)?,
+            }
+            let bytes = std::fs::read(&path).map_err(|e| ImportError::Io {
+                file: path.clone(),
+                message: e.to_string(),
+            })?;
+            out.push(SeedFile {
+                name: format!("{} {name}", shape.name()),
+                extension: ext.into(),
+                bytes,
+            });
         }
-        let bytes = std::fs::read(&path).map_err(|e| ImportError::Io {
-            file: path.clone(),
-            message: e.to_string(),
-        })?;
-        out.push(SeedFile {
-            name: name.into(),
-            extension: ext.into(),
-            bytes,
-        });
     }
     let _ = std::fs::remove_dir_all(&dir);
     Ok(out)
