@@ -373,7 +373,7 @@ pub struct Lifted<S: Scalar> {
     /// coordinates (the pair's `area` where it has no faces).
     pub area: Vec<Vec<S>>,
     /// The area each hitting node of each contact pair reads its pressure over, at these
-    /// reference coordinates ([`ContactPair::pressure_areas_at`]).
+    /// reference coordinates ([`crate::contact::ContactPair::pressure_areas_at`]).
     pub pressure_area: Vec<Vec<S>>,
     /// Magnitudes of the pressure loads.
     pub pressures: Vec<S>,

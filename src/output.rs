@@ -112,6 +112,9 @@ pub fn write_contact_csv(path: &Path, model: &Model, res: &Results) -> Result<()
         for (p, pair) in model.contacts.iter().enumerate() {
             let first = res.contact_flat.get(p).copied().unwrap_or(0);
             let (nominal, current) = pressures(pair, c, first);
+            if nominal.len() != pair.hitting.len() {
+                continue;
+            }
             for (i, &n) in pair.hitting.iter().enumerate() {
                 let f = first + i;
                 if f >= c.choice.len() {
@@ -320,6 +323,9 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
     for (p, pair) in model.contacts.iter().enumerate() {
         let first = res.contact_flat.get(p).copied().unwrap_or(0);
         let (p_nominal, p_current) = pressures(pair, c, first);
+        if p_nominal.len() != pair.hitting.len() {
+            continue;
+        }
         for (i, &node) in pair.hitting.iter().enumerate() {
             let f = first + i;
             if f >= c.choice.len() {

@@ -268,14 +268,8 @@ pub fn figure(rows: &[ConvergenceRow]) -> crate::studies::plot::Figure {
     )
     .log_x()
     .log_y();
-    let families: Vec<String> = rows.iter().fold(Vec::new(), |mut v, r| {
-        if !v.contains(&r.family) {
-            v.push(r.family.clone());
-        }
-        v
-    });
-    for family in &families {
-        let mine: Vec<&ConvergenceRow> = rows.iter().filter(|r| &r.family == family).collect();
+    for family in super::distinct(rows.iter().map(|r| r.family.as_str())) {
+        let mine: Vec<&ConvergenceRow> = rows.iter().filter(|r| r.family == family).collect();
         let series = |e: fn(&ConvergenceRow) -> f64| -> Vec<(f64, f64)> {
             mine.iter().map(|r| (r.unknowns as f64, e(r))).collect()
         };
@@ -319,17 +313,12 @@ pub fn write_convergence(s: &mut String, rows: &[ConvergenceRow]) {
         s,
         "\n| family | order u | order du/dE | order du/db |\n|---|---|---|---|"
     );
-    let mut seen: Vec<&str> = Vec::new();
-    for r in rows {
-        if seen.contains(&r.family.as_str()) {
-            continue;
-        }
-        seen.push(&r.family);
-        let mine: Vec<&ConvergenceRow> = rows.iter().filter(|q| q.family == r.family).collect();
+    for family in super::distinct(rows.iter().map(|r| r.family.as_str())) {
+        let mine: Vec<&ConvergenceRow> = rows.iter().filter(|q| q.family == family).collect();
         let _ = writeln!(
             s,
             "| {} | {:.2} | {:.2} | {:.2} |",
-            r.family,
+            family,
             order(&mine, |q| q.displacement),
             order(&mine, |q| q.d_young),
             order(&mine, |q| q.d_radius)

@@ -161,13 +161,7 @@ pub fn figure(rows: &[HertzRow]) -> crate::studies::plot::Figure {
     )
     .log_x()
     .log_y();
-    let mut families: Vec<&str> = Vec::new();
-    for r in rows {
-        if !families.contains(&r.family.as_str()) {
-            families.push(&r.family);
-        }
-    }
-    for family in families {
+    for family in super::distinct(rows.iter().map(|r| r.family.as_str())) {
         let mine: Vec<&HertzRow> = rows.iter().filter(|r| r.family == family).collect();
         let series = |e: fn(&HertzRow) -> f64| -> Vec<(f64, f64)> {
             // a zero error has no place on a log axis
@@ -227,20 +221,15 @@ pub fn write_hertz_families(s: &mut String, rows: &[HertzRow]) {
         s,
         "\n| family | fewest unknowns with a and p0 within 2 % |\n|---|---|"
     );
-    let mut seen: Vec<&str> = Vec::new();
-    for r in rows {
-        if seen.contains(&r.family.as_str()) {
-            continue;
-        }
-        seen.push(&r.family);
+    for family in super::distinct(rows.iter().map(|r| r.family.as_str())) {
         let best = (rows.iter())
-            .filter(|q| q.family == r.family && q.peak_error < 0.02 && q.half_width_error < 0.02)
+            .filter(|q| q.family == family && q.peak_error < 0.02 && q.half_width_error < 0.02)
             .map(|q| q.unknowns)
             .min();
         let _ = writeln!(
             s,
             "| {} | {} |",
-            r.family,
+            family,
             best.map_or("none of these meshes".to_string(), |u| u.to_string())
         );
     }

@@ -321,6 +321,18 @@ pub struct Validation {
     pub smoothness: Vec<smoothness::SmoothnessRow>,
 }
 
+/// The distinct `names`, in the order of their first appearance (the families of a study's
+/// rows, say).
+pub(crate) fn distinct<'a>(names: impl IntoIterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut out: Vec<&str> = Vec::new();
+    for n in names {
+        if !out.contains(&n) {
+            out.push(n);
+        }
+    }
+    out
+}
+
 /// The leaf spring's ten design parameters of the batched cost measurement: friction,
 /// material, shape (both leaves' length and thickness) and the tangential penalty.
 pub(crate) const LEAF_BATCH: [&str; 10] = [

@@ -1,24 +1,26 @@
 //! How smooth the sensitivities of a contact pressure are along the surface, for hex8, hex20
 //! and tet10 meshes of a curved punch slid on a slab: `dp/dmu` at every station of the slab's
-//! surface by DDM, central SDM and central FDM, its total variation and its largest jump
-//! between neighbouring stations.
+//! surface by DDM, central SDM and central FDM, its total variation, its largest jump and its
+//! largest second difference between neighbouring stations.
 //!
-//! The scene (written out as `punch-FAMILY.toml` and its punch mesh `punch-FAMILY.inp`, so
-//! that `fricsens run` reruns it): an elastic punch, the region between a circular arc of
-//! radius [`RADIUS`] (lowest at the origin) and a flat top at height [`HEIGHT`], `|x| <=`
-//! [`HALF_WIDTH`], E = 10 000, nu = 0.3, is pressed [`PRESS`] into an elastic slab 16 x 4
-//! (E = 1000, nu = 0.3; finely meshed for `|x| <= 4`) and then slid [`SLIDE`] along x with
-//! Coulomb friction mu = 0.3, plane strain (one element through the thickness), large
-//! kinematics. The punch's arc is the **target** (master) surface, the slab's top the hitting
-//! (slave) one: the pressure is read at the slab's stations (the hitting nodes at one x, their
-//! normal forces over their pressure areas). The punch is the block generator's grid mapped
-//! onto the region, mid-edge nodes at their fractions' middle, so a quadratic punch's arc
-//! faces lie on the circle to interpolation order while a hex8 punch's arc is faceted.
+//! The scene (written out as `punch-FAMILY-hSIZE-on-FAMILY-hSIZE.toml` beside its punch mesh
+//! `punch-FAMILY-hSIZE.inp`, so that `fricsens run` reruns it): an elastic punch, the region
+//! between a circular arc of radius [`RADIUS`] (lowest at the origin) and a flat top at height
+//! [`HEIGHT`], `|x| <=` [`HALF_WIDTH`], E = 10 000, nu = 0.3, is pressed [`PRESS`] into an
+//! elastic slab 16 x 4 (E = 1000, nu = 0.3; finely meshed for `|x| <= 4`) and then slid
+//! [`SLIDE`] along x with Coulomb friction mu = 0.3, plane strain (one element through the
+//! thickness), large kinematics. The punch's arc is the **target** (master) surface, the
+//! slab's top the hitting (slave) one: the pressure is read at the slab's stations (the
+//! hitting nodes at one x, their normal forces over their pressure areas). The punch is the
+//! block generator's grid mapped onto the region, mid-edge nodes at their fractions' middle,
+//! so a quadratic punch's arc faces lie on the circle to interpolation order while a hex8
+//! punch's arc is faceted.
 //!
-//! The meshes ([`COMBINATIONS`]): each body of its family's element size in the slab's fine
-//! zone and on the punch, the sizes chosen so that the models have about as many unknowns
-//! (12 000, the table gives them): hex8 0.2 (its incompatible modes are unknowns too), hex20
-//! 0.25, tet10 1/3; one element of [`THICKNESS`] through the thickness.
+//! The meshings ([`COMBINATIONS`]): one family on both sides at about equal unknowns (12 000:
+//! hex8 0.2, its incompatible modes counted; hex20 0.25; tet10 1/3); a hex20 punch on a hex8
+//! slab at about one slab node per punch face; and a hex8 or hex20 punch of 0.5 on a hex8 slab
+//! of 0.1 at equal unknowns (32 000), the slab finer than the punch. One element of
+//! [`THICKNESS`] through the thickness.
 
 use super::ValidateError;
 use crate::element::{ElementFamily, Shape};
@@ -381,13 +383,7 @@ pub fn rows(
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         out.push(SmoothnessRow {
-            combination: format!(
-                "{} {} / {} {}",
-                ElementFamily::standard(punch.0).name(),
-                size_label(punch.1),
-                ElementFamily::standard(slab.0).name(),
-                size_label(slab.1)
-            ),
+            combination: combination_name(punch, slab),
             slave_quadratic: slab.0.is_quadratic(),
             unknowns,
             method: name.into(),
@@ -400,6 +396,17 @@ pub fn rows(
         });
     }
     Ok(out)
+}
+
+/// `punch family size / slab family size`, as the report names a combination.
+fn combination_name(punch: Meshing, slab: Meshing) -> String {
+    format!(
+        "{} {} / {} {}",
+        ElementFamily::standard(punch.0).name(),
+        size_label(punch.1),
+        ElementFamily::standard(slab.0).name(),
+        size_label(slab.1)
+    )
 }
 
 /// An element size as the report writes it (1/3 as such).
@@ -515,14 +522,7 @@ pub fn write_smoothness(s: &mut String, rows: &[SmoothnessRow]) {
     );
     // the combinations the explanation compares, by their place in COMBINATIONS
     let excess = |k: usize| -> String {
-        let (punch, slab) = COMBINATIONS[k];
-        let name = format!(
-            "{} {} / {} {}",
-            ElementFamily::standard(punch.0).name(),
-            size_label(punch.1),
-            ElementFamily::standard(slab.0).name(),
-            size_label(slab.1)
-        );
+        let name = combination_name(COMBINATIONS[k].0, COMBINATIONS[k].1);
         ddm.iter()
             .find(|r| r.combination == name)
             .map_or("-".into(), |r| format!("{:.2}", r.worst.excess))
