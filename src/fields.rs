@@ -89,13 +89,9 @@ pub fn state_fields<S: Scalar>(
         let mut friction = vec![S::zero(); 3 * n];
         for (p, pair) in model.contacts.iter().enumerate() {
             let first = asm.contact_flat(p);
-            let range = first..first + pair.hitting.len();
-            if range.end > c.normal_force.len() {
+            let Some((p_nominal, p_current)) = c.pressures(pair, first) else {
                 continue;
-            }
-            let force = &c.normal_force[range.clone()];
-            let p_nominal = pair.nodal_pressures(force, &c.area[range.clone()]);
-            let p_current = pair.nodal_pressures(force, &c.current_area[range]);
+            };
             for (i, &node) in pair.hitting.iter().enumerate() {
                 let f = first + i;
                 if f >= c.normal_force.len() {

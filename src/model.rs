@@ -797,14 +797,18 @@ impl Model {
             }
             own.last_mut().expect("pushed").1[i] = v;
         }
-        let area = (self.contacts.iter())
+        let area: Vec<Vec<S>> = (self.contacts.iter())
             .map(|c| match &c.hitting_faces {
                 Some(faces) => faces.tributary_areas(&coords, &c.hitting),
                 None => c.area.iter().map(|a| S::lift(*a)).collect(),
             })
             .collect();
-        let pressure_area = (self.contacts.iter())
-            .map(|c| c.pressure_areas_at(|n| coords[n]))
+        // equal to the tributary areas, bit for bit, on linear faces
+        let pressure_area = (self.contacts.iter().zip(&area))
+            .map(|(c, a)| match &c.hitting_faces {
+                Some(faces) if faces.has_quadratic() => c.pressure_areas_at(|n| coords[n]),
+                _ => a.clone(),
+            })
             .collect();
         Lifted {
             coords,

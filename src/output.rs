@@ -75,29 +75,10 @@ pub fn write_history_csv(path: &Path, model: &Model, res: &Results) -> Result<()
     std::fs::write(path, s).map_err(io(path))
 }
 
-/// The nominal and current contact pressures of `pair`'s hitting nodes, whose results start
-/// at `first` in `c` ([`crate::contact::ContactPair::nodal_pressures`]; empty when `c` holds
-/// none of them).
-fn pressures(
-    pair: &crate::contact::ContactPair,
-    c: &crate::contact::assembly::ContactEval<f64>,
-    first: usize,
-) -> (Vec<f64>, Vec<f64>) {
-    let range = first..first + pair.hitting.len();
-    if range.end > c.normal_force.len() {
-        return (Vec::new(), Vec::new());
-    }
-    let f = &c.normal_force[range.clone()];
-    (
-        pair.nodal_pressures(f, &c.area[range.clone()]),
-        pair.nodal_pressures(f, &c.current_area[range]),
-    )
-}
-
 /// Write `contact.csv`, long format: one row per hitting node of every pair at every stored
 /// increment, with the node's number, its reference (`X`, `Y`, `Z`) and current (`x`, `y`,
 /// `z`) coordinates, its state (0 open, 1 closed frictionless, 2 stick, 3 slip), normal force,
-/// both contact pressures (`p_nominal` over the reference tributary area, `p_current` over the
+/// both contact pressures (`p_nominal` over the reference pressure area, `p_current` over the
 /// deformed one: the Cauchy pressure CalculiX and Abaqus report) and friction force. The
 /// numbers and coordinates are those of the VTK files.
 pub fn write_contact_csv(path: &Path, model: &Model, res: &Results) -> Result<(), OutputError> {
@@ -111,10 +92,9 @@ pub fn write_contact_csv(path: &Path, model: &Model, res: &Results) -> Result<()
         };
         for (p, pair) in model.contacts.iter().enumerate() {
             let first = res.contact_flat.get(p).copied().unwrap_or(0);
-            let (nominal, current) = pressures(pair, c, first);
-            if nominal.len() != pair.hitting.len() {
+            let Some((nominal, current)) = c.pressures(pair, first) else {
                 continue;
-            }
+            };
             for (i, &n) in pair.hitting.iter().enumerate() {
                 let f = first + i;
                 if f >= c.choice.len() {
@@ -302,7 +282,7 @@ pub fn write_pvd(path: &Path, files: &[(f64, String)]) -> Result<(), OutputError
 
 /// Contact state map of increment `k` as point fields: `contact_state` (-1 not a hitting node,
 /// 0 open, 1 closed frictionless, 2 stick, 3 slip), `normal_force`, the contact pressure over
-/// the node's reference tributary area (`contact_pressure_nominal`) and over its current one
+/// the node's reference pressure area (`contact_pressure_nominal`) and over its current one
 /// (`contact_pressure_current`, the Cauchy pressure CalculiX and Abaqus report),
 /// `friction_force` (its direction is the slip direction) and `contact_force`.
 pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
@@ -322,10 +302,9 @@ pub fn contact_fields(model: &Model, res: &Results, k: usize) -> ExtraFields {
     let mut force = vec![0.0; 3 * n];
     for (p, pair) in model.contacts.iter().enumerate() {
         let first = res.contact_flat.get(p).copied().unwrap_or(0);
-        let (p_nominal, p_current) = pressures(pair, c, first);
-        if p_nominal.len() != pair.hitting.len() {
+        let Some((p_nominal, p_current)) = c.pressures(pair, first) else {
             continue;
-        }
+        };
         for (i, &node) in pair.hitting.iter().enumerate() {
             let f = first + i;
             if f >= c.choice.len() {

@@ -131,9 +131,10 @@ pub enum ResponseKind {
         /// 0, 1, 2 for x, y, z.
         component: usize,
     },
-    /// Normal contact force over tributary area at hitting nodes `nodes` of pair `pair`: each
+    /// Normal contact force over pressure area at hitting nodes `nodes` of pair `pair`: each
     /// node's share of the hitting faces in the reference configuration at the evaluated
-    /// design (a shape parameter moves it: [`Lifted::area`](crate::model::Lifted::area)), or
+    /// design (a shape parameter moves it:
+    /// [`Lifted::pressure_area`](crate::model::Lifted::pressure_area)), or
     /// in the current configuration ([`PressureMeasure`]).
     ContactPressure {
         /// Contact pair index in the model.
@@ -212,12 +213,12 @@ impl ResponseKind {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum PressureMeasure {
-    /// The nominal (first Piola-Kirchhoff-like) pressure: over the node's tributary area in the
+    /// The nominal (first Piola-Kirchhoff-like) pressure: over the node's pressure area in the
     /// reference configuration. Equal to the current one under small strains; the default, as
     /// fricsens has always reported it.
     #[default]
     Nominal,
-    /// The Cauchy (true) pressure: over the node's tributary area in the current configuration,
+    /// The Cauchy (true) pressure: over the node's pressure area in the current configuration,
     /// as CalculiX, Abaqus and most papers report contact pressure. Its derivative includes how
     /// the area deforms.
     Current,

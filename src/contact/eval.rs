@@ -1,6 +1,6 @@
 //! What one contact evaluation produces: states, forces and gaps per hitting node.
 
-use super::ContactChoice;
+use super::{ContactChoice, ContactPair};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
 
@@ -38,6 +38,21 @@ pub struct ContactEval<S: Scalar> {
 }
 
 impl<S: Scalar> ContactEval<S> {
+    /// The nominal and current contact pressures of `pair`'s hitting nodes, whose results
+    /// start at `first` ([`ContactPair::nodal_pressures`]); `None` when these results do not
+    /// hold all of them.
+    pub fn pressures(&self, pair: &ContactPair, first: usize) -> Option<(Vec<S>, Vec<S>)> {
+        let range = first..first + pair.hitting.len();
+        if range.end > self.normal_force.len() {
+            return None;
+        }
+        let f = &self.normal_force[range.clone()];
+        Some((
+            pair.nodal_pressures(f, &self.area[range.clone()]),
+            pair.nodal_pressures(f, &self.current_area[range]),
+        ))
+    }
+
     /// Empty results for `n_hitting` hitting nodes over `n_pairs` pairs: every node open,
     /// no force, distances and gaps infinite.
     pub fn new(n_hitting: usize, n_pairs: usize) -> Self {

@@ -274,8 +274,12 @@ impl ContactPair {
     /// The contact pressure of every hitting node: its normal force `force[i]` over its
     /// pressure area `area[i]`; a node without one (a corner of quadratic faces only, whose
     /// share of a face's load the mid-sides carry) takes the mean pressure of the nodes that
-    /// share a hitting face with it and have one. Generic, so that derivatives follow.
+    /// share a hitting face with it and have one. Such a corner's own normal force (none
+    /// under a uniform pressure; on the tet10 Hertz block 0.17 % of the pair's force, at most
+    /// 1.6 % of the largest mid-side's) is in the pair's force and in station profiles, not in
+    /// its nodal pressure. Generic, so that derivatives follow.
     pub fn nodal_pressures<S: Scalar>(&self, force: &[S], area: &[S]) -> Vec<S> {
+        debug_assert!(force.len() == self.hitting.len() && area.len() == self.hitting.len());
         let mut p: Vec<S> = (force.iter().zip(area))
             .map(|(f, a)| if a.value() > 0.0 { *f / *a } else { S::zero() })
             .collect();

@@ -25,8 +25,8 @@
 //! normal force over another area, its **pressure share** ([`FaceFamily::pressure_share`]):
 //! the share of a uniform pressure's load that a node-to-segment contact transmits to the
 //! node. On quad4, tri3 and tri6 faces that is the consistent weight (`1/4`, `1/3`; on a tri6
-//! `0` at the corners and `1/3` at the mid-sides), so a uniform pressure is read exactly. On a
-//! quad8 the consistent corner weight `-1/12` is a pull, which a contact cannot exert: the
+//! `0` at the corners and `1/3` at the mid-sides), so a uniform pressure on an undistorted
+//! face is read exactly. On a quad8 the consistent corner weight `-1/12` is a pull, which a contact cannot exert: the
 //! corners open (by a fraction of the elastic approach) and the four mid-sides carry the face's
 //! load, a quarter each on a face of even aspect (measured on the Hertz block: every corner
 //! open, the mid-sides within 1 % of `p A / 4`). The pressure shares are therefore:

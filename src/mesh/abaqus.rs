@@ -739,6 +739,17 @@ fn clip(t: &str) -> String {
     t.chars().take(40).collect()
 }
 
+/// An element's data line: its id and node numbers separated by `sep`, at most 16 entries a
+/// line (Abaqus' and CalculiX's limit): the id and 15 nodes, then 16 nodes a line.
+pub(crate) fn element_line(id: usize, nodes: impl Iterator<Item = usize>, sep: &str) -> String {
+    let ids: Vec<String> = std::iter::once(id)
+        .chain(nodes)
+        .map(|v| v.to_string())
+        .collect();
+    let lines: Vec<String> = ids.chunks(16).map(|c| c.join(sep)).collect();
+    lines.join(",\n")
+}
+
 /// Write `bodies` (name, solid group) of `mesh` at coordinates `x` as an Abaqus input file:
 /// `*NODE`, `*ELEMENT, TYPE=C3D.., ELSET=BODY`, `*NSET` and `*SURFACE, TYPE=ELEMENT` for each
 /// body's node and face sets, without the `BODY.` prefix (see the module documentation).
@@ -774,13 +785,7 @@ pub fn write(
         for k in 0..group.len() {
             id += 1;
             let e = group.element(k);
-            // at most 16 entries a data line: the id and 15 nodes, then 16 nodes a line
-            let ids: Vec<String> = std::iter::once(id)
-                .chain(e.iter().map(|n| n + 1))
-                .map(|v| v.to_string())
-                .collect();
-            let lines: Vec<String> = ids.chunks(16).map(|c| c.join(", ")).collect();
-            s.push_str(&lines.join(",\n"));
+            s.push_str(&element_line(id, e.iter().map(|n| n + 1), ", "));
             s.push('\n');
             for (f, face) in group.shape.faces().iter().enumerate() {
                 let mut key: Vec<usize> = face.nodes.iter().map(|&l| e[l]).collect();

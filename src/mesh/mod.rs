@@ -288,6 +288,11 @@ impl FaceSet {
         (0..self.len()).map(|k| self.face(k))
     }
 
+    /// Whether any face is of a quadratic family (quad8, tri6).
+    pub fn has_quadratic(&self) -> bool {
+        self.families.iter().any(|f| f.is_quadratic())
+    }
+
     /// Every node of every face, face after face (with repetitions).
     pub fn all_nodes(&self) -> &[usize] {
         &self.nodes

@@ -566,9 +566,10 @@ pub enum ResponseSpec {
         /// Translation component.
         component: Component,
     },
-    /// Contact pressure (normal force / tributary area) along a pair's hitting surface,
+    /// Contact pressure (normal force / pressure area) along a pair's hitting surface,
     /// ordered along `along`. `area = "nominal"` (the default) divides by the reference
-    /// tributary area, `area = "current"` by the deformed one (the Cauchy pressure that
+    /// pressure area ([`crate::element::FaceFamily::pressure_share`]: the tributary area on
+    /// linear faces), `area = "current"` by the deformed one (the Cauchy pressure that
     /// CalculiX and Abaqus report). With `per = "station"` (the default) the hitting nodes at
     /// one reference coordinate along `along` make one station (the node rows of a plane-strain
     /// slab, or a row across a 3D surface), its pressure their total normal force over their
@@ -643,7 +644,8 @@ pub enum ProfilePoints {
     #[default]
     Station,
     /// One value per hitting node (but the corners of quadratic faces, which read no
-    /// pressure of their own: [`crate::element::FaceFamily::pressure_share`]).
+    /// pressure of their own: [`crate::element::FaceFamily::pressure_share`]; the points are
+    /// numbered along the profile without them).
     Node,
 }
 

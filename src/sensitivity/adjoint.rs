@@ -1276,7 +1276,12 @@ impl<'a> Sweep<'a> {
                 );
                 (self.lifted.coords[nd] + u).map(Dual64::from_re)
             };
-            for &nd in faces.all_nodes() {
+            // each node once (the faces list their nodes face after face, with repetitions:
+            // a node's term was added once per face around it)
+            let mut nodes = faces.all_nodes().to_vec();
+            nodes.sort_unstable();
+            nodes.dedup();
+            for &nd in &nodes {
                 for comp in 0..3 {
                     let seeded = |m: usize| {
                         let mut x = pos(m);

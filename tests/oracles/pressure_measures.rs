@@ -227,6 +227,14 @@ fn the_current_pressure_of_a_large_deformation_contact_ddm_equals_central_fdm() 
         // unit, but Newton's last step leaves far less: 3e-8 measured; 1e-7 leaves a margin of 3
         assert!(worst < 1e-7, "{}: {worst:.2e}", param.name);
     }
+    // the adjoint's backward sweep reads the current areas' dependence on the displacements
+    // through its own pass (each face node seeded once): exact like DDM, so round-off apart
+    let adjoint = common::sensitivities(&model, &ps, Method::Adjoint, 0.0);
+    for (p, param) in ps.iter().enumerate() {
+        let (worst, scale) = common::worst_difference(&ddm, &adjoint, &pressures, &pressures, p);
+        println!("{}: DDM vs adjoint {worst:.2e} of {scale:.4e}", param.name);
+        assert!(worst < 1e-9, "{}: {worst:.2e}", param.name);
+    }
 }
 
 #[test]

@@ -377,15 +377,22 @@ pub(super) fn report(
     super::smoothness::write_smoothness(&mut s, &val.smoothness);
     // sections written by `fricsens scaling` and `fricsens ccx` (long, or needing CalculiX):
     // included as they were last generated
-    for (file, what) in [
+    let mut sections: Vec<(String, &str)> = [
         ("robustness/robustness.md", "fricsens fuzz"),
         ("scaling/scaling.md", "fricsens scaling"),
         ("adjoint/adjoint.md", "fricsens adjoint-study"),
-        ("ccx/ccx.md", "fricsens ccx"),
-        ("ccx-hex20/ccx.md", "fricsens ccx"),
-        ("ccx-tet10/ccx.md", "fricsens ccx"),
-    ] {
-        if file == "ccx/ccx.md" {
+    ]
+    .iter()
+    .map(|(f, w)| (f.to_string(), *w))
+    .collect();
+    sections.extend(
+        CCX_DIRS
+            .iter()
+            .map(|d| (format!("{d}/ccx.md"), "fricsens ccx")),
+    );
+    for (k, (file, what)) in sections.iter().enumerate() {
+        // the comparisons side by side before the first of them
+        if k == sections.len() - CCX_DIRS.len() {
             ccx_side_by_side(&mut s, &opts.out);
         }
         if let Ok(text) = std::fs::read_to_string(opts.out.join(file)) {
@@ -841,11 +848,14 @@ fn write_taylor(s: &mut String, val: &Validation, opts: &ValidateOptions) {
     }
 }
 
-/// The CalculiX comparisons the report includes (`OUT/ccx*/ccx.json`, written by `fricsens
-/// ccx`), side by side: one row each.
+/// The folders of the CalculiX comparisons the report includes, in its order.
+const CCX_DIRS: [&str; 3] = ["ccx", "ccx-hex20", "ccx-tet10"];
+
+/// The CalculiX comparisons the report includes (`OUT/DIR/ccx.json` for each of
+/// [`CCX_DIRS`], written by `fricsens ccx`), side by side: one row each.
 fn ccx_side_by_side(s: &mut String, out: &std::path::Path) {
     use std::fmt::Write;
-    let rows: Vec<crate::studies::ccx::CcxSummary> = ["ccx", "ccx-hex20", "ccx-tet10"]
+    let rows: Vec<crate::studies::ccx::CcxSummary> = CCX_DIRS
         .iter()
         .filter_map(|d| std::fs::read_to_string(out.join(d).join("ccx.json")).ok())
         .filter_map(|t| serde_json::from_str(&t).ok())
@@ -855,7 +865,7 @@ fn ccx_side_by_side(s: &mut String, out: &std::path::Path) {
     }
     let _ = writeln!(
         s,
-        "## Against CalculiX, side by side\n\nThe comparisons below (written by `fricsens ccx SCENE --out validation/DIR`; the quadratic meshes are `scenes/indentation-hex20.toml` and `scenes/indentation-tet10.toml`, the indentation on hex20 and tet10 elements of twice the size), in a few numbers: primal wall times, their ratio, and the largest difference between the two codes' forces over the history, over the largest force.\n\n| scene | CalculiX elements | fricsens family | fricsens unknowns | CalculiX nodes | fricsens primal (s) | CalculiX primal (s) | ratio | largest force difference |\n|---|---|---|---|---|---|---|---|---|"
+        "## Against CalculiX, side by side\n\nThe comparisons below (written by `fricsens ccx SCENE --out validation/DIR`; the quadratic meshes are `scenes/indentation-hex20.toml` and `scenes/indentation-tet10.toml`, the indentation on hex20 and tet10 elements of twice the size), in a few numbers: primal wall times, their ratio, and the largest difference between the two codes' compared forces over the history, over the largest force.\n\n| scene | CalculiX elements | fricsens family | fricsens unknowns | CalculiX nodes | fricsens primal (s) | CalculiX primal (s) | ratio | largest force difference |\n|---|---|---|---|---|---|---|---|---|"
     );
     for r in &rows {
         let _ = writeln!(

@@ -273,25 +273,22 @@ impl Variation {
 /// The [`Variation`] of `d`.
 pub fn variation(d: &[f64]) -> Variation {
     let jumps = d.windows(2).map(|w| (w[1] - w[0]).abs());
-    Variation {
+    let mut v = Variation {
         total: jumps.clone().sum(),
         jump: jumps.fold(0.0, f64::max),
         second: (d.windows(3))
             .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
             .fold(0.0, f64::max),
         max_abs: d.iter().fold(0.0f64, |m, v| m.max(v.abs())),
-        excess: {
-            let (lo, hi) = (d.iter()).fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-                (l.min(*v), h.max(*v))
-            });
-            let total: f64 = d.windows(2).map(|w| (w[1] - w[0]).abs()).sum();
-            if hi > lo {
-                total / (hi - lo)
-            } else {
-                1.0
-            }
-        },
+        excess: 1.0,
+    };
+    let (lo, hi) = (d.iter()).fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+        (l.min(*v), h.max(*v))
+    });
+    if hi > lo {
+        v.excess = v.total / (hi - lo);
     }
+    v
 }
 
 /// The three methods' profiles on one combination, its scene written into `dir`.
