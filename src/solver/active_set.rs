@@ -274,60 +274,98 @@ impl Solver<'_> {
     }
 
     /// What cycles in a stalled attempt, in words: the hitting nodes whose contact state or
-    /// face changes over the window, with the states they take, and what to try.
+    /// face and the Gauss points whose branch change over the window, with the states they
+    /// take, and what to try.
     pub(super) fn diagnose_cycle(
         &self,
-        window: &std::collections::VecDeque<(Vec<ContactChoice>, f64)>,
+        window: &std::collections::VecDeque<super::attempt::Decisions>,
         tolerance: f64,
     ) -> String {
-        let model = self.model;
-        let flat = &self.assembler.contact.flat;
         let mut flips = Vec::new();
-        if let Some((first, _)) = window.front() {
+        let mut nodes = 0;
+        if let Some((first, branches, _)) = window.front() {
             for i in 0..first.len() {
                 let mut seen: Vec<String> = Vec::new();
-                for (c, _) in window {
-                    let what = match c[i].state {
-                        ContactState::Open => "open".to_string(),
-                        ContactState::Closed => format!("closed on face {}", c[i].face),
-                        ContactState::Stick => format!("stick on face {}", c[i].face),
-                        ContactState::Slip => format!("slip on face {}", c[i].face),
-                    };
+                for (c, _, _) in window {
+                    let what = self.contact_state_words(i, &c[i]);
                     if !seen.contains(&what) {
                         seen.push(what);
                     }
                 }
                 if seen.len() > 1 {
-                    let p = flat.iter().rposition(|&f| f <= i).unwrap_or(0);
-                    let pair = &model.contacts[p];
-                    let seen = if matches!(pair.target, crate::contact::Target::Rigid { .. }) {
-                        seen.iter().map(|s| s.replace(" on face 0", "")).collect()
-                    } else {
-                        seen
-                    };
                     flips.push(format!(
-                        "pair '{}' node {} ({})",
-                        pair.name,
-                        pair.hitting[i - flat[p]],
+                        "{} ({})",
+                        self.hitting_node_words(i),
                         seen.join(" / ")
                     ));
                 }
             }
+            nodes = flips.len();
+            for i in 0..branches.len() {
+                if window.iter().any(|(_, b, _)| b[i] != branches[i]) {
+                    let (e, q) = self.assembler.dofs.gauss_owner(i);
+                    flips.push(format!("element {e} Gauss point {q} (elastic / plastic)"));
+                }
+            }
         }
-        let best = window.iter().map(|(_, r)| *r).fold(f64::INFINITY, f64::min);
+        let best = window
+            .iter()
+            .map(|(_, _, r)| *r)
+            .fold(f64::INFINITY, f64::min);
+        let flips_points = flips.len() - nodes;
         let what = if flips.is_empty() {
-            "with the contact states unchanged".to_string()
+            "with the contact states and material branches unchanged".to_string()
         } else {
             let n = flips.len();
+            let points = n - nodes;
+            let who = match (nodes, points) {
+                (_, 0) => format!("{nodes} hitting node(s)"),
+                (0, _) => format!("{points} Gauss point(s)"),
+                _ => format!("{nodes} hitting node(s) and {points} Gauss point(s)"),
+            };
             flips.truncate(6);
             format!(
-                "with {n} hitting node(s) flipping: {}{}",
+                "with {who} flipping: {}{}",
                 flips.join(", "),
                 if n > 6 { ", ..." } else { "" }
             )
         };
+        let advice = if nodes == 0 && flips_points > 0 {
+            "or a larger hardening modulus H for that body"
+        } else {
+            "or a softer tangential_stiffness or normal penalty on those pairs"
+        };
         format!(
-            "Newton cycles {what}, the residual staying above {best:.3e} (tolerance {tolerance:.3e}); try more increments in this step, or a softer tangential_stiffness or normal penalty on those pairs"
+            "Newton cycles {what}, the residual staying above {best:.3e} (tolerance {tolerance:.3e}); try more increments in this step, {advice}"
         )
+    }
+
+    /// `pair 'name' node n` of flat hitting node `i`.
+    fn hitting_node_words(&self, i: usize) -> String {
+        let flat = &self.assembler.contact.flat;
+        let p = flat.iter().rposition(|&f| f <= i).unwrap_or(0);
+        let pair = &self.model.contacts[p];
+        format!("pair '{}' node {}", pair.name, pair.hitting[i - flat[p]])
+    }
+
+    /// A contact state in words (`slip on face 3`; no face on a rigid target).
+    fn contact_state_words(&self, i: usize, c: &ContactChoice) -> String {
+        let flat = &self.assembler.contact.flat;
+        let p = flat.iter().rposition(|&f| f <= i).unwrap_or(0);
+        let rigid = matches!(
+            self.model.contacts[p].target,
+            crate::contact::Target::Rigid { .. }
+        );
+        let state = match c.state {
+            ContactState::Open => return "open".to_string(),
+            ContactState::Closed => "closed",
+            ContactState::Stick => "stick",
+            ContactState::Slip => "slip",
+        };
+        if rigid {
+            state.to_string()
+        } else {
+            format!("{state} on face {}", c.face)
+        }
     }
 }

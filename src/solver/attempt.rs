@@ -5,8 +5,13 @@ use super::*;
 use crate::assembly::{Evaluation, Frozen};
 use crate::contact::eval::ContactEval;
 use crate::contact::{ContactChoice, ContactState};
+use crate::material::Branch;
 use std::collections::VecDeque;
 use std::time::Instant;
+
+/// The decisions of one free evaluation: contact states and faces, material branches (what a
+/// cycle's diagnosis names), and its residual.
+pub(super) type Decisions = (Vec<ContactChoice>, Vec<Branch>, f64);
 
 /// What Newton's iterations carry from one to the next within an attempt.
 pub(super) struct AttemptState {
@@ -53,9 +58,9 @@ pub(super) struct AttemptState {
     last_free: Option<(Vec<ContactState>, Vec<nalgebra::Vector3<f64>>)>,
     forced: Vec<bool>,
     forced_count: Vec<usize>,
-    /// Cycle detection: the contact decisions and residuals of the last free evaluations,
-    /// and the smallest residual of those before them.
-    window: VecDeque<(Vec<ContactChoice>, f64)>,
+    /// Cycle detection: the contact decisions, material branches and residuals of the last
+    /// free evaluations, and the smallest residual of those before them.
+    window: VecDeque<Decisions>,
     best_before: f64,
     /// The target faces to keep (hysteresis, SEGMENT_KEEP): those the last Newton step was
     /// solved with, the converged ones at the first.
@@ -226,20 +231,21 @@ impl AttemptState {
     /// Fail fast on a cycle: at a free evaluation, contact decisions seen earlier in
     /// the window again, and no residual in the window below half the best before it.
     /// Returns whether the attempt cycles (the window then holds what to diagnose).
-    fn cycles(&mut self, choice: &[ContactChoice], r_free: f64) -> bool {
+    fn cycles(&mut self, choice: &[ContactChoice], branches: &[Branch], r_free: f64) -> bool {
         if !(self.line_search && !self.forcing() && !self.predicting()) {
             return false;
         }
-        let repeated = self.window.iter().any(|(c, _)| *c == choice);
-        self.window.push_back((choice.to_vec(), r_free));
+        let repeated = self.window.iter().any(|(c, _, _)| *c == choice);
+        self.window
+            .push_back((choice.to_vec(), branches.to_vec(), r_free));
         if self.window.len() > CYCLE_WINDOW {
-            let (_, r) = self.window.pop_front().expect("not empty");
+            let (_, _, r) = self.window.pop_front().expect("not empty");
             self.best_before = self.best_before.min(r);
         }
         let best_now = self
             .window
             .iter()
-            .map(|(_, r)| *r)
+            .map(|(_, _, r)| *r)
             .fold(f64::INFINITY, f64::min);
         repeated && self.k >= 2 * CYCLE_WINDOW && best_now >= 0.5 * self.best_before
     }
@@ -339,7 +345,7 @@ impl Solver<'_> {
                 continue;
             }
             st.start_step(r_free);
-            if st.cycles(&eval.contact.choice, r_free) {
+            if st.cycles(&eval.contact.choice, &eval.branches, r_free) {
                 return Err(AttemptFailure::Cycle(
                     self.diagnose_cycle(&st.window, s.force_tol * f_ref),
                 ));
@@ -569,8 +575,9 @@ impl Solver<'_> {
     }
 }
 
-/// The trace line of an evaluation: time, iteration, step length, residual, and the closed
-/// hitting nodes with their states, normal forces and faces.
+/// The trace line of an evaluation: time, iteration, step length, residual, the number of
+/// plastic Gauss points, and the closed hitting nodes with their states, normal forces and
+/// faces.
 fn trace_iteration(t: f64, st: &AttemptState, r_free: f64, eval: &Evaluation<f64>) {
     let (k, alpha) = (st.k, st.alpha);
     let active: Vec<String> = eval
@@ -582,8 +589,11 @@ fn trace_iteration(t: f64, st: &AttemptState, r_free: f64, eval: &Evaluation<f64
         .filter(|(_, (c, _))| c.state != crate::contact::ContactState::Open)
         .map(|(i, (c, f))| format!("{i}:{:?}:{f:.3e}:f{}", c.state, c.face))
         .collect();
+    let plastic = (eval.branches.iter())
+        .filter(|b| **b == Branch::Plastic)
+        .count();
     eprintln!(
-        "  t = {t:.4e} k = {k} alpha = {alpha:.3} r = {r_free:.3e} closed {}",
+        "  t = {t:.4e} k = {k} alpha = {alpha:.3} r = {r_free:.3e} plastic {plastic} closed {}",
         active.join(" ")
     );
 }

@@ -990,10 +990,12 @@ fn reason_class(reason: &str) -> String {
         Some((_, rest)) => rest.split_once(": ").map(|(_, r)| r).unwrap_or(rest),
         None => reason,
     };
-    if reason.starts_with("Newton cycles with the contact states unchanged") {
-        "cycle, contact states unchanged".into()
-    } else if reason.starts_with("Newton cycles") {
+    if reason.starts_with("Newton cycles with the contact states and material branches unchanged") {
+        "cycle, states unchanged".into()
+    } else if reason.starts_with("Newton cycles") && reason.contains("hitting node(s)") {
         "cycle, contact states flipping".into()
+    } else if reason.starts_with("Newton cycles") {
+        "cycle, material branches flipping".into()
     } else {
         first_words(reason)
     }

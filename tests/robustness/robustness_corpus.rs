@@ -191,3 +191,40 @@ fn fresh_generated_scenes_complete_and_never_answer_wrongly() {
             .collect::<Vec<_>>()
     );
 }
+
+/// A Newton cycle whose contact states stay fixed names the Gauss points that flip between
+/// elastic and plastic (seed 931 of the open corpus: a J2 slider, `H / E = 0.003`, under a
+/// Neo-Hookean base). Every point it names lies in the J2 body, the only one that can yield,
+/// and the run keeps the increments it converged.
+#[test]
+fn a_cycle_of_material_branches_names_its_gauss_points() {
+    let scene = Scene::from_file(&corpus_dir().join("seed-931.toml")).unwrap();
+    let model = scene.build().unwrap();
+    let err = fricsens::solver::Solver::new(&model)
+        .unwrap()
+        .run(&Default::default(), &mut fricsens::solver::NoObserver)
+        .unwrap_err();
+    let fricsens::solver::AnalysisError::Diverged {
+        reason, partial, ..
+    } = &err
+    else {
+        panic!("{err}");
+    };
+    assert!(
+        reason.starts_with("Newton cycles with ") && reason.contains("Gauss point(s) flipping"),
+        "{reason}"
+    );
+    let j2 = (model.bodies.iter())
+        .position(|b| matches!(b.material, fricsens::material::Material::J2(_)))
+        .unwrap();
+    let named: Vec<usize> = reason
+        .split("element ")
+        .skip(1)
+        .map(|s| s.split(' ').next().unwrap().parse().unwrap())
+        .collect();
+    assert!(!named.is_empty());
+    for e in named {
+        assert_eq!(model.element_body(e), Some(j2), "element {e}: {reason}");
+    }
+    assert!(partial.times.len() > 1, "the converged increments are kept");
+}
