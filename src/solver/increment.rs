@@ -4,7 +4,7 @@
 use super::*;
 use crate::assembly::{AssemblyFailure, Evaluation};
 use crate::contact::ContactChoice;
-use crate::element::ElementFailure;
+use crate::element::{ElementFailure, Formulation};
 use crate::material::Branch;
 use crate::model::SolverSettings;
 use std::time::Instant;
@@ -379,6 +379,37 @@ impl Solver<'_> {
         Ok(())
     }
 
+    /// What to try when the attempt failed on an inverted incompatible-modes element: its
+    /// enhanced modes can invert a Gauss point under large compressive (plastic) strain while
+    /// the nodes stay sound, where F-bar holds (the fuzzer's open corpus: three of its five
+    /// element failures, seeds 451, 465 and 526, are J2 bodies with incompatible modes that
+    /// complete their whole path with F-bar). Empty otherwise.
+    fn inversion_advice(&self, why: &AttemptFailure) -> String {
+        let AttemptFailure::Element(AssemblyFailure::Element {
+            element,
+            failure: ElementFailure::Inverted { .. },
+        }) = why
+        else {
+            return String::new();
+        };
+        let family = self
+            .assembler
+            .dofs
+            .element_family
+            .get(*element)
+            .copied()
+            .flatten();
+        if family.and_then(|f| f.formulation()) != Some(Formulation::IncompatibleModes) {
+            return String::new();
+        }
+        let body = (self.model.element_body(*element))
+            .map(|b| format!(" '{}'", self.model.bodies[b].name))
+            .unwrap_or_default();
+        format!(
+            "; the element's body{body} has incompatible modes, whose enhanced modes can invert a Gauss point under large compressive strain: try formulation = \"f-bar\""
+        )
+    }
+
     /// A failed attempt: halve the step, or stop once the halvings in a row or the step
     /// reach their limit, or at once on a bad mesh.
     fn cut_back(
@@ -393,6 +424,7 @@ impl Solver<'_> {
         let at_minimum = step <= inc.min_step * (1.0 + 1e-9);
         if inc.cutbacks >= max_cutbacks || at_minimum {
             let mut reason = why.to_string();
+            reason.push_str(&self.inversion_advice(&why));
             reason.push_str(&format!(
                 " ({} halvings in a row{}; {} failed attempts within the increment ending at t = {t_end})",
                 inc.cutbacks,
@@ -433,7 +465,7 @@ impl Solver<'_> {
                 trial.record.residuals
             );
         }
-        let why = why.to_string();
+        let why = format!("{why}{}", self.inversion_advice(&why));
         inc.last_failure = Some((t, std::mem::take(&mut trial.record.residuals), why));
         inc.failed += 1;
         inc.cutbacks += 1;

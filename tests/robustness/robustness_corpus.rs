@@ -228,3 +228,34 @@ fn a_cycle_of_material_branches_names_its_gauss_points() {
     }
     assert!(partial.times.len() > 1, "the converged increments are kept");
 }
+
+/// An incompatible-modes element that inverts says so and what to try, and the advice holds:
+/// seed 526 of the open corpus (two J2 blocks with incompatible modes) ends with an inverted
+/// element whose error names its body and suggests F-bar; with F-bar the same scene completes
+/// its whole path with every physics check holding.
+#[test]
+fn an_inverted_incompatible_modes_element_suggests_f_bar_and_f_bar_completes() {
+    let mut scene = Scene::from_file(&corpus_dir().join("seed-526.toml")).unwrap();
+    let model = scene.build().unwrap();
+    let err = fricsens::solver::Solver::new(&model)
+        .unwrap()
+        .run(&Default::default(), &mut fricsens::solver::NoObserver)
+        .unwrap_err();
+    let reason = match &err {
+        fricsens::solver::AnalysisError::Diverged { reason, .. } => reason.clone(),
+        _ => panic!("{err}"),
+    };
+    assert!(
+        reason.contains("element inverted")
+            && reason.contains("has incompatible modes")
+            && reason.contains("try formulation = \"f-bar\""),
+        "{reason}"
+    );
+    for body in &mut scene.bodies {
+        if body.formulation == Some(fricsens::element::Formulation::IncompatibleModes) {
+            body.formulation = Some(fricsens::element::Formulation::FBar);
+        }
+    }
+    let o = run_case(0, &scene, Some(120.0));
+    assert!(o.passed, "with F-bar: {:?}: {}", o.failure, o.message);
+}
