@@ -442,9 +442,10 @@ fn prefer(c: &Candidate, best: &Candidate, hint: Option<usize>) -> bool {
 ///
 /// That change is a jump of the gap (the constraint row's residual jumps by the constraint
 /// scale times it): the fuzzer's slider on a finer, plastically dented base cycles there
-/// (seed 57: the gap jumped by 8.7e-3, the residual from 0.04 to 144, at a step of 1/512 of the
-/// user's increment).
-/// A narrower band trades those cycles for flipping ones. Measured on the physics fuzzer with
+/// (seed 57, `FRICSENS_TRACE=1 fricsens run tests/corpus/robustness/seed-57.toml`: at t = 1.1467,
+/// a step of 1/512 of the user's increment, two nodes changed face, their gap jumped by 8.7e-3
+/// and the residual from 0.04 to 144). A narrower band trades those cycles for nodes cycling
+/// between faces. Measured on the physics fuzzer with
 /// default settings (scenes completing their whole path): seeds 0-999, 982 at 0.1 and 0.07, 984
 /// at 0.05 and 0.03; held-out seeds 1000-1999, 987 at 0.1, 988 at 0.05 (six scenes fixed,
 /// three broken over the 2,000); on the once-failing corpus, net +3 at 0.05 and 0.03, +1 at 0.02,

@@ -283,6 +283,7 @@ impl Solver<'_> {
     ) -> String {
         let mut flips = Vec::new();
         let mut nodes = 0;
+        let mut bodies: Vec<usize> = Vec::new();
         if let Some((first, branches, _)) = window.front() {
             for i in 0..first.len() {
                 let mut seen: Vec<String> = Vec::new();
@@ -305,6 +306,9 @@ impl Solver<'_> {
                 if window.iter().any(|(_, b, _)| b[i] != branches[i]) {
                     let (e, q) = self.assembler.dofs.gauss_owner(i);
                     flips.push(format!("element {e} Gauss point {q} (elastic / plastic)"));
+                    if let Some(b) = self.model.element_body(e).filter(|b| !bodies.contains(b)) {
+                        bodies.push(b);
+                    }
                 }
             }
         }
@@ -312,7 +316,7 @@ impl Solver<'_> {
             .iter()
             .map(|(_, _, r)| *r)
             .fold(f64::INFINITY, f64::min);
-        let flips_points = flips.len() - nodes;
+        let flips_len = flips.len();
         let what = if flips.is_empty() {
             "with the contact states and material branches unchanged".to_string()
         } else {
@@ -330,14 +334,35 @@ impl Solver<'_> {
                 if n > 6 { ", ..." } else { "" }
             )
         };
-        let advice = if nodes == 0 && flips_points > 0 {
-            "or a larger hardening modulus H for that body"
-        } else {
-            "or a softer tangential_stiffness or normal penalty on those pairs"
+        // a mixed cycle counts as a contact one (the fuzzer's class too), with both advices
+        let points = flips_len - nodes;
+        let contact = "a softer tangential_stiffness or normal penalty on those pairs";
+        let advice = match (nodes, points) {
+            (0, 0) => "or a softer tangential_stiffness or normal penalty".to_string(),
+            (0, _) => format!(
+                "or, changing the model, a larger hardening modulus H for {}",
+                self.bodies_words(&bodies)
+            ),
+            (_, 0) => format!("or {contact}"),
+            _ => format!(
+                "or {contact}, or, changing the model, a larger hardening modulus H for {}",
+                self.bodies_words(&bodies)
+            ),
         };
         format!(
             "Newton cycles {what}, the residual staying above {best:.3e} (tolerance {tolerance:.3e}); try more increments in this step, {advice}"
         )
+    }
+
+    /// `body 'a'` or `bodies 'a', 'b'` of the model's bodies `bodies`.
+    fn bodies_words(&self, bodies: &[usize]) -> String {
+        let names: Vec<String> = (bodies.iter())
+            .map(|&b| format!("'{}'", self.model.bodies[b].name))
+            .collect();
+        match names.len() {
+            1 => format!("body {}", names[0]),
+            _ => format!("bodies {}", names.join(", ")),
+        }
     }
 
     /// `pair 'name' node n` of flat hitting node `i`.

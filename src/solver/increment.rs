@@ -380,10 +380,11 @@ impl Solver<'_> {
     }
 
     /// What to try when the attempt failed on an inverted incompatible-modes element: its
-    /// enhanced modes can invert a Gauss point under large compressive (plastic) strain while
-    /// the nodes stay sound, where F-bar holds (the fuzzer's open corpus: three of its five
-    /// element failures, seeds 451, 465 and 526, are J2 bodies with incompatible modes that
-    /// complete their whole path with F-bar). Empty otherwise.
+    /// enhanced modes can invert a Gauss point under large compressive (plastic) strain where
+    /// F-bar may hold (the fuzzer's open corpus: three of its five element failures, seeds 451,
+    /// 465 and 526, are J2 bodies with incompatible modes that complete their whole path with
+    /// F-bar; seed 102 inverts with F-bar too, at its mesh's distortion limit). Empty
+    /// otherwise.
     fn inversion_advice(&self, why: &AttemptFailure) -> String {
         let AttemptFailure::Element(AssemblyFailure::Element {
             element,
@@ -406,7 +407,7 @@ impl Solver<'_> {
             .map(|b| format!(" '{}'", self.model.bodies[b].name))
             .unwrap_or_default();
         format!(
-            "; the element's body{body} has incompatible modes, whose enhanced modes can invert a Gauss point under large compressive strain: try formulation = \"f-bar\""
+            "; the element's body{body} has incompatible modes, whose enhanced modes can invert a Gauss point under large compressive strain: formulation = \"f-bar\" may hold there"
         )
     }
 

@@ -993,6 +993,7 @@ fn reason_class(reason: &str) -> String {
     if reason.starts_with("Newton cycles with the contact states and material branches unchanged") {
         "cycle, states unchanged".into()
     } else if reason.starts_with("Newton cycles") && reason.contains("hitting node(s)") {
+        // hitting nodes and Gauss points flipping together count as a contact cycle
         "cycle, contact states flipping".into()
     } else if reason.starts_with("Newton cycles") {
         "cycle, material branches flipping".into()

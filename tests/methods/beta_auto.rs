@@ -120,10 +120,10 @@ fn error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
 }
 
 /// Known shortfalls of the target (run with `--ignored`): SDM and SDM central on the Klarbring
-/// oscillator bound 142 of 150 each (from the slip-to-stick increment, t = 3.1, on, every
-/// difference method, SDM and central reruns at 1e-5 and 1e-6 alike, agrees on a
-/// d(plane-force-x)/d mu 3.6e-6 off DDM's, and DDM is confirmed by an independent model and by
-/// equilibrium; the bias grows with the stick penalty, 1e-7 at 1e4 and 7.6e-4 at 1e8: README,
+/// oscillator bound 142 of 150 each (from the slip-to-stick increment, t = 3.1, on, forward SDM
+/// at its auto step and central reruns at 1e-5 and 1e-6 agree on a d(plane-force-x)/d mu 3.6e-6
+/// off DDM's, and DDM is confirmed by an independent model and by equilibrium; the bias grows
+/// with the stick penalty, 1e-7 at 1e4 and 7.6e-4 at 1e8: README,
 /// *Choosing the step*; the chosen step and its shadow agree there, so the bar misses it), and
 /// forward SDM on the J2 cycle's E and H (the equivalent plastic strain's derivatives, 1e-8 of
 /// the stress's, err by up to three times their bars).

@@ -153,7 +153,7 @@ fn open_corpus_scenes() {
 /// Fresh seeds (the campaign tuned on seeds 0-999): every one either completes with every
 /// check holding or stops with a typed divergence error; none builds wrong, none answers wrong
 /// (equilibrium, Coulomb, penetration), and at least 31 of 32 complete (the campaign's
-/// completion rate is 97.7 %).
+/// completion rate is 98.2 %).
 #[test]
 fn fresh_generated_scenes_complete_and_never_answer_wrongly() {
     let seeds: Vec<u64> = (100_000..100_032).collect();
@@ -211,7 +211,9 @@ fn a_cycle_of_material_branches_names_its_gauss_points() {
         panic!("{err}");
     };
     assert!(
-        reason.starts_with("Newton cycles with ") && reason.contains("Gauss point(s) flipping"),
+        reason.contains("Newton cycles with ")
+            && reason.contains("Gauss point(s) flipping")
+            && !reason.contains("hitting node(s)"),
         "{reason}"
     );
     let j2 = (model.bodies.iter())
@@ -248,7 +250,7 @@ fn an_inverted_incompatible_modes_element_suggests_f_bar_and_f_bar_completes() {
     assert!(
         reason.contains("element inverted")
             && reason.contains("has incompatible modes")
-            && reason.contains("try formulation = \"f-bar\""),
+            && reason.contains("formulation = \"f-bar\" may hold there"),
         "{reason}"
     );
     for body in &mut scene.bodies {
