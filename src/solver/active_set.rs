@@ -316,12 +316,11 @@ impl Solver<'_> {
             .iter()
             .map(|(_, _, r)| *r)
             .fold(f64::INFINITY, f64::min);
-        let flips_len = flips.len();
+        let n = flips.len();
+        let points = n - nodes;
         let what = if flips.is_empty() {
             "with the contact states and material branches unchanged".to_string()
         } else {
-            let n = flips.len();
-            let points = n - nodes;
             let who = match (nodes, points) {
                 (_, 0) => format!("{nodes} hitting node(s)"),
                 (0, _) => format!("{points} Gauss point(s)"),
@@ -335,7 +334,6 @@ impl Solver<'_> {
             )
         };
         // a mixed cycle counts as a contact one (the fuzzer's class too), with both advices
-        let points = flips_len - nodes;
         let contact = "a softer tangential_stiffness or normal penalty on those pairs";
         let advice = match (nodes, points) {
             (0, 0) => "or a softer tangential_stiffness or normal penalty".to_string(),
@@ -365,18 +363,24 @@ impl Solver<'_> {
         }
     }
 
+    /// The pair of flat hitting node `i`.
+    fn pair_of(&self, i: usize) -> usize {
+        (self.assembler.contact.flat.iter())
+            .rposition(|&f| f <= i)
+            .unwrap_or(0)
+    }
+
     /// `pair 'name' node n` of flat hitting node `i`.
     fn hitting_node_words(&self, i: usize) -> String {
-        let flat = &self.assembler.contact.flat;
-        let p = flat.iter().rposition(|&f| f <= i).unwrap_or(0);
+        let p = self.pair_of(i);
         let pair = &self.model.contacts[p];
-        format!("pair '{}' node {}", pair.name, pair.hitting[i - flat[p]])
+        let first = self.assembler.contact.flat[p];
+        format!("pair '{}' node {}", pair.name, pair.hitting[i - first])
     }
 
     /// A contact state in words (`slip on face 3`; no face on a rigid target).
     fn contact_state_words(&self, i: usize, c: &ContactChoice) -> String {
-        let flat = &self.assembler.contact.flat;
-        let p = flat.iter().rposition(|&f| f <= i).unwrap_or(0);
+        let p = self.pair_of(i);
         let rigid = matches!(
             self.model.contacts[p].target,
             crate::contact::Target::Rigid { .. }

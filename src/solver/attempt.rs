@@ -236,12 +236,19 @@ impl AttemptState {
             return false;
         }
         let repeated = self.window.iter().any(|(c, _, _)| *c == choice);
-        self.window
-            .push_back((choice.to_vec(), branches.to_vec(), r_free));
-        if self.window.len() > CYCLE_WINDOW {
-            let (_, _, r) = self.window.pop_front().expect("not empty");
+        // a full window's oldest entry leaves it, and its buffers take the newest (no
+        // allocation per iteration once the window is full)
+        let (mut c, mut b) = (Vec::new(), Vec::new());
+        if self.window.len() == CYCLE_WINDOW {
+            let (oc, ob, r) = self.window.pop_front().expect("not empty");
             self.best_before = self.best_before.min(r);
+            (c, b) = (oc, ob);
         }
+        c.clear();
+        c.extend_from_slice(choice);
+        b.clear();
+        b.extend_from_slice(branches);
+        self.window.push_back((c, b, r_free));
         let best_now = self
             .window
             .iter()
