@@ -772,6 +772,7 @@ fn material_point<S: Scalar, M: MaterialLaw>(
         &input.hist_old[gp * nh..(gp + 1) * nh],
         &mut out.hist_new[gp * nh..(gp + 1) * nh],
         input.frozen.map(|fr| fr[gp]),
+        out.tangent.is_some(),
     );
     if !resp.stress.iter().all(|s| re(*s).is_finite()) {
         return Err(ElementFailure::NonFinite { gauss_point: gp });

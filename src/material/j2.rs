@@ -513,6 +513,7 @@ impl MaterialLaw for J2Plasticity {
         hist_old: &[S],
         hist_new: &mut [S],
         frozen: Option<Branch>,
+        tangent: bool,
     ) -> PointResponse<S> {
         debug_assert!(p.len() >= self.params().len());
         const LEN: usize = J2History::<f64>::LEN;
@@ -543,7 +544,11 @@ impl MaterialLaw for J2Plasticity {
             hist_new[..LEN].copy_from_slice(&hist_old[..LEN]);
             return PointResponse {
                 stress: s_trial,
-                tangent: isotropic_tangent(lambda, mu),
+                tangent: if tangent {
+                    isotropic_tangent(lambda, mu)
+                } else {
+                    Tangent::zeros()
+                },
                 branch,
                 yield_ratio,
             };
@@ -570,7 +575,11 @@ impl MaterialLaw for J2Plasticity {
         let theta_bar = (kp / (mu * 3.0) + 1.0).recip() - one_minus_theta;
         PointResponse {
             stress,
-            tangent: algorithmic_tangent(lambda, mu, theta, theta_bar, &n),
+            tangent: if tangent {
+                algorithmic_tangent(lambda, mu, theta, theta_bar, &n)
+            } else {
+                Tangent::zeros()
+            },
             branch,
             yield_ratio,
         }

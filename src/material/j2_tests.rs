@@ -155,6 +155,7 @@ fn uniaxial_step<S: Scalar>(
             hist_old,
             &mut hist_new,
             None,
+            true,
         );
         let res = [r.stress[(1, 1)].value(), r.stress[(2, 2)].value()];
         let c = &r.tangent;
@@ -178,13 +179,14 @@ fn uniaxial_step<S: Scalar>(
         hist_old,
         &mut hist_new,
         None,
+        true,
     );
     let det = kmat[0][0] * kmat[1][1] - kmat[0][1] * kmat[1][0];
     let (r1, r2) = (r.stress[(1, 1)], r.stress[(2, 2)]);
     let d1 = (r1 * kmat[1][1] - r2 * kmat[0][1]) * (1.0 / det);
     let d2 = (r2 * kmat[0][0] - r1 * kmat[1][0]) * (1.0 / det);
     let (l1, l2) = (S::lift(lat[0]) - d1, S::lift(lat[1]) - d2);
-    let r = m.update(p, &strain(l1, l2), hist_old, &mut hist_new, None);
+    let r = m.update(p, &strain(l1, l2), hist_old, &mut hist_new, None, true);
     (r, hist_new, [l1.value(), l2.value()])
 }
 
@@ -346,7 +348,7 @@ fn dropping_history_sensitivities_gives_wrong_derivatives() {
 /// Tangent returned in f64 against the DualSVec64<6> derivative of the stress.
 fn check_tangent(m: &J2Plasticity, strain: &Matrix3<f64>, hist: &[f64; 7], expect: Branch) {
     let mut h_new = [0.0; 7];
-    let r = m.update(m.params(), strain, hist, &mut h_new, None);
+    let r = m.update(m.params(), strain, hist, &mut h_new, None, true);
     assert_eq!(r.branch, expect);
     let v = strain_to_voigt(strain);
     let vd: Voigt<DualSVec64<6>> =
@@ -359,6 +361,7 @@ fn check_tangent(m: &J2Plasticity, strain: &Matrix3<f64>, hist: &[f64; 7], expec
         &lifted::<DualSVec64<6>>(hist),
         &mut hd_new,
         None,
+        true,
     );
     let sv = stress_to_voigt(&rd.stress);
     let jac = Tangent::<f64>::from_fn(|i, k| sv[i].part(k));
@@ -381,7 +384,7 @@ fn consistent_tangent_equals_dual_derivative() {
         check_tangent(&m, &at(5.0), &hist, Branch::Plastic);
         let just = at(1.0 + 1e-8);
         let mut h_new = [0.0; 7];
-        let r = m.update(m.params(), &just, &hist, &mut h_new, None);
+        let r = m.update(m.params(), &just, &hist, &mut h_new, None, true);
         assert!(r.yield_ratio > 0.0 && r.yield_ratio < 1e-7);
         check_tangent(&m, &just, &hist, Branch::Plastic);
         // A general (non-proportional) plastic state from a random-looking strain.
@@ -438,7 +441,7 @@ fn dual_real_part_equals_f64_evaluation() {
     let strain = sym([6e-3, -2e-3, 1e-3, 2e-3, -1e-3, 3e-3]);
     for m in [oracle_material(), saturation_material()] {
         let mut h = [0.0; 7];
-        let r = m.update(m.params(), &strain, &hist, &mut h, None);
+        let r = m.update(m.params(), &strain, &hist, &mut h, None, true);
         assert_eq!(r.branch, Branch::Plastic);
         for k in 0..m.params().len() {
             let mut hd = [Dual64::from(0.0); 7];
@@ -449,6 +452,7 @@ fn dual_real_part_equals_f64_evaluation() {
                 &hist_d,
                 &mut hd,
                 None,
+                true,
             );
             assert_eq!(rd.branch, r.branch);
             assert_eq!(rd.yield_ratio, r.yield_ratio);
@@ -486,7 +490,14 @@ fn frozen_branches() {
     // Frozen elastic at a plastic trial state: the elastic trial stress, history unchanged.
     let strain = sym([6e-3, -2e-3, 1e-3, 2e-3, -1e-3, 3e-3]);
     let mut h = [0.0; 7];
-    let r = m.update(m.params(), &strain, &hist, &mut h, Some(Branch::Elastic));
+    let r = m.update(
+        m.params(),
+        &strain,
+        &hist,
+        &mut h,
+        Some(Branch::Elastic),
+        true,
+    );
     assert!(r.yield_ratio > 0.0);
     assert_eq!(r.branch, Branch::Elastic);
     let ee = strain - ep;
@@ -496,7 +507,14 @@ fn frozen_branches() {
     // Frozen plastic at an elastic trial state: defined, Dgamma < 0, and the stress lies on
     // the yield surface of the (decreased) alpha: the smooth continuation of the branch.
     let strain = ep + sym([2e-4, -1e-4, 0.0, 1e-4, 0.0, 0.0]);
-    let r = m.update(m.params(), &strain, &hist, &mut h, Some(Branch::Plastic));
+    let r = m.update(
+        m.params(),
+        &strain,
+        &hist,
+        &mut h,
+        Some(Branch::Plastic),
+        true,
+    );
     assert!(r.yield_ratio < 0.0);
     assert_eq!(r.branch, Branch::Plastic);
     assert!(read(&h).1 < read(&hist).1);
@@ -520,6 +538,7 @@ fn zero_deviator_gives_finite_derivatives() {
                     &[DualSVec64::<6>::from_re(0.0); 7],
                     &mut h,
                     frozen,
+                    true,
                 );
                 for x in r.stress.iter().chain(r.tangent.iter()).chain(h.iter()) {
                     assert!(x.re.is_finite());
@@ -549,7 +568,7 @@ proptest! {
         let green = |f: &Matrix3<f64>| (f.transpose() * f - Matrix3::identity()) * 0.5;
         let strain = green(&f);
         let mut h = [0.0; 7];
-        let r = m.update(m.params(), &strain, &hist, &mut h, None);
+        let r = m.update(m.params(), &strain, &hist, &mut h, None, true);
         let (lambda, mu) = lame(YOUNG, NU);
         match r.branch {
             Branch::Plastic => {
@@ -585,7 +604,7 @@ proptest! {
         let q = Rotation3::new(Vector3::from(w));
         let strain_q = green(&(q.matrix() * f));
         let mut hq = [0.0; 7];
-        let rq = m.update(m.params(), &strain_q, &hist, &mut hq, None);
+        let rq = m.update(m.params(), &strain_q, &hist, &mut hq, None, true);
         prop_assert_eq!(rq.branch, r.branch);
         let scale = flow_stress(&m, alpha_old);
         prop_assert!((rq.stress - r.stress).amax() <= 1e-10 * scale);
@@ -682,6 +701,7 @@ fn bench_law<S: Scalar>(m: &J2Plasticity) -> f64 {
             black_box(&hist),
             &mut h,
             None,
+            true,
         );
         assert_eq!(r.branch, Branch::Plastic);
         black_box(&r);

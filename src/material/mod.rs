@@ -185,7 +185,8 @@ pub enum Branch {
 pub struct PointResponse<S: Scalar> {
     /// Stress conjugate to the strain that was given (PK2 or Cauchy).
     pub stress: Matrix3<S>,
-    /// Material tangent dS/dE, Voigt form (consistent/algorithmic for inelastic laws).
+    /// Material tangent dS/dE, Voigt form (consistent/algorithmic for inelastic laws); zero
+    /// where the update was not asked for it.
     pub tangent: Tangent<S>,
     /// Branch taken (or imposed by `frozen`).
     pub branch: Branch,
@@ -240,7 +241,10 @@ pub trait MaterialLaw: Law {
         None
     }
     /// Stress update. `p` are the parameters lifted to `S` (same order as `params`),
-    /// `hist_old` the committed history, `hist_new` receives the updated history.
+    /// `hist_old` the committed history, `hist_new` receives the updated history. `tangent`:
+    /// whether the caller reads [`PointResponse::tangent`]; where it does not (a residual
+    /// alone: the sensitivity passes, SDM's unbalance, the adjoint's recordings) the law
+    /// may leave it zero and pay nothing for it.
     fn update<S: Scalar>(
         &self,
         p: &[S],
@@ -248,6 +252,7 @@ pub trait MaterialLaw: Law {
         hist_old: &[S],
         hist_new: &mut [S],
         frozen: Option<Branch>,
+        tangent: bool,
     ) -> PointResponse<S>;
 }
 

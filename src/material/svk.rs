@@ -3,7 +3,7 @@
 //!
 //! Parameters: `[E, nu]` (Young's modulus, Poisson's ratio). No history.
 
-use super::{isotropic_tangent, lame, Branch, MaterialLaw, PointResponse};
+use super::{isotropic_tangent, lame, Branch, MaterialLaw, PointResponse, Tangent};
 use crate::scalar::Scalar;
 use nalgebra::Matrix3;
 
@@ -43,13 +43,18 @@ impl MaterialLaw for StVenantKirchhoff {
         _hist_old: &[S],
         _hist_new: &mut [S],
         _frozen: Option<Branch>,
+        tangent: bool,
     ) -> PointResponse<S> {
         let (lambda, mu) = lame(p[0], p[1]);
         let tr = strain.trace();
         let stress = strain * (mu * 2.0) + Matrix3::from_diagonal_element(lambda * tr);
         PointResponse {
             stress,
-            tangent: isotropic_tangent(lambda, mu),
+            tangent: if tangent {
+                isotropic_tangent(lambda, mu)
+            } else {
+                Tangent::zeros()
+            },
             branch: Branch::Elastic,
             yield_ratio: -1.0,
         }
@@ -66,7 +71,7 @@ mod tests {
     fn tangent_maps_voigt_strain_to_voigt_stress() {
         let m = StVenantKirchhoff::new(210e9, 0.3);
         let e = Matrix3::new(1e-3, 2e-4, -3e-4, 2e-4, -5e-4, 1e-4, -3e-4, 1e-4, 7e-4);
-        let r = m.update(&[210e9, 0.3], &e, &[], &mut [], None);
+        let r = m.update(&[210e9, 0.3], &e, &[], &mut [], None, true);
         let s_from_c = r.tangent * strain_to_voigt(&e);
         assert_relative_eq!(s_from_c, stress_to_voigt(&r.stress), max_relative = 1e-13);
     }

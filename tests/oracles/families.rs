@@ -214,7 +214,7 @@ fn plastic_tangents_of_every_family_are_the_derivatives_of_their_forces() {
 fn cauchy_at_a_point<M: MaterialLaw>(material: &M, f: &Matrix3<f64>) -> Matrix3<f64> {
     let e = (f.transpose() * f - Matrix3::identity()) * 0.5;
     let mut h = vec![0.0; material.history_len()];
-    let r = material.update(material.params(), &e, &h.clone(), &mut h, None);
+    let r = material.update(material.params(), &e, &h.clone(), &mut h, None, true);
     f * r.stress * f.transpose() / f.determinant()
 }
 
