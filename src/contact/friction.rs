@@ -576,7 +576,7 @@ impl FrictionLaw for UserFriction {
             *v = x.value();
         }
         let tv = t_trial.map(|x| x.value());
-        if S::NPARTS == 0 {
+        if !S::DIFFERENTIATES {
             let u = self
                 .law
                 .return_map_f64(&pv[..np], &tv, p_n.value(), margin, frozen);

@@ -5,7 +5,9 @@
 //! * `S = f64`: the primal analysis, SDM's finite-perturbation unbalance forces and FDM's reruns;
 //! * `S = Dual64`: one design parameter seeded, the derivative part is the exact partial (DDM);
 //! * `S = DualSVec64<N>`: N design parameters at once (batched DDM), or N element DOFs at once
-//!   (a tangent by forward AD).
+//!   (a tangent by forward AD);
+//! * `S = `[`Rev`]: reverse mode on a tape, a vector-Jacobian product of an element or a
+//!   hitting node in one sweep (the adjoint's local derivatives).
 //!
 //! Rules every kernel follows (see `shared/style.md`):
 //! * branch decisions (elastic/plastic, stick/slip, open/closed) are taken on real parts, with
@@ -17,13 +19,24 @@
 use nalgebra::{Matrix3, SVector, Vector3};
 use num_dual::{Derivative, Dual64, DualNum, DualSVec64};
 
-/// Scalar type of every kernel: `f64`, [`Dual64`] or [`DualSVec64<N>`].
+pub mod tape;
+pub use tape::Rev;
+
+/// Scalar type of every kernel: `f64`, [`Dual64`], [`DualSVec64<N>`] or [`Rev`].
 ///
 /// Beyond `DualNum<Primitive = f64>` it gives uniform access to the derivative parts, which the
 /// sensitivity engine needs to seed parameters and to read results, whatever the dual width.
 pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync + 'static {
-    /// Number of derivative directions carried (0 for `f64`).
+    /// Number of derivative directions carried (0 for `f64` and [`Rev`]).
     const NPARTS: usize;
+
+    /// Whether the scalar carries derivatives at all (forward parts or a tape): `false` for
+    /// `f64` alone, where a kernel may take a plain-value shortcut.
+    const DIFFERENTIATES: bool = Self::NPARTS > 0 || Self::RECORDS;
+
+    /// Whether operations record on a thread's tape ([`Rev`]): an evaluation in it must run
+    /// on one thread, the one that sweeps the tape.
+    const RECORDS: bool = false;
 
     /// The real part (value).
     fn value(&self) -> f64;

@@ -1,0 +1,753 @@
+//! A reverse-mode scalar: [`Rev`].
+//!
+//! Every operation on `Rev` numbers that depend on an input appends its local partial
+//! derivatives to a tape kept per thread; one backward sweep over the tape ([`sweep`]) then
+//! gives the derivative of a weighted sum of outputs with respect to every input: a
+//! vector-Jacobian product for the cost of the recording and one sweep, whatever the number of
+//! inputs. Forward duals give a Jacobian-vector product per direction instead, so a
+//! vector-Jacobian product over an element's 24 unknowns and 56 history scalars costs them
+//! ten 8-wide evaluations.
+//!
+//! The kernels are the same generic code ([`Scalar`]): branch decisions are taken on real
+//! parts, constants carry no tape entry, and the partial derivatives of every function other
+//! than the four arithmetic operations come from [`Dual64`], so nothing here is a derivative
+//! written by hand. The adjoint ([`crate::sensitivity`]) records one element (or hitting node)
+//! at a time on the thread that evaluates it, sweeps it once per column and clears the tape:
+//! the tape stays in the cache and the elements run in parallel.
+//!
+//! A recording and its sweeps must stay on one thread, between two [`clear`]s: a `Rev` made
+//! on another thread's tape or before the last `clear` names a wrong entry.
+
+use super::Scalar;
+use num_dual::{Dual64, DualNum, DualStruct, Mappable};
+use num_traits::{FromPrimitive, Inv, Num, One, Signed, Zero};
+use std::cell::UnsafeCell;
+use std::fmt;
+use std::iter::{Product, Sum};
+use std::mem::ManuallyDrop;
+use std::ops::{
+    Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Rem, RemAssign, Sub, SubAssign,
+};
+
+/// The index of a number that depends on no input (a constant).
+const NONE: u32 = u32::MAX;
+
+/// A reverse-mode number: its value and its entry on this thread's tape ([`NONE`] for a
+/// constant).
+#[derive(Clone, Copy)]
+pub struct Rev {
+    v: f64,
+    i: u32,
+}
+
+/// One tape entry: the entry's parents and its partial derivatives with respect to them.
+#[derive(Clone, Copy)]
+struct Node {
+    a: u32,
+    b: u32,
+    da: f64,
+    db: f64,
+}
+
+thread_local! {
+    /// This thread's tape. No destructor (`ManuallyDrop`), so that every operation reaches it
+    /// by a plain thread-local access, not through the lazy registration a destructor needs:
+    /// the recordings end with [`take`], which leaves it empty, and what a thread still holds
+    /// when it exits is not freed.
+    static TAPE: UnsafeCell<ManuallyDrop<Vec<Node>>> =
+        const { UnsafeCell::new(ManuallyDrop::new(Vec::new())) };
+}
+
+/// Runs `f` on this thread's tape. Sound because every use is one of this module's
+/// functions, none of which runs other code (no `Rev` operation, no callback) while it holds
+/// the reference: there is never a second one.
+#[inline(always)]
+fn with_tape<R>(f: impl FnOnce(&mut Vec<Node>) -> R) -> R {
+    TAPE.with(|t| {
+        // SAFETY: see above; the reference does not outlive `f`, and `f` never reaches the
+        // tape again.
+        let t = unsafe { &mut *t.get() };
+        f(t)
+    })
+}
+
+#[inline(always)]
+fn push(node: Node) -> u32 {
+    with_tape(|t| {
+        let i = t.len();
+        assert!(i < NONE as usize, "tape longer than u32 indices");
+        t.push(node);
+        i as u32
+    })
+}
+
+/// Empties this thread's tape; every `Rev` recorded before names nothing now.
+pub fn clear() {
+    with_tape(|t| t.clear());
+}
+
+/// Makes room on this thread's tape for `additional` more entries at once (a recording of
+/// known length grows without reallocating).
+pub fn reserve(additional: usize) {
+    with_tape(|t| t.reserve(additional));
+}
+
+/// The number of entries on this thread's tape.
+pub fn len() -> usize {
+    with_tape(|t| t.len())
+}
+
+/// The backward sweep: `adjoint` receives, for every entry of this thread's tape, the
+/// derivative of `sum w * output` over `seeds` (`(output, w)`); read an input's with
+/// [`Rev::adjoint`]. The tape is left as it is, for more sweeps with other seeds.
+pub fn sweep(seeds: impl IntoIterator<Item = (Rev, f64)>, adjoint: &mut Vec<f64>) {
+    // the seeds are collected first: iterating them runs the caller's code
+    let seeds: Vec<(Rev, f64)> = seeds.into_iter().collect();
+    with_tape(|t| sweep_nodes(t, 0..t.len(), seeds, adjoint));
+}
+
+/// A tape taken from its thread ([`take`]): swept later, on any thread, as often as needed,
+/// whole or a part at a time.
+pub struct Recording(Vec<Node>);
+
+/// This thread's tape, moved out (the thread's is empty again): the `Rev` numbers recorded on
+/// it name entries of the [`Recording`] now.
+pub fn take() -> Recording {
+    Recording(with_tape(std::mem::take))
+}
+
+impl Recording {
+    /// [`sweep`] over this recording.
+    pub fn sweep(&self, seeds: impl IntoIterator<Item = (Rev, f64)>, adjoint: &mut Vec<f64>) {
+        sweep_nodes(&self.0, 0..self.0.len(), seeds, adjoint);
+    }
+
+    /// [`sweep`] over the entries `part` alone, a self-contained recording: every entry in
+    /// it depends on inputs made in it (several recordings one after the other on a tape
+    /// not cleared between them, the inputs of the earlier ones made constants again). The
+    /// adjoint of entry `k` is `adjoint[k - part.start]` ([`Rev::adjoint_in`]).
+    pub fn sweep_part(
+        &self,
+        part: std::ops::Range<usize>,
+        seeds: impl IntoIterator<Item = (Rev, f64)>,
+        adjoint: &mut Vec<f64>,
+    ) {
+        sweep_nodes(&self.0, part, seeds, adjoint);
+    }
+
+    /// Its number of entries.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether it has none.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+/// The sweep over the entries `part` of `t`, `adjoint` indexed from `part.start`.
+fn sweep_nodes(
+    t: &[Node],
+    part: std::ops::Range<usize>,
+    seeds: impl IntoIterator<Item = (Rev, f64)>,
+    adjoint: &mut Vec<f64>,
+) {
+    let start = part.start;
+    adjoint.clear();
+    adjoint.resize(part.len(), 0.0);
+    for (x, w) in seeds {
+        if x.i != NONE {
+            assert!(
+                part.contains(&(x.i as usize)),
+                "seed outside the swept part"
+            );
+            adjoint[x.i as usize - start] += w;
+        }
+    }
+    for k in part.rev() {
+        let g = adjoint[k - start];
+        if g == 0.0 {
+            continue;
+        }
+        let n = t[k];
+        // a parent before `start` would belong to another recording (`sweep_part`)
+        if n.a != NONE {
+            adjoint[n.a as usize - start] += n.da * g;
+        }
+        if n.b != NONE {
+            adjoint[n.b as usize - start] += n.db * g;
+        }
+    }
+}
+
+impl Rev {
+    /// A constant: no tape entry.
+    #[inline]
+    pub const fn constant(v: f64) -> Self {
+        Rev { v, i: NONE }
+    }
+
+    /// An input (an independent variable): a tape entry of its own.
+    pub fn input(v: f64) -> Self {
+        let i = push(Node {
+            a: NONE,
+            b: NONE,
+            da: 0.0,
+            db: 0.0,
+        });
+        Rev { v, i }
+    }
+
+    /// The value.
+    #[inline]
+    pub fn value(&self) -> f64 {
+        self.v
+    }
+
+    /// Whether the number depends on an input.
+    #[inline]
+    pub fn is_recorded(&self) -> bool {
+        self.i != NONE
+    }
+
+    /// This number's entry of a [`sweep`]'s adjoints (zero for a constant).
+    #[inline]
+    pub fn adjoint(&self, adjoint: &[f64]) -> f64 {
+        self.adjoint_in(adjoint, 0)
+    }
+
+    /// This number's entry of a [`Recording::sweep_part`]'s adjoints, the part starting at
+    /// entry `start` (zero for a constant).
+    #[inline]
+    pub fn adjoint_in(&self, adjoint: &[f64], start: usize) -> f64 {
+        if self.i == NONE {
+            0.0
+        } else {
+            adjoint[self.i as usize - start]
+        }
+    }
+
+    /// `v = f(x)` with `df/dx = d`. No entry where none is needed: a zero derivative makes
+    /// a constant, a unit one passes `x`'s adjoint on unchanged, so `v` can share `x`'s entry
+    /// (an element's sums start from zero, its shape derivatives hold zeros and ones).
+    #[inline]
+    fn unary(v: f64, x: Rev, d: f64) -> Rev {
+        if x.i == NONE || d == 0.0 {
+            return Rev::constant(v);
+        }
+        if d == 1.0 {
+            return Rev { v, i: x.i };
+        }
+        let i = push(Node {
+            a: x.i,
+            b: NONE,
+            da: d,
+            db: 0.0,
+        });
+        Rev { v, i }
+    }
+
+    /// `v = f(x, y)` with partials `dx`, `dy`.
+    #[inline]
+    fn binary(v: f64, x: Rev, dx: f64, y: Rev, dy: f64) -> Rev {
+        match (x.i == NONE || dx == 0.0, y.i == NONE || dy == 0.0) {
+            (true, true) => Rev::constant(v),
+            (false, true) => Rev::unary(v, x, dx),
+            (true, false) => Rev::unary(v, y, dy),
+            (false, false) => {
+                let i = push(Node {
+                    a: x.i,
+                    b: y.i,
+                    da: dx,
+                    db: dy,
+                });
+                Rev { v, i }
+            }
+        }
+    }
+
+    /// A function of one argument, its value and derivative taken from [`Dual64`].
+    #[inline]
+    fn through_dual(self, f: impl Fn(Dual64) -> Dual64) -> Rev {
+        let d = f(Dual64::new(self.v, 1.0));
+        Rev::unary(d.re, self, d.eps)
+    }
+}
+
+impl fmt::Debug for Rev {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.i == NONE {
+            write!(f, "{:?}", self.v)
+        } else {
+            write!(f, "{:?} @{}", self.v, self.i)
+        }
+    }
+}
+
+impl fmt::Display for Rev {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Display::fmt(&self.v, f)
+    }
+}
+
+// Comparisons are of values, as the dual numbers' are.
+impl PartialEq for Rev {
+    fn eq(&self, other: &Self) -> bool {
+        self.v == other.v
+    }
+}
+
+impl PartialEq<f64> for Rev {
+    fn eq(&self, other: &f64) -> bool {
+        self.v == *other
+    }
+}
+
+impl PartialOrd for Rev {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        self.v.partial_cmp(&other.v)
+    }
+}
+
+impl PartialOrd<f64> for Rev {
+    fn partial_cmp(&self, other: &f64) -> Option<std::cmp::Ordering> {
+        self.v.partial_cmp(other)
+    }
+}
+
+impl From<f64> for Rev {
+    fn from(v: f64) -> Self {
+        Rev::constant(v)
+    }
+}
+
+impl Neg for Rev {
+    type Output = Rev;
+    #[inline]
+    fn neg(self) -> Rev {
+        Rev::unary(-self.v, self, -1.0)
+    }
+}
+
+impl Add for Rev {
+    type Output = Rev;
+    #[inline]
+    fn add(self, y: Rev) -> Rev {
+        Rev::binary(self.v + y.v, self, 1.0, y, 1.0)
+    }
+}
+
+impl Sub for Rev {
+    type Output = Rev;
+    #[inline]
+    fn sub(self, y: Rev) -> Rev {
+        Rev::binary(self.v - y.v, self, 1.0, y, -1.0)
+    }
+}
+
+impl Mul for Rev {
+    type Output = Rev;
+    #[inline]
+    fn mul(self, y: Rev) -> Rev {
+        Rev::binary(self.v * y.v, self, y.v, y, self.v)
+    }
+}
+
+impl Div for Rev {
+    type Output = Rev;
+    #[inline]
+    fn div(self, y: Rev) -> Rev {
+        let inv = 1.0 / y.v;
+        let v = self.v * inv;
+        Rev::binary(v, self, inv, y, -v * inv)
+    }
+}
+
+impl Rem for Rev {
+    type Output = Rev;
+    fn rem(self, y: Rev) -> Rev {
+        // x - trunc(x / y) y, the quotient piecewise constant
+        Rev::binary(self.v % y.v, self, 1.0, y, -(self.v / y.v).trunc())
+    }
+}
+
+impl Add<f64> for Rev {
+    type Output = Rev;
+    #[inline]
+    fn add(self, y: f64) -> Rev {
+        Rev::unary(self.v + y, self, 1.0)
+    }
+}
+
+impl Sub<f64> for Rev {
+    type Output = Rev;
+    #[inline]
+    fn sub(self, y: f64) -> Rev {
+        Rev::unary(self.v - y, self, 1.0)
+    }
+}
+
+impl Mul<f64> for Rev {
+    type Output = Rev;
+    #[inline]
+    fn mul(self, y: f64) -> Rev {
+        Rev::unary(self.v * y, self, y)
+    }
+}
+
+impl Div<f64> for Rev {
+    type Output = Rev;
+    #[inline]
+    fn div(self, y: f64) -> Rev {
+        Rev::unary(self.v / y, self, 1.0 / y)
+    }
+}
+
+impl Rem<f64> for Rev {
+    type Output = Rev;
+    fn rem(self, y: f64) -> Rev {
+        Rev::unary(self.v % y, self, 1.0)
+    }
+}
+
+/// The by-reference and compound-assignment forms, through the by-value ones.
+macro_rules! forward_ops {
+    ($($op:ident $f:ident $opa:ident $fa:ident),*) => {$(
+        impl<'r> $op<&'r Rev> for Rev {
+            type Output = Rev;
+            #[inline]
+            fn $f(self, y: &'r Rev) -> Rev {
+                $op::$f(self, *y)
+            }
+        }
+        impl $opa for Rev {
+            #[inline]
+            fn $fa(&mut self, y: Rev) {
+                *self = $op::$f(*self, y);
+            }
+        }
+        impl $opa<f64> for Rev {
+            #[inline]
+            fn $fa(&mut self, y: f64) {
+                *self = $op::$f(*self, y);
+            }
+        }
+    )*};
+}
+
+forward_ops!(
+    Add add AddAssign add_assign,
+    Sub sub SubAssign sub_assign,
+    Mul mul MulAssign mul_assign,
+    Div div DivAssign div_assign,
+    Rem rem RemAssign rem_assign
+);
+
+impl Zero for Rev {
+    fn zero() -> Self {
+        Rev::constant(0.0)
+    }
+    /// Only a constant zero is zero: a recorded zero still carries a derivative.
+    fn is_zero(&self) -> bool {
+        self.v == 0.0 && self.i == NONE
+    }
+}
+
+impl One for Rev {
+    fn one() -> Self {
+        Rev::constant(1.0)
+    }
+}
+
+impl Num for Rev {
+    type FromStrRadixErr = <f64 as Num>::FromStrRadixErr;
+    fn from_str_radix(s: &str, radix: u32) -> Result<Self, Self::FromStrRadixErr> {
+        f64::from_str_radix(s, radix).map(Rev::constant)
+    }
+}
+
+impl Signed for Rev {
+    fn abs(&self) -> Self {
+        // the derivative at zero taken as zero, as the duals' signum does there
+        let s = if self.v > 0.0 {
+            1.0
+        } else if self.v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        Rev::unary(self.v.abs(), *self, s)
+    }
+    fn abs_sub(&self, other: &Self) -> Self {
+        if self.v <= other.v {
+            Rev::zero()
+        } else {
+            *self - *other
+        }
+    }
+    fn signum(&self) -> Self {
+        Rev::constant(Signed::signum(&self.v))
+    }
+    fn is_positive(&self) -> bool {
+        self.v.is_sign_positive()
+    }
+    fn is_negative(&self) -> bool {
+        self.v.is_sign_negative()
+    }
+}
+
+impl Inv for Rev {
+    type Output = Rev;
+    fn inv(self) -> Rev {
+        DualNum::recip(&self)
+    }
+}
+
+impl Sum for Rev {
+    fn sum<I: Iterator<Item = Rev>>(iter: I) -> Rev {
+        iter.fold(Rev::zero(), |a, b| a + b)
+    }
+}
+
+impl<'a> Sum<&'a Rev> for Rev {
+    fn sum<I: Iterator<Item = &'a Rev>>(iter: I) -> Rev {
+        iter.fold(Rev::zero(), |a, b| a + *b)
+    }
+}
+
+impl Product for Rev {
+    fn product<I: Iterator<Item = Rev>>(iter: I) -> Rev {
+        iter.fold(Rev::one(), |a, b| a * b)
+    }
+}
+
+impl FromPrimitive for Rev {
+    fn from_i64(n: i64) -> Option<Self> {
+        f64::from_i64(n).map(Rev::constant)
+    }
+    fn from_u64(n: u64) -> Option<Self> {
+        f64::from_u64(n).map(Rev::constant)
+    }
+    fn from_f64(n: f64) -> Option<Self> {
+        Some(Rev::constant(n))
+    }
+}
+
+impl DualStruct for Rev {
+    type Real = f64;
+    type Inner = f64;
+    fn re(&self) -> f64 {
+        self.v
+    }
+    fn from_inner(inner: &f64) -> Self {
+        Rev::constant(*inner)
+    }
+}
+
+impl Mappable<Rev> for Rev {
+    type Output<O> = O;
+    fn map_dual<M: Fn(Rev) -> O, O>(self, f: M) -> O {
+        f(self)
+    }
+}
+
+/// Functions of one argument whose value and derivative come from [`Dual64`].
+macro_rules! through_dual {
+    ($($f:ident),*) => {$(
+        #[inline]
+        fn $f(&self) -> Self {
+            self.through_dual(|d| d.$f())
+        }
+    )*};
+}
+
+impl DualNum for Rev {
+    type Primitive = f64;
+    const NDERIV: usize = 1;
+    type InnerDual = f64;
+
+    fn from_re(re: f64) -> Self {
+        Rev::constant(re)
+    }
+
+    fn scale(self, factor: &f64) -> Self {
+        self * *factor
+    }
+
+    #[inline]
+    fn recip(&self) -> Self {
+        let v = 1.0 / self.v;
+        Rev::unary(v, *self, -v * v)
+    }
+
+    fn powi(&self, n: i32) -> Self {
+        self.through_dual(|d| d.powi(n))
+    }
+
+    fn powf(&self, n: f64) -> Self {
+        self.through_dual(|d| d.powf(n))
+    }
+
+    #[inline]
+    fn sqrt(&self) -> Self {
+        let v = self.v.sqrt();
+        Rev::unary(v, *self, 0.5 / v)
+    }
+
+    fn log(&self, base: f64) -> Self {
+        self.through_dual(|d| d.log(base))
+    }
+
+    fn sin_cos(&self) -> (Self, Self) {
+        (DualNum::sin(self), DualNum::cos(self))
+    }
+
+    fn atan2(&self, other: Self) -> Self {
+        // atan2(y, x): d/dy = x / r^2, d/dx = -y / r^2
+        let r2 = self.v * self.v + other.v * other.v;
+        Rev::binary(
+            self.v.atan2(other.v),
+            *self,
+            other.v / r2,
+            other,
+            -self.v / r2,
+        )
+    }
+
+    through_dual!(
+        cbrt, exp, exp2, exp_m1, ln, log2, log10, ln_1p, sin, cos, tan, asin, acos, atan, sinh,
+        cosh, tanh, asinh, acosh, atanh, sph_j0, sph_j1, sph_j2
+    );
+}
+
+impl Scalar for Rev {
+    /// No forward directions: a `Rev`'s derivatives come from a [`sweep`].
+    const NPARTS: usize = 0;
+    const RECORDS: bool = true;
+    #[inline]
+    fn value(&self) -> f64 {
+        self.v
+    }
+    #[inline]
+    fn part(&self, _k: usize) -> f64 {
+        0.0
+    }
+    /// A constant: a `Rev` input is made with [`Rev::input`], not seeded.
+    #[inline]
+    fn with_parts(re: f64, _parts: &[f64]) -> Self {
+        Rev::constant(re)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scalar::{det3, inv3, safe_norm};
+    use approx::assert_relative_eq;
+    use nalgebra::{Matrix3, Vector3};
+    use num_dual::DualSVec64;
+
+    /// A function of six inputs through most of what a kernel uses: matrix products, the
+    /// cofactor inverse, a zero-safe norm, roots, logarithms, powers, a quotient.
+    fn f<S: Scalar>(x: &[S; 6]) -> [S; 2] {
+        let a = Matrix3::new(
+            x[0] + S::from(2.0),
+            x[1],
+            x[2] * x[3],
+            S::from(0.1),
+            x[4] + S::from(1.5),
+            x[5].sin(),
+            x[0] * x[5],
+            S::from(-0.2),
+            x[3].exp() + S::from(0.3),
+        );
+        let (ai, d) = inv3(&a).expect("invertible");
+        let b = a.transpose() * ai * a;
+        let n = safe_norm(&Vector3::new(x[0], x[1], x[2]));
+        let g = b.trace() * d.ln() + n.sqrt() * x[4].powi(3) / (x[5].cbrt() + S::from(2.0));
+        let h = det3(&b).atan2(x[1]) - x[2].tanh() * x[3].abs() + x[4].powf(1.7);
+        [g, h]
+    }
+
+    #[test]
+    fn one_sweep_gives_the_vector_jacobian_product_forward_duals_give_a_column_at_a_time() {
+        let x0 = [0.3, -0.7, 0.45, 0.2, 0.9, 0.6];
+        let w = [1.3, -0.4];
+        // forward: six directions at once, the Jacobian, weighed by w
+        let xd: [DualSVec64<6>; 6] = std::array::from_fn(|k| DualSVec64::seeded(x0[k], k));
+        let yd = f(&xd);
+        let vjp_fwd: Vec<f64> = (0..6)
+            .map(|k| w[0] * yd[0].part(k) + w[1] * yd[1].part(k))
+            .collect();
+        // reverse: one recording, one sweep
+        clear();
+        let xr: [Rev; 6] = std::array::from_fn(|k| Rev::input(x0[k]));
+        let yr = f(&xr);
+        assert_eq!(yr[0].value(), f(&x0)[0]);
+        assert_eq!(yr[1].value(), f(&x0)[1]);
+        let mut adj = Vec::new();
+        sweep([(yr[0], w[0]), (yr[1], w[1])], &mut adj);
+        for (x, v) in xr.iter().zip(&vjp_fwd) {
+            assert_relative_eq!(x.adjoint(&adj), *v, max_relative = 1e-13);
+        }
+        // a second sweep on the same tape, the other output alone
+        sweep([(yr[1], 1.0)], &mut adj);
+        for (k, x) in xr.iter().enumerate() {
+            assert_relative_eq!(x.adjoint(&adj), yd[1].part(k), max_relative = 1e-13);
+        }
+        // taken from the thread, the same sweep
+        let taken = take();
+        assert_eq!(len(), 0);
+        assert!(!taken.is_empty());
+        taken.sweep([(yr[0], w[0]), (yr[1], w[1])], &mut adj);
+        for (x, v) in xr.iter().zip(&vjp_fwd) {
+            assert_relative_eq!(x.adjoint(&adj), *v, max_relative = 1e-13);
+        }
+    }
+
+    #[test]
+    fn recordings_one_after_the_other_sweep_apart() {
+        clear();
+        let x = Rev::input(0.5);
+        let y = x.sin() * x;
+        let start = len();
+        let u = Rev::input(2.0);
+        let v = u.ln() * u.sqrt();
+        let end = len();
+        let z = Rev::input(1.5);
+        let w = z * z;
+        let taken = take();
+        let mut adj = Vec::new();
+        taken.sweep_part(start..end, [(v, 1.0)], &mut adj);
+        let du = 2.0f64.sqrt() * (1.0 / 2.0 + 2.0f64.ln() / 4.0);
+        assert_relative_eq!(u.adjoint_in(&adj, start), du, max_relative = 1e-15);
+        taken.sweep_part(0..start, [(y, 1.0)], &mut adj);
+        assert_relative_eq!(x.adjoint_in(&adj, 0), 0.5f64.cos() * 0.5 + 0.5f64.sin());
+        taken.sweep_part(end..taken.len(), [(w, 1.0)], &mut adj);
+        assert_eq!(z.adjoint_in(&adj, end), 3.0);
+    }
+
+    #[test]
+    fn constants_leave_no_tape_and_zero_adjoint() {
+        clear();
+        let c = Rev::constant(2.0);
+        let y = (c * c).sqrt() + c.exp();
+        assert!(!y.is_recorded());
+        assert_eq!(len(), 0);
+        let x = Rev::input(3.0);
+        let z = x * c + c;
+        // the input and the product; the sum with a constant shares the product's entry
+        assert_eq!(len(), 2);
+        // a unit or zero derivative makes no entry
+        let one = x * Rev::constant(1.0) + Rev::constant(0.0);
+        assert_eq!(len(), 2);
+        assert!(one.is_recorded());
+        assert!(!(x * Rev::constant(0.0)).is_recorded());
+        let mut adj = Vec::new();
+        sweep([(z, 1.0)], &mut adj);
+        assert_eq!(x.adjoint(&adj), 2.0);
+        assert_eq!(c.adjoint(&adj), 0.0);
+        clear();
+    }
+}
