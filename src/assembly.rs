@@ -77,7 +77,9 @@ pub struct Frozen<'a> {
     /// Per hitting node (flat over pairs): left out of the contact evaluation. A node left out
     /// adds nothing to the residual (nor to its pair's force), carries its history over
     /// unchanged and reports no normal force. The adjoint's local Jacobians
-    /// ([`crate::sensitivity`]) evaluate a few nodes at a time with their own seeds.
+    /// ([`crate::sensitivity`]) evaluate a few nodes at a time with their own seeds. With
+    /// any mask, the pairs' current pressure areas ([`ContactEval::current_area`]) are not
+    /// computed: they are the whole surface's, and such a pass does not read them.
     pub skip_contact: Option<&'a [bool]>,
     /// The terms of the residual the evaluation adds (all by default). SDM's error anatomy
     /// ([`crate::sensitivity::anatomy`]) evaluates them one at a time.
@@ -459,7 +461,8 @@ impl Assembler {
                     h,
                 )
             };
-            if end - start < PARALLEL_MIN {
+            // a tape is a thread's: a recording evaluation stays on the calling thread
+            if end - start < PARALLEL_MIN || S::RECORDS {
                 locals.clear();
                 locals.extend((start..end).zip(slots.into_iter().zip(hslots)).map(local));
             } else {
@@ -583,6 +586,35 @@ impl Assembler {
         }
         let hist = self.dofs.history(e);
         out.hist_new[hist.clone()].copy_from_slice(&hist_old[hist]);
+    }
+
+    /// One solid element alone, on the calling thread: its rows of the residual into `force`
+    /// (in [`Assembler::element_dofs`] order), its updated history into `hist_new` (its
+    /// [`DofMap::history`] range), and its volume-averaged Cauchy stress returned. The
+    /// adjoint's reverse-mode local derivatives ([`crate::scalar::Rev`]) record one element
+    /// at a time on the thread that evaluates it.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn element_outputs<S: Scalar>(
+        &self,
+        model: &Model,
+        lifted: &Lifted<S>,
+        z: &[S],
+        hist_old: &[S],
+        frozen: Option<&[Branch]>,
+        e: usize,
+        force: &mut [S],
+        hist_new: &mut [S],
+    ) -> Result<Matrix3<S>, AssemblyFailure> {
+        let loc = self.element_local(model, lifted, z, hist_old, frozen, e, None, hist_new);
+        if let Some(failure) = loc.failure {
+            return Err(AssemblyFailure::Element {
+                element: e,
+                failure,
+            });
+        }
+        let nd = self.element_dofs(e).len();
+        force[..nd].copy_from_slice(&loc.force[..nd]);
+        Ok(loc.cauchy)
     }
 
     #[allow(clippy::too_many_arguments)]

@@ -128,6 +128,11 @@ enum Command {
         /// reports the memory kept and the recomputation).
         #[arg(long, value_name = "K")]
         checkpoint: Option<usize>,
+        /// The responses to differentiate, by name (repeat for several). Default: every
+        /// response of the scene. The adjoint's cost grows with them (one column of its
+        /// backward sweep each), the other methods' hardly.
+        #[arg(long, value_name = "NAME")]
+        response: Vec<String>,
         /// Output directory (default: out/SCENE).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -359,6 +364,7 @@ struct InlineArgs {
     shard: Option<String>,
     at: Vec<String>,
     checkpoint: Option<usize>,
+    responses: Vec<String>,
 }
 
 /// `fricsens merge`: the shares of one FDM sweep into the unsharded run's outputs.
@@ -494,6 +500,7 @@ fn sensitivity(
         shard,
         at,
         checkpoint,
+        responses,
     } = inline;
     use fricsens::sensitivity::{
         run_sensitivity_watched, Method, Parameter, Settings, TangentChoice,
@@ -510,9 +517,19 @@ fn sensitivity(
         return Err(format!("--beta must lie in (0, 1), got {beta}"));
     }
     print_defaults(scene_name)?;
-    let model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
+    let mut model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
     for n in &model.notes {
         eprintln!("default: {n}");
+    }
+    if let Some(r) = (responses.iter()).find(|r| !model.responses.iter().any(|m| &m.name == *r)) {
+        let known: Vec<&str> = model.responses.iter().map(|m| m.name.as_str()).collect();
+        return Err(format!(
+            "--response {r}: {scene_name} has no response of that name (it has {})",
+            known.join(", ")
+        ));
+    }
+    if !responses.is_empty() {
+        model.responses.retain(|m| responses.contains(&m.name));
     }
     let names = if names.is_empty() {
         if scene.study.params.is_empty() {
@@ -762,7 +779,7 @@ fn sensitivity(
     }
     if settings.method == Method::Adjoint {
         out!(
-            "  where it went: evaluations {:.3} s ({} local-Jacobian and design passes), factorizations {:.3} s, solves {:.3} s, recomputation {:.3} s, the rest {:.3} s",
+            "  where it went: evaluations {:.3} s ({} local-derivative and design evaluations), factorizations {:.3} s, solves {:.3} s, recomputation {:.3} s, the rest {:.3} s",
             c.evaluation_seconds,
             c.partial_evaluations,
             c.factor_seconds,
@@ -1591,6 +1608,7 @@ fn main() -> ExitCode {
             shard,
             at,
             checkpoint,
+            response,
             out,
         } => sensitivity(
             &scene,
@@ -1606,6 +1624,7 @@ fn main() -> ExitCode {
                 shard,
                 at,
                 checkpoint,
+                responses: response,
             },
             out,
         ),

@@ -283,8 +283,9 @@ pub(crate) fn evaluate<S: Scalar>(
             touch: layout.touch[p],
             elastic_stick: false,
         };
-        if let Some(faces) = &pair.hitting_faces {
-            // the current pressure areas, for the Cauchy pressure
+        // the current pressure areas, for the Cauchy pressure (a pass over some nodes alone
+        // leaves them: `Frozen::skip_contact`)
+        if let (Some(faces), None) = (&pair.hitting_faces, skip_nodes) {
             let current = faces.pressure_areas_at(|n| node_pos(lifted, z, n), &pair.hitting);
             let first = layout.flat[p];
             out.current_area[first..first + current.len()].copy_from_slice(&current);

@@ -16,16 +16,33 @@
 //! response at every increment is one column of the sweep: the transposed solves are
 //! multi-column, and the local Jacobians are computed once per increment for all columns.
 //!
-//! Nothing is differentiated by hand. The Jacobians of the residual and of the history
-//! update with respect to the unknowns and the history come from the same generic kernels
-//! evaluated on `DualSVec64<W>` numbers seeded over each element's local unknowns (its
-//! degrees of freedom, then its history scalars) and each hitting node's (its block's
-//! unknowns, then its history): the elements are coloured so that no two of a colour share an
-//! unknown, and the hitting nodes so that no two of a colour share a block unknown, and one
-//! evaluation then gives the local Jacobians of a whole colour. The residual's Jacobian in the
-//! unknowns is the assembled tangent. The derivatives in the design are one dual evaluation
-//! per parameter, as DDM's pseudo-load, over the elements the parameter reaches. A user
-//! material or friction law gets the adjoint with no code of its own.
+//! Nothing is differentiated by hand. What the sweep needs of the residual and the history
+//! update are vector-Jacobian products: each column's cotangent on the outputs of an element
+//! (its residual rows, history, stress) or a hitting node (its normal force, block rows,
+//! history, force on the target), differentiated in the unknowns (before the transposed
+//! solve, the residual's rows left out: their derivative is the tangent's) and in the
+//! committed history (after it). They come from the same generic kernels, in one of two
+//! ways ([`Settings::adjoint_reverse`]):
+//!
+//! * **reverse mode** ([`Rev`]): every solid element whose history moves or is read is
+//!   recorded alone on the thread that evaluates it (in parallel), every colour of hitting
+//!   nodes in one evaluation, once per increment for both phases; each column is then one
+//!   backward sweep of each recording. A J2 hexahedron's recording is about 5,700 tape
+//!   entries, ten times its `f64` evaluation, and a sweep a fraction of that;
+//! * **forward duals**: `DualSVec64<W>` numbers seeded over each element's local unknowns (its
+//!   degrees of freedom, then its history scalars) and each hitting node's (its block's
+//!   unknowns, then its history); the elements are coloured so that no two of a colour
+//!   share an unknown, and the hitting nodes so that no two of a colour share a block
+//!   unknown, and one evaluation gives the local Jacobians of a whole colour, `W` inputs at a
+//!   time, for every column at once.
+//!
+//! Reverse mode is the default while the columns alive at an increment are few
+//! ([`REVERSE_COLUMNS`]); many columns (`--at all` on a long path) share the forward passes.
+//! The residual's Jacobian in the unknowns is the tangent the forward run assembled at the
+//! converged state, kept with each stored increment. The derivatives in the design are one
+//! dual evaluation per parameter, as DDM's pseudo-load, over the elements the parameter
+//! reaches (a field's members seeded a colour at a time). A user material or friction law
+//! gets the adjoint with no code of its own.
 //!
 //! At a flagged (non-differentiable) increment the sweep follows the converged branches, as
 //! DDM's main value does; the one-sided variants are DDM's (`--method ddm`).
@@ -33,19 +50,38 @@
 use super::*;
 use crate::assembly::{Assembler, Evaluation, Frozen};
 use crate::contact::ContactChoice;
+use crate::element::family::MAX_DOFS;
 use crate::linalg::{KeptFactor, LinearSolver, SparseMatrix};
 use crate::material::Branch;
 use crate::model::{node_dof, DesignParam, Lifted};
 use crate::response::{Response, ResponseKind};
+use crate::scalar::{tape, Rev, Scalar};
 use crate::solver::{AnalysisError, Converged, Observer, Resume, RunOptions, Solver, Span};
 use crate::terms::Terms;
 use nalgebra::{Matrix3, Vector3};
 use num_dual::{Dual64, DualSVec64};
+use num_traits::Zero;
+use rayon::prelude::*;
 use std::time::Instant;
+
+/// The most columns for which the local derivatives are taken in reverse mode by default
+/// ([`Settings::adjoint_reverse`]): its recording costs more than a forward pass, each of
+/// its sweeps much less, and the forward passes serve every column at once. Measured on the
+/// leaf spring's `--at all` (3 to 105 columns; local derivatives and the rest of the
+/// sweep): forward alone 1.8 s, reverse alone 1.4 s, reverse up to 16 columns 1.5 s, up to
+/// 64 columns 1.2 s. A J2 hexahedron takes 10 forward passes (24 unknowns and 56 history
+/// scalars, 8 at a time); larger elements take more, which moves the crossover up.
+const REVERSE_COLUMNS: usize = 64;
 
 /// Directions per local-Jacobian evaluation.
 const W: usize = 8;
 type Ad = DualSVec64<W>;
+
+/// Bytes of converged tangents the forward run keeps for the sweep (each segment's, with
+/// checkpoints); beyond them an increment's tangent is assembled again when the sweep
+/// reaches it. On the leaf spring the 35 tangents take 44 MiB, one assembly each saved
+/// (0.13 s of a 0.45 s sweep for one response).
+const TANGENT_ROOM: usize = 1 << 30;
 
 /// One converged increment, as the backward sweep needs it.
 struct Stored {
@@ -56,14 +92,26 @@ struct Stored {
     branches: Vec<Branch>,
     choice: Vec<ContactChoice>,
     constrained: Vec<bool>,
+    /// The values of the tangent assembled at the converged state (the assembler's pattern):
+    /// the sweep's transposed solve needs no assembly of its own. Empty beyond
+    /// [`TANGENT_ROOM`]: the sweep assembles it again.
+    tangent: Vec<f64>,
     /// Newton's last factorization (`--tangent last|refined`), where it was assembled on
     /// the converged branches (`Converged::factor_matches`).
     factor: Option<KeptFactor>,
 }
 
 impl Stored {
-    /// What the sweep needs of `c`, Newton's last factorization with it if `factor`.
-    fn new(c: &Converged<'_>, factor: bool) -> Self {
+    /// What the sweep needs of `c`, Newton's last factorization with it if `factor`, its
+    /// tangent if `*tangent_room` bytes hold it (which it then takes from them).
+    fn new(c: &Converged<'_>, factor: bool, tangent_room: &mut usize) -> Self {
+        let values = c.tangent.values();
+        let tangent = if 8 * values.len() <= *tangent_room {
+            *tangent_room -= 8 * values.len();
+            values.to_vec()
+        } else {
+            Vec::new()
+        };
         let factor = (factor && c.factor_matches)
             .then_some(c.last_factor)
             .flatten()
@@ -77,11 +125,12 @@ impl Stored {
             branches: c.eval.branches.clone(),
             choice: c.eval.contact.choice.clone(),
             constrained: c.constrained.to_vec(),
+            tangent,
         }
     }
 
     fn bytes(&self) -> usize {
-        8 * (self.z.len() + self.hist_prev.len())
+        8 * (self.z.len() + self.hist_prev.len() + self.tangent.len())
             + self.branches.len()
             + self.constrained.len()
             + std::mem::size_of::<ContactChoice>() * self.choice.len()
@@ -118,6 +167,8 @@ struct Recorder<'a> {
     /// Per element: the first increment (position) at which a Gauss point of it is plastic
     /// (`usize::MAX`: not yet).
     first_plastic: Vec<usize>,
+    /// Bytes left for the stored increments' tangents ([`TANGENT_ROOM`]).
+    tangent_room: usize,
     watch: &'a mut dyn FnMut(&Converged<'_>),
     seconds: f64,
 }
@@ -152,7 +203,8 @@ impl Observer for Recorder<'_> {
             kinks: self.engine.kinks(c),
         });
         if user_increment_of(c) >= self.keep_from {
-            self.stored.push(Stored::new(c, self.keep_factors));
+            let s = Stored::new(c, self.keep_factors, &mut self.tangent_room);
+            self.stored.push(s);
         }
         self.seconds += t.elapsed().as_secs_f64();
         (self.watch)(c);
@@ -160,12 +212,13 @@ impl Observer for Recorder<'_> {
     }
 }
 
-/// A recomputed span's states, Newton's last factorizations with them if `.1`.
-struct Keeper(Vec<Stored>, bool);
+/// A recomputed span's states, Newton's last factorizations with them if `.1`, their
+/// tangents while `.2` bytes hold them.
+struct Keeper(Vec<Stored>, bool, usize);
 
 impl Observer for Keeper {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
-        self.0.push(Stored::new(c, self.1));
+        self.0.push(Stored::new(c, self.1, &mut self.2));
         Ok(())
     }
 }
@@ -208,7 +261,7 @@ impl Store<'_> {
             keep_states: false,
             time_limit: None,
         };
-        let mut keeper = Keeper(Vec::new(), self.keep_factors);
+        let mut keeper = Keeper(Vec::new(), self.keep_factors, TANGENT_ROOM);
         self.solver
             .run_span(&span, &opts, &mut keeper, &mut Vec::new())?;
         cost.recompute_seconds += t.elapsed().as_secs_f64();
@@ -242,6 +295,7 @@ pub(super) fn run_adjoint(
         stored: Vec::new(),
         keep_from,
         first_plastic: vec![usize::MAX; model.mesh.n_elements()],
+        tangent_room: TANGENT_ROOM,
         watch,
         seconds: 0.0,
     };
@@ -304,7 +358,13 @@ pub(super) fn run_adjoint(
         keep_factors,
     };
     let tangent = (settings.tangent, settings.refine_steps);
-    let sweep = Sweep::new(model, params, first_plastic, tangent)?;
+    let sweep = Sweep::new(
+        model,
+        params,
+        first_plastic,
+        tangent,
+        settings.adjoint_reverse,
+    )?;
     let mut cost = SensitivityCost::default();
     let dfdb = sweep.run(&sel, &dh0, &mut cost, &mut store, |m| lights[m].time)?;
     out.cost = cost;
@@ -613,12 +673,47 @@ impl AdState {
 /// derivative parts of that output.
 type Rows = Vec<(usize, [f64; W])>;
 
-/// One increment's transposed solve: its stored state, the tangent at it, and Newton's last
-/// factorization if kept.
+/// One increment's transposed solve: the tangent at its converged state (the prescribed
+/// unknowns' rows and columns made identity), and Newton's last factorization if kept.
 struct Transposed<'x> {
-    s: &'x Stored,
     k: &'x SparseMatrix,
     factor: Option<&'x mut KeptFactor>,
+}
+
+/// One recording of an increment's local derivatives in reverse mode ([`Sweep::record`]):
+/// the tape of a solid element, of a colour of hitting nodes or of a pushed target, its
+/// inputs (global unknowns, global history scalars) and its outputs (flat [`Outputs`]
+/// indices).
+struct Recorded {
+    /// Its tape ([`Recordings::tapes`]) and its part of it.
+    tape: usize,
+    part: std::ops::Range<usize>,
+    z: Vec<(usize, Rev)>,
+    h: Vec<(usize, Rev)>,
+    outputs: Vec<(usize, Rev)>,
+}
+
+/// An increment's recordings: the tapes (a parallel task's elements one after the other on
+/// one tape, the colours of hitting nodes on another) and each recording's part of them.
+struct Recordings {
+    tapes: Vec<tape::Recording>,
+    items: Vec<Recorded>,
+}
+
+/// Puts `val[g]` for every `g` of `at` on the tape as an input, in `buf` and returned.
+fn put(buf: &mut [Rev], val: &[f64], at: impl Iterator<Item = usize>) -> Vec<(usize, Rev)> {
+    at.map(|g| {
+        buf[g] = Rev::input(val[g]);
+        (g, buf[g])
+    })
+    .collect()
+}
+
+/// Makes the inputs `put` made constants again.
+fn restore(buf: &mut [Rev], val: &[f64], inputs: &[(usize, Rev)]) {
+    for (g, _) in inputs {
+        buf[*g] = Rev::constant(val[*g]);
+    }
 }
 
 /// The terms the solid elements' passes evaluate.
@@ -646,6 +741,7 @@ struct Sweep<'a> {
     outputs: Outputs,
     lifted: Lifted<f64>,
     lifted_ad: Lifted<Ad>,
+    lifted_rev: Lifted<Rev>,
     /// Solid elements with unknowns (springs are in the tangent alone: no history, no
     /// stress), their colours and the colour count.
     solids: Vec<usize>,
@@ -674,6 +770,8 @@ struct Sweep<'a> {
     /// The tangent of the transposed solves, and the refinement steps of
     /// [`TangentChoice::Refined`].
     tangent: (TangentChoice, usize),
+    /// [`Settings::adjoint_reverse`].
+    reverse: Option<bool>,
 }
 
 impl<'a> Sweep<'a> {
@@ -682,6 +780,7 @@ impl<'a> Sweep<'a> {
         params: &'a [Parameter],
         first_plastic: Vec<usize>,
         tangent: (TangentChoice, usize),
+        reverse: Option<bool>,
     ) -> Result<Self, AnalysisError> {
         let asm = Assembler::new(model, &[])?;
         let dofs = &asm.dofs;
@@ -737,10 +836,12 @@ impl<'a> Sweep<'a> {
             outputs: Outputs::new(&asm, model.contacts.len()),
             first_plastic,
             tangent,
+            reverse,
             model,
             params,
             lifted: model.lifted(&[]),
             lifted_ad: model.lifted(&[]),
+            lifted_rev: model.lifted(&[]),
             asm,
             solids,
             solid_colour,
@@ -786,6 +887,9 @@ impl<'a> Sweep<'a> {
         let mut ev_ad = Evaluation::<Ad>::new(&self.asm, ne);
         let mut ev_d = Evaluation::<Dual64>::new(&self.asm, ne);
         let mut solver: Option<LinearSolver> = None;
+        // the longest tape of a task recording solids, and the hitting nodes' tape, at the
+        // last increment swept: room made at once for the next ([`Sweep::record`])
+        let mut tape_room = (0, 0);
         let mut segment: Vec<Stored> = Vec::new();
         let mut seg_first = usize::MAX;
         let mut seg = store.segments.len();
@@ -811,35 +915,42 @@ impl<'a> Sweep<'a> {
             }
             let mut factor = segment[m - seg_first].factor.take();
             let s = &segment[m - seg_first];
-            // the converged state, its tangent on the converged branches
+            // the columns alive at this increment: responses read here or later
+            let cols: Vec<usize> = (0..ncol).filter(|&j| at(j) >= m).collect();
+            let reads = cols.iter().any(|&j| at(j) == m);
+            // the converged state on the converged branches, where a response reads it or
+            // the forward run kept no tangent, and that tangent
             let frozen = Frozen {
                 gauss: Some(&s.branches),
                 contact: &s.choice,
                 ..Frozen::default()
             };
-            let t = Instant::now();
-            self.asm.evaluate(
-                model,
-                &self.lifted,
-                &s.z,
-                &s.hist_prev,
-                s.time,
-                Some(&frozen),
-                Some(&mut k),
-                &mut ev,
-            )?;
-            cost.evaluation_seconds += t.elapsed().as_secs_f64();
-            cost.residual_evaluations += 1;
-            // the columns alive at this increment: responses read here or later
-            let cols: Vec<usize> = (0..ncol).filter(|&j| at(j) >= m).collect();
-            let mut input = DualInput::new(&self.asm, &s.z, &ev);
+            if reads || s.tangent.is_empty() {
+                let t = Instant::now();
+                self.asm.evaluate(
+                    model,
+                    &self.lifted,
+                    &s.z,
+                    &s.hist_prev,
+                    s.time,
+                    Some(&frozen),
+                    s.tangent.is_empty().then_some(&mut k),
+                    &mut ev,
+                )?;
+                cost.evaluation_seconds += t.elapsed().as_secs_f64();
+                cost.residual_evaluations += 1;
+            }
+            if !s.tangent.is_empty() {
+                k.values_mut().copy_from_slice(&s.tangent);
+            }
+            let mut input = reads.then(|| DualInput::new(&self.asm, &s.z, &ev));
             let mut cots: Vec<Vec<f64>> = cols
                 .iter()
                 .map(|&j| {
                     let mut c = vec![0.0; out.len()];
-                    if at(j) == m {
+                    if let (true, Some(input)) = (at(j) == m, input.as_mut()) {
                         let r = &model.responses[j % nr];
-                        response_cotangent(r, &self.asm, out, &mut input, &mut c);
+                        response_cotangent(r, &self.asm, out, input, &mut c);
                     }
                     for (a, b) in c[out.hist()].iter_mut().zip(&mu[j]) {
                         *a += b;
@@ -857,8 +968,19 @@ impl<'a> Sweep<'a> {
                     *gi = a + b;
                 }
             }
-            let mut state = AdState::new(s);
-            self.z_passes(cost, s, &mut state, &cots, &mut rhs, &mut ev_ad)?;
+            let reverse = self.reverse(cols.len());
+            let (recorded, mut state) = if reverse {
+                (Some(self.record(cost, s, m, &mut tape_room)?), None)
+            } else {
+                (None, Some(AdState::new(s)))
+            };
+            if let Some(recorded) = &recorded {
+                self.sweep_recorded(cost, recorded, Seeds::Z, &cots, (&mut rhs, n));
+                self.current_area_pass(s, &cots, &mut rhs);
+            } else {
+                let state = state.get_or_insert_with(|| AdState::new(s));
+                self.z_passes(cost, s, state, &cots, &mut rhs, &mut ev_ad)?;
+            }
             // K^T lambda = rhs on the free unknowns
             for c in 0..cols.len() {
                 for (i, fixed) in s.constrained.iter().enumerate() {
@@ -867,8 +989,14 @@ impl<'a> Sweep<'a> {
                     }
                 }
             }
+            // the prescribed unknowns' identity rows, in place: `k` is rewritten at the next
+            // increment
+            for (d, fixed) in s.constrained.iter().enumerate() {
+                if *fixed {
+                    k.set_identity_row_col(d)?;
+                }
+            }
             let transposed = Transposed {
-                s,
                 k: &k,
                 factor: factor.as_mut(),
             };
@@ -881,7 +1009,12 @@ impl<'a> Sweep<'a> {
             // mu_{n-1} = d/dh [F + mu . H - lambda . R]
             let mut mu_prev = vec![0.0; nh * cols.len()];
             if nh > 0 {
-                self.h_passes(cost, s, m, &mut state, &cots, &mut mu_prev, &mut ev_ad)?;
+                if let Some(recorded) = &recorded {
+                    self.sweep_recorded(cost, recorded, Seeds::H, &cots, (&mut mu_prev, nh));
+                } else {
+                    let state = state.get_or_insert_with(|| AdState::new(s));
+                    self.h_passes(cost, s, m, state, &cots, &mut mu_prev, &mut ev_ad)?;
+                }
             }
             // d/db [F + mu . H - lambda . R], prescribed unknowns moving with the design
             self.field_passes(cost, s, &cols, &cots, &mut dfdb, &mut ev_ad)?;
@@ -982,7 +1115,7 @@ impl<'a> Sweep<'a> {
         ncols: usize,
         solver: &mut Option<LinearSolver>,
     ) -> Result<(), AnalysisError> {
-        let kd = with_prescribed_rows(t.k.clone(), &t.s.constrained);
+        let kd = t.k;
         if solver.is_none() {
             *solver = Some(LinearSolver::new(self.asm.pattern.clone())?);
         }
@@ -998,7 +1131,7 @@ impl<'a> Sweep<'a> {
             };
             let kept_solve = ls.with_kept(kept, |last| {
                 last.solve_transpose_multi_in_place(rhs, ncols)?;
-                last.refine_transpose_multi(&kd, &b, rhs, ncols, steps)
+                last.refine_transpose_multi(kd, &b, rhs, ncols, steps)
             });
             if kept_solve.is_ok() {
                 cost.solve_columns += ncols * (1 + steps);
@@ -1009,7 +1142,7 @@ impl<'a> Sweep<'a> {
             rhs.copy_from_slice(&b);
         }
         let start = Instant::now();
-        ls.factor(&kd)?;
+        ls.factor(kd)?;
         cost.factor_seconds += start.elapsed().as_secs_f64();
         cost.factorizations += 1;
         let start = Instant::now();
@@ -1022,7 +1155,7 @@ impl<'a> Sweep<'a> {
             cost.solve_columns += ncols;
             ls.solve_transpose_multi_in_place(r, ncols)
         };
-        refine_extended(&kd, true, &b, rhs, ncols, cost, &mut correct)?;
+        refine_extended(kd, true, &b, rhs, ncols, cost, &mut correct)?;
         cost.solve_seconds += start.elapsed().as_secs_f64();
         Ok(())
     }
@@ -1095,6 +1228,280 @@ impl<'a> Sweep<'a> {
         Ok(())
     }
 
+    /// Whether the solids' local derivatives are taken in reverse mode for `ncols` columns.
+    fn reverse(&self, ncols: usize) -> bool {
+        self.reverse.unwrap_or(ncols <= REVERSE_COLUMNS)
+    }
+
+    /// Whether solid `e`'s outputs other than its residual move with the unknowns at the
+    /// increment `s`: it is plastic there (an elastic one keeps its history), or a response
+    /// reads its stress.
+    fn moves_with_z(&self, s: &Stored, e: usize) -> bool {
+        self.asm.stress_slot(e).is_some()
+            || s.branches[self.asm.dofs.gauss(e)].contains(&Branch::Plastic)
+    }
+
+    /// Whether the multiplier of solid `e`'s history committed before stored position `m` is
+    /// read: it has history and was plastic before (else nothing reads it).
+    fn history_read(&self, m: usize, e: usize) -> bool {
+        !self.asm.dofs.history(e).is_empty() && self.first_plastic[e] < m
+    }
+
+    /// The local derivatives of the increment stored at position `m` (`s`) in reverse mode
+    /// ([`Rev`]), recorded once for both phases of the sweep: every solid whose outputs move
+    /// with the unknowns or whose history is read, alone, on the thread that evaluates it (in
+    /// parallel); every colour of hitting nodes in one evaluation on this thread (a colour's
+    /// members share no input, so each input's adjoint is its own member's); and a pushed
+    /// target's translations. Each recording's inputs are the unknowns and history scalars
+    /// its phases differentiate in. `tape_room`: the longest solids' task tape and the
+    /// hitting nodes' tape of the increment recorded before, the room each tape is given at
+    /// once (updated to this increment's).
+    fn record(
+        &self,
+        cost: &mut SensitivityCost,
+        s: &Stored,
+        m: usize,
+        tape_room: &mut (usize, usize),
+    ) -> Result<Recordings, AnalysisError> {
+        let t = Instant::now();
+        let konst = |v: &[f64]| -> Vec<Rev> { v.iter().map(|x| Rev::constant(*x)).collect() };
+        let (z0, h0) = (konst(&s.z), konst(&s.hist_prev));
+        let o = &self.outputs;
+        let members: Vec<(usize, bool, bool)> = (self.solids.iter())
+            .map(|&e| (e, self.moves_with_z(s, e), self.history_read(m, e)))
+            .filter(|(_, z, h)| *z || *h)
+            .collect();
+        let solid = |(e, in_z, in_h): (usize, bool, bool), z: &mut [Rev], h: &mut [Rev]| {
+            let start = tape::len();
+            let dofs = self.asm.element_dofs(e);
+            let hist = self.asm.dofs.history(e);
+            let zi = if in_z {
+                put(z, &s.z, dofs.iter().copied())
+            } else {
+                Vec::new()
+            };
+            let hi = if in_h {
+                put(h, &s.hist_prev, hist.clone())
+            } else {
+                Vec::new()
+            };
+            let mut force = [Rev::zero(); MAX_DOFS];
+            let mut hist_new = vec![Rev::zero(); hist.len()];
+            let cauchy = self.asm.element_outputs(
+                self.model,
+                &self.lifted_rev,
+                z,
+                h,
+                Some(&s.branches),
+                e,
+                &mut force,
+                &mut hist_new,
+            );
+            restore(z, &s.z, &zi);
+            restore(h, &s.hist_prev, &hi);
+            let cauchy = cauchy?;
+            let mut outputs: Vec<(usize, Rev)> = (dofs.iter().zip(force))
+                .map(|(&g, f)| (o.index(Entry::Res(g)), f))
+                .collect();
+            outputs.extend(
+                hist.zip(hist_new)
+                    .map(|(i, x)| (o.index(Entry::Hist(i)), x)),
+            );
+            if let Some(sl) = self.asm.stress_slot(e) {
+                outputs.extend(
+                    (0..9).map(|k| (o.index(Entry::Stress(sl, k)), cauchy[(k / 3, k % 3)])),
+                );
+            }
+            Ok::<_, AnalysisError>(Recorded {
+                tape: 0,
+                part: start..tape::len(),
+                z: zi,
+                h: hi,
+                outputs,
+            })
+        };
+        let room = *tape_room;
+        // one task per thread: each copies the state once
+        let chunk = members.len().div_ceil(rayon::current_num_threads()).max(1);
+        // a task's elements one after the other on its thread's tape
+        let solids: Vec<Result<(tape::Recording, Vec<Recorded>), AnalysisError>> = members
+            .par_chunks(chunk)
+            .map(|ch| {
+                let (mut z, mut h) = (z0.clone(), h0.clone());
+                tape::clear();
+                // room for the task's tape as long as the last increment's longest
+                tape::reserve(room.0);
+                let items: Result<Vec<Recorded>, AnalysisError> =
+                    ch.iter().map(|&x| solid(x, &mut z, &mut h)).collect();
+                let tape = tape::take();
+                Ok((tape, items?))
+            })
+            .collect();
+        let mut recorded = Recordings {
+            tapes: Vec::new(),
+            items: Vec::new(),
+        };
+        let longest = solids.iter().flatten().map(|(t, _)| t.len()).max();
+        tape_room.0 = longest.unwrap_or(0);
+        for r in solids {
+            let (tape, items) = r?;
+            let k = recorded.tapes.len();
+            recorded.tapes.push(tape);
+            recorded
+                .items
+                .extend(items.into_iter().map(|r| Recorded { tape: k, ..r }));
+        }
+        if !self.model.contacts.is_empty() {
+            let (mut z, mut h) = (z0, h0);
+            let ne = self.model.mesh.n_elements();
+            let nk = self.nodes.len();
+            let no_solid = vec![true; ne];
+            let mut ev = Evaluation::<Rev>::new(&self.asm, ne);
+            // a colour of hitting nodes (`members`), or the pushed targets' translations
+            let mut colour = |members: &[usize], pushed: bool| {
+                let start = tape::len();
+                let (zi, hi) = if pushed {
+                    (put(&mut z, &s.z, self.pushed.iter().copied()), Vec::new())
+                } else {
+                    let own = members
+                        .iter()
+                        .flat_map(|&f| self.nodes[f].2.iter().copied());
+                    let hist = members.iter().flat_map(|&f| {
+                        let (p, i, _) = self.nodes[f];
+                        let nhc = self.model.contacts[p].history_len();
+                        let h0 = self.asm.contact_history(p) + nhc * i;
+                        h0..h0 + nhc
+                    });
+                    (put(&mut z, &s.z, own), put(&mut h, &s.hist_prev, hist))
+                };
+                let skip = if pushed {
+                    vec![false; nk]
+                } else {
+                    all_but(members, nk)
+                };
+                let frozen = Frozen {
+                    gauss: Some(&s.branches),
+                    contact: &s.choice,
+                    skip: Some(&no_solid),
+                    skip_contact: Some(&skip),
+                    terms: CONTACT,
+                    members_only: true,
+                    ..Frozen::default()
+                };
+                let evaluated = self.asm.evaluate(
+                    self.model,
+                    &self.lifted_rev,
+                    &z,
+                    &h,
+                    s.time,
+                    Some(&frozen),
+                    None,
+                    &mut ev,
+                );
+                restore(&mut z, &s.z, &zi);
+                restore(&mut h, &s.hist_prev, &hi);
+                evaluated?;
+                let outputs = if pushed {
+                    self.pushed_outputs(&ev)
+                } else {
+                    (members.iter())
+                        .flat_map(|&f| self.node_outputs(f, &ev, true))
+                        .collect()
+                };
+                Ok::<_, AnalysisError>(Recorded {
+                    tape: 0,
+                    part: start..tape::len(),
+                    z: zi,
+                    h: hi,
+                    outputs,
+                })
+            };
+            // the colours one after the other on this thread's tape
+            tape::clear();
+            tape::reserve(room.1);
+            let mut items = Vec::new();
+            let mut all = || -> Result<(), AnalysisError> {
+                for c in 0..self.node_colours {
+                    let members: Vec<usize> =
+                        (0..nk).filter(|f| self.node_colour[*f] == c).collect();
+                    items.push(colour(&members, false)?);
+                }
+                if !self.pushed.is_empty() {
+                    items.push(colour(&[], true)?);
+                }
+                Ok(())
+            };
+            let done = all();
+            let tape = tape::take();
+            tape_room.1 = tape.len();
+            done?;
+            let k = recorded.tapes.len();
+            recorded.tapes.push(tape);
+            recorded
+                .items
+                .extend(items.into_iter().map(|r| Recorded { tape: k, ..r }));
+        }
+        cost.evaluation_seconds += t.elapsed().as_secs_f64();
+        cost.partial_evaluations += recorded.items.len();
+        Ok(recorded)
+    }
+
+    /// One phase of an increment's sweep over its recordings: per column, each recording
+    /// swept with the column's cotangent on its outputs, the residual's rows left out in the
+    /// unknowns' phase (there the residual's derivative is the tangent's), and its inputs'
+    /// adjoints added to `out[c * stride + input]` (the unknowns' or the history's, by
+    /// `phase`). The recordings are swept in parallel and their sums added in order
+    /// (bit-identical whatever the thread count).
+    fn sweep_recorded(
+        &self,
+        cost: &mut SensitivityCost,
+        recorded: &Recordings,
+        phase: Seeds,
+        cots: &[Vec<f64>],
+        (out, stride): (&mut [f64], usize),
+    ) {
+        let t = Instant::now();
+        let res = self.outputs.res();
+        fn inputs_of(r: &Recorded, phase: Seeds) -> &[(usize, Rev)] {
+            match phase {
+                Seeds::Z => &r.z,
+                Seeds::H => &r.h,
+            }
+        }
+        let grads = |adj: &mut Vec<f64>, r: &Recorded| -> Vec<f64> {
+            let inputs = inputs_of(r, phase);
+            let mut g = vec![0.0; cots.len() * inputs.len()];
+            if inputs.is_empty() {
+                return g;
+            }
+            for (c, cot) in cots.iter().enumerate() {
+                let weights = (r.outputs.iter())
+                    .filter(|(o, _)| phase == Seeds::H || !res.contains(o))
+                    .map(|(o, x)| (*x, cot[*o]));
+                if weights.clone().all(|(_, w)| w == 0.0) {
+                    continue;
+                }
+                recorded.tapes[r.tape].sweep_part(r.part.clone(), weights, adj);
+                for (l, (_, x)) in inputs.iter().enumerate() {
+                    g[c * inputs.len() + l] = x.adjoint_in(adj, r.part.start);
+                }
+            }
+            g
+        };
+        let all: Vec<Vec<f64>> = (recorded.items.par_iter())
+            .map_init(Vec::new, grads)
+            .collect();
+        for (r, g) in recorded.items.iter().zip(all) {
+            let inputs = inputs_of(r, phase);
+            for c in 0..cots.len() {
+                for (l, (i, _)) in inputs.iter().enumerate() {
+                    out[c * stride + i] += g[c * inputs.len() + l];
+                }
+            }
+        }
+        cost.evaluation_seconds += t.elapsed().as_secs_f64();
+    }
+
     /// The solids of colour `colour` that `keep` keeps.
     fn solids_of(&self, colour: usize, keep: impl Fn(usize) -> bool) -> Vec<usize> {
         (0..self.solids.len())
@@ -1130,30 +1537,60 @@ impl<'a> Sweep<'a> {
     /// rows (`residual`), its history, and its force on the target (minus its hitting node's
     /// rows), which is its part of the pair's target force and of a pushed target's rows.
     fn node_rows(&self, f: usize, ev: &Evaluation<Ad>, residual: bool) -> Rows {
+        (self.node_outputs(f, ev, residual).into_iter())
+            .map(|(o, x)| (o, parts(&x)))
+            .collect()
+    }
+
+    /// [`Sweep::node_rows`]' outputs themselves, in any scalar.
+    fn node_outputs<S: Scalar>(
+        &self,
+        f: usize,
+        ev: &Evaluation<S>,
+        residual: bool,
+    ) -> Vec<(usize, S)> {
         let out = &self.outputs;
         let (p, i, ref own) = self.nodes[f];
         let pair = &self.model.contacts[p];
         let hitting = pair.hitting[i];
         let nhc = pair.history_len();
         let h0 = self.asm.contact_history(p) + nhc * i;
-        let mut rows = vec![(out.index(Entry::Nf(f)), parts(&ev.contact.normal_force[f]))];
+        let mut rows = vec![(out.index(Entry::Nf(f)), ev.contact.normal_force[f])];
         if residual {
             for &g in own {
-                rows.push((out.index(Entry::Res(g)), parts(&ev.residual[g])));
+                rows.push((out.index(Entry::Res(g)), ev.residual[g]));
             }
         }
         for a in h0..h0 + nhc {
-            rows.push((out.index(Entry::Hist(a)), parts(&ev.hist_new[a])));
+            rows.push((out.index(Entry::Hist(a)), ev.hist_new[a]));
         }
-        let force: Vec<[f64; W]> = (0..3)
-            .map(|c| parts(&ev.residual[node_dof(hitting, c)]).map(|v| -v))
-            .collect();
+        let force: Vec<S> = (0..3).map(|c| -ev.residual[node_dof(hitting, c)]).collect();
         for (c, fc) in force.iter().enumerate() {
             rows.push((out.index(Entry::Pf(p, c)), *fc));
         }
         if residual {
             for (_, dof, mo) in pair.pushed(&self.asm.contact.target[p]) {
                 rows.push((out.index(Entry::Res(dof)), force[mo.component]));
+            }
+        }
+        rows
+    }
+
+    /// The outputs a pushed target's translations reach: every hitting node's history and
+    /// normal force, every pair's target force and translation.
+    fn pushed_outputs<S: Scalar>(&self, ev: &Evaluation<S>) -> Vec<(usize, S)> {
+        let out = &self.outputs;
+        let first = self.asm.dofs.first_contact_history;
+        let mut rows: Vec<(usize, S)> = (first..self.asm.dofs.n_history)
+            .map(|a| (out.index(Entry::Hist(a)), ev.hist_new[a]))
+            .collect();
+        for (f, nf) in ev.contact.normal_force.iter().enumerate() {
+            rows.push((out.index(Entry::Nf(f)), *nf));
+        }
+        for p in 0..self.model.contacts.len() {
+            for c in 0..3 {
+                rows.push((out.index(Entry::Pf(p, c)), ev.contact.pair_force[p][c]));
+                rows.push((out.index(Entry::Tr(p, c)), ev.contact.translation[p][c]));
             }
         }
         rows
@@ -1178,11 +1615,9 @@ impl<'a> Sweep<'a> {
         let every_node = vec![true; nk];
         // solids plastic at this increment (an elastic one keeps its history: it does not
         // move with the unknowns), and those whose stress a response reads
+        let z_member = |e: usize| self.moves_with_z(s, e);
         for colour in 0..self.solid_colours {
-            let members = self.solids_of(colour, |e| {
-                self.asm.stress_slot(e).is_some()
-                    || s.branches[self.asm.dofs.gauss(e)].contains(&Branch::Plastic)
-            });
+            let members = self.solids_of(colour, z_member);
             if members.is_empty() {
                 continue;
             }
@@ -1219,7 +1654,6 @@ impl<'a> Sweep<'a> {
         }
         // a pushed target's translations: every node sees them
         if !self.pushed.is_empty() {
-            let out = &self.outputs;
             let pass = Pass {
                 seeds: Seeds::Z,
                 inputs: vec![self.pushed.clone()],
@@ -1227,23 +1661,10 @@ impl<'a> Sweep<'a> {
                 skip_contact: &vec![false; nk],
                 terms: CONTACT,
             };
-            let rows = |_: usize, ev: &Evaluation<Ad>| {
-                let first = self.asm.dofs.first_contact_history;
-                let mut rows: Rows = (first..self.asm.dofs.n_history)
-                    .map(|a| (out.index(Entry::Hist(a)), parts(&ev.hist_new[a])))
-                    .collect();
-                for (f, nf) in ev.contact.normal_force.iter().enumerate() {
-                    rows.push((out.index(Entry::Nf(f)), parts(nf)));
-                }
-                for p in 0..model.contacts.len() {
-                    for c in 0..3 {
-                        let pf = parts(&ev.contact.pair_force[p][c]);
-                        rows.push((out.index(Entry::Pf(p, c)), pf));
-                        let tr = parts(&ev.contact.translation[p][c]);
-                        rows.push((out.index(Entry::Tr(p, c)), tr));
-                    }
-                }
-                rows
+            let rows = |_: usize, ev: &Evaluation<Ad>| -> Rows {
+                (self.pushed_outputs(ev).into_iter())
+                    .map(|(o, x)| (o, parts(&x)))
+                    .collect()
             };
             self.local_passes(cost, s, state, &pass, ev, rows, cots, (rhs, n))?;
         }
@@ -1321,6 +1742,14 @@ impl<'a> Sweep<'a> {
         ev: &mut Evaluation<Ad>,
     ) -> Result<(), AnalysisError> {
         let model = self.model;
+        if self
+            .element_fields
+            .iter()
+            .chain(&self.node_fields)
+            .all(Vec::is_empty)
+        {
+            return Ok(());
+        }
         let state = AdState::new(s);
         let ne = model.mesh.n_elements();
         let nk = self.nodes.len();
@@ -1424,10 +1853,9 @@ impl<'a> Sweep<'a> {
         let every_node = vec![true; nk];
         // solids plastic before this increment: the history multiplier of the others is
         // read by nothing
+        let h_member = |e: usize| self.history_read(m, e);
         for colour in 0..self.solid_colours {
-            let members = self.solids_of(colour, |e| {
-                !self.asm.dofs.history(e).is_empty() && self.first_plastic[e] < m
-            });
+            let members = self.solids_of(colour, h_member);
             if members.is_empty() {
                 continue;
             }

@@ -205,6 +205,12 @@ pub struct Settings {
     /// recompute each segment between two of them from the first when the backward sweep
     /// reaches it (bit for bit the forward run's states); 0: keep every increment.
     pub adjoint_checkpoint: usize,
+    /// The adjoint's local derivatives (of each element's and hitting node's outputs in its
+    /// unknowns and history): `Some(true)` in reverse mode ([`crate::scalar::Rev`]: one
+    /// recording, then one sweep per column of the backward sweep), `Some(false)` by
+    /// forward duals (one evaluation per 8 inputs, every column at once); `None` (the
+    /// default) whichever costs less for the columns alive at the increment.
+    pub adjoint_reverse: Option<bool>,
     /// SDM and SDM central, shape parameters: the refined SDM, which differentiates the
     /// rigid-body part of every node's motion exactly and differences only the rest (the
     /// [`rigid`] module docs): its truncation no longer grows with mesh refinement under
@@ -240,6 +246,7 @@ impl Default for Settings {
             fields: false,
             adjoint_at: Vec::new(),
             adjoint_checkpoint: 0,
+            adjoint_reverse: None,
             rigid_modes: false,
         }
     }
