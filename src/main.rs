@@ -529,6 +529,9 @@ fn sensitivity(
         ));
     }
     if !responses.is_empty() {
+        if shard.is_some() {
+            return Err("--response with --shard: `fricsens merge` rebuilds the scene with every response; run the shares without --response".into());
+        }
         model.responses.retain(|m| responses.contains(&m.name));
     }
     let names = if names.is_empty() {

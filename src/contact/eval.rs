@@ -18,7 +18,8 @@ pub struct ContactEval<S: Scalar> {
     pub area: Vec<S>,
     /// Pressure area per hitting node in the current (deformed) configuration (Cauchy, or
     /// true, pressure = normal force over it; what CalculiX and Abaqus report). One for a
-    /// node-set pair, like `area`.
+    /// node-set pair, like `area`. An evaluation with a mask of hitting nodes
+    /// ([`crate::assembly::Frozen::skip_contact`]) leaves it as it was.
     pub current_area: Vec<S>,
     /// Total contact force on each pair's target (minus the sum of the forces on its
     /// hitting nodes): the reaction of a rigid target.

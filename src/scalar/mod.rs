@@ -1,6 +1,6 @@
 //! The one scalar bound every kernel is generic over.
 //!
-//! A kernel written once as `fn kernel<S: Scalar>(..)` serves three uses:
+//! A kernel written once as `fn kernel<S: Scalar>(..)` serves four uses:
 //!
 //! * `S = f64`: the primal analysis, SDM's finite-perturbation unbalance forces and FDM's reruns;
 //! * `S = Dual64`: one design parameter seeded, the derivative part is the exact partial (DDM);
@@ -35,7 +35,8 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync + 'static {
     const DIFFERENTIATES: bool = Self::NPARTS > 0 || Self::RECORDS;
 
     /// Whether operations record on a thread's tape ([`Rev`]): an evaluation in it must run
-    /// on one thread, the one that sweeps the tape.
+    /// on one thread, the one whose tape it records on (the assembler then evaluates its
+    /// elements on the calling thread).
     const RECORDS: bool = false;
 
     /// The real part (value).

@@ -11,12 +11,17 @@
 //! The kernels are the same generic code ([`Scalar`]): branch decisions are taken on real
 //! parts, constants carry no tape entry, and the partial derivatives of every function other
 //! than the four arithmetic operations come from [`Dual64`], so nothing here is a derivative
-//! written by hand. The adjoint ([`crate::sensitivity`]) records one element (or hitting node)
-//! at a time on the thread that evaluates it, sweeps it once per column and clears the tape:
-//! the tape stays in the cache and the elements run in parallel.
+//! written by hand; comparisons, `abs` and `is_zero` behave as the dual numbers' do, so both
+//! modes take the same branches. The adjoint ([`crate::sensitivity`]) records the elements of
+//! a parallel task one after the other on its thread's tape, and each colour of hitting
+//! nodes in one evaluation; it moves the tapes out ([`take`]) and sweeps each recording's
+//! part of them ([`Recording::sweep_part`]) on any thread, once per column.
 //!
-//! A recording and its sweeps must stay on one thread, between two [`clear`]s: a `Rev` made
-//! on another thread's tape or before the last `clear` names a wrong entry.
+//! A recording must be made on one thread, between a [`clear`] and a [`take`], with nothing
+//! in between that could run another recording on that thread (no parallel work inside a
+//! kernel): a `Rev` made on another thread's tape or before the last `clear` names a wrong
+//! entry. The inputs of one recording must be constants again before the next begins on the
+//! same tape, so that each recording's part is self-contained.
 
 use super::Scalar;
 use num_dual::{Dual64, DualNum, DualStruct, Mappable};
@@ -32,7 +37,7 @@ use std::ops::{
 /// The index of a number that depends on no input (a constant).
 const NONE: u32 = u32::MAX;
 
-/// A reverse-mode number: its value and its entry on this thread's tape ([`NONE`] for a
+/// A reverse-mode number: its value and its entry on this thread's tape (none for a
 /// constant).
 #[derive(Clone, Copy)]
 pub struct Rev {
@@ -448,9 +453,10 @@ impl Zero for Rev {
     fn zero() -> Self {
         Rev::constant(0.0)
     }
-    /// Only a constant zero is zero: a recorded zero still carries a derivative.
+    /// A zero value, as the dual numbers' `is_zero` (the derivative is not looked at), so
+    /// that code branching on it takes the same branch in every mode.
     fn is_zero(&self) -> bool {
-        self.v == 0.0 && self.i == NONE
+        self.v == 0.0
     }
 }
 
@@ -468,16 +474,14 @@ impl Num for Rev {
 }
 
 impl Signed for Rev {
+    /// `x` or `-x` by the sign of the value, as the dual numbers' `abs` (derivative one at
+    /// +0).
     fn abs(&self) -> Self {
-        // the derivative at zero taken as zero, as the duals' signum does there
-        let s = if self.v > 0.0 {
-            1.0
-        } else if self.v < 0.0 {
-            -1.0
+        if self.is_positive() {
+            *self
         } else {
-            0.0
-        };
-        Rev::unary(self.v.abs(), *self, s)
+            -*self
+        }
     }
     fn abs_sub(&self, other: &Self) -> Self {
         if self.v <= other.v {

@@ -299,7 +299,9 @@ pub struct SensitivityCost {
     pub residual_evaluations: usize,
     /// Of those, the pseudo-loads evaluated over only the elements a parameter reaches (SDM's
     /// unbalance and its nominal, DDM's derivative part: contact and the elements with a
-    /// history derivative for a friction parameter, ...).
+    /// history derivative for a friction parameter, ...). The adjoint counts here its local
+    /// derivatives' evaluations: its forward passes and its reverse-mode recordings (one per
+    /// element, colour of hitting nodes or pushed target), which are no residual evaluations.
     pub partial_evaluations: usize,
     /// Factorizations beyond Newton's (the converged tangent, forced branches).
     pub factorizations: usize,
