@@ -748,10 +748,10 @@ struct Sweep<'a> {
     solid_colour: Vec<usize>,
     solid_colours: usize,
     /// Per hitting node (flat): its pair, index in the pair, block unknowns without a
-    /// pushed target's, colour.
+    /// pushed target's.
     nodes: Vec<(usize, usize, Vec<usize>)>,
-    node_colour: Vec<usize>,
-    node_colours: usize,
+    /// The hitting nodes (flat) of each colour.
+    colour_nodes: Vec<Vec<usize>>,
     /// Every pushed target's unknown.
     pushed: Vec<usize>,
     /// Per parameter: a field parameter, its reach one element's material or one hitting
@@ -810,6 +810,10 @@ impl<'a> Sweep<'a> {
         }
         let touched: Vec<Vec<usize>> = nodes.iter().map(|n| n.2.clone()).collect();
         let (node_colour, node_colours) = colour(&touched, dofs.n_total);
+        let mut colour_nodes = vec![Vec::new(); node_colours];
+        for (f, &c) in node_colour.iter().enumerate() {
+            colour_nodes[c].push(f);
+        }
         // field parameters: one target, one element's material or one node's friction law
         let mut field = vec![false; params.len()];
         let mut element_fields = vec![Vec::new(); solid_colours];
@@ -847,8 +851,7 @@ impl<'a> Sweep<'a> {
             solid_colour,
             solid_colours,
             nodes,
-            node_colour,
-            node_colours,
+            colour_nodes,
             pushed,
             field,
             element_fields,
@@ -886,6 +889,7 @@ impl<'a> Sweep<'a> {
         let mut ev = Evaluation::<f64>::new(&self.asm, ne);
         let mut ev_ad = Evaluation::<Ad>::new(&self.asm, ne);
         let mut ev_d = Evaluation::<Dual64>::new(&self.asm, ne);
+        let mut ev_rev = Evaluation::<Rev>::new(&self.asm, ne);
         let mut solver: Option<LinearSolver> = None;
         // the longest tape of a task recording solids, and the hitting nodes' tape, at the
         // last increment swept: room made at once for the next ([`Sweep::record`])
@@ -970,7 +974,10 @@ impl<'a> Sweep<'a> {
             }
             let reverse = self.reverse(cols.len());
             let (recorded, mut state) = if reverse {
-                (Some(self.record(cost, s, m, &mut tape_room)?), None)
+                (
+                    Some(self.record(cost, s, m, &mut tape_room, &mut ev_rev)?),
+                    None,
+                )
             } else {
                 (None, Some(AdState::new(s)))
             };
@@ -1262,6 +1269,7 @@ impl<'a> Sweep<'a> {
         s: &Stored,
         m: usize,
         tape_room: &mut (usize, usize),
+        ev: &mut Evaluation<Rev>,
     ) -> Result<Recordings, AnalysisError> {
         let t = Instant::now();
         let konst = |v: &[f64]| -> Vec<Rev> { v.iter().map(|x| Rev::constant(*x)).collect() };
@@ -1321,42 +1329,36 @@ impl<'a> Sweep<'a> {
             })
         };
         let room = *tape_room;
-        // one task per thread: each copies the state once
-        let chunk = members.len().div_ceil(rayon::current_num_threads()).max(1);
+        // two tasks per thread, each copying the state once: the hitting nodes' recording
+        // runs beside them
+        let chunk = (members.len())
+            .div_ceil(2 * rayon::current_num_threads())
+            .max(1);
         // a task's elements one after the other on its thread's tape
-        let solids: Vec<Result<(tape::Recording, Vec<Recorded>), AnalysisError>> = members
-            .par_chunks(chunk)
-            .map(|ch| {
-                let (mut z, mut h) = (z0.clone(), h0.clone());
-                tape::clear();
-                // room for the task's tape as long as the last increment's longest
-                tape::reserve(room.0);
-                let items: Result<Vec<Recorded>, AnalysisError> =
-                    ch.iter().map(|&x| solid(x, &mut z, &mut h)).collect();
-                let tape = tape::take();
-                Ok((tape, items?))
-            })
-            .collect();
-        let mut recorded = Recordings {
-            tapes: Vec::new(),
-            items: Vec::new(),
+        let record_solids = || -> Vec<Result<(tape::Recording, Vec<Recorded>), AnalysisError>> {
+            members
+                .par_chunks(chunk)
+                .map(|ch| {
+                    let (mut z, mut h) = (z0.clone(), h0.clone());
+                    tape::clear();
+                    // room for the task's tape as long as the last increment's longest
+                    tape::reserve(room.0);
+                    let items: Result<Vec<Recorded>, AnalysisError> =
+                        ch.iter().map(|&x| solid(x, &mut z, &mut h)).collect();
+                    let tape = tape::take();
+                    Ok((tape, items?))
+                })
+                .collect()
         };
-        let longest = solids.iter().flatten().map(|(t, _)| t.len()).max();
-        tape_room.0 = longest.unwrap_or(0);
-        for r in solids {
-            let (tape, items) = r?;
-            let k = recorded.tapes.len();
-            recorded.tapes.push(tape);
-            recorded
-                .items
-                .extend(items.into_iter().map(|r| Recorded { tape: k, ..r }));
-        }
-        if !self.model.contacts.is_empty() {
-            let (mut z, mut h) = (z0, h0);
+        // the hitting nodes, a colour at a time, on one tape
+        let record_nodes = || -> Option<Result<(tape::Recording, Vec<Recorded>), AnalysisError>> {
+            if self.model.contacts.is_empty() {
+                return None;
+            }
+            let (mut z, mut h) = (z0.clone(), h0.clone());
             let ne = self.model.mesh.n_elements();
             let nk = self.nodes.len();
             let no_solid = vec![true; ne];
-            let mut ev = Evaluation::<Rev>::new(&self.asm, ne);
             // a colour of hitting nodes (`members`), or the pushed targets' translations
             let mut colour = |members: &[usize], pushed: bool| {
                 let start = tape::len();
@@ -1396,16 +1398,16 @@ impl<'a> Sweep<'a> {
                     s.time,
                     Some(&frozen),
                     None,
-                    &mut ev,
+                    ev,
                 );
                 restore(&mut z, &s.z, &zi);
                 restore(&mut h, &s.hist_prev, &hi);
                 evaluated?;
                 let outputs = if pushed {
-                    self.pushed_outputs(&ev)
+                    self.pushed_outputs(ev)
                 } else {
                     (members.iter())
-                        .flat_map(|&f| self.node_outputs(f, &ev, true))
+                        .flat_map(|&f| self.node_outputs(f, ev, true))
                         .collect()
                 };
                 Ok::<_, AnalysisError>(Recorded {
@@ -1421,10 +1423,8 @@ impl<'a> Sweep<'a> {
             tape::reserve(room.1);
             let mut items = Vec::new();
             let mut all = || -> Result<(), AnalysisError> {
-                for c in 0..self.node_colours {
-                    let members: Vec<usize> =
-                        (0..nk).filter(|f| self.node_colour[*f] == c).collect();
-                    items.push(colour(&members, false)?);
+                for members in &self.colour_nodes {
+                    items.push(colour(members, false)?);
                 }
                 if !self.pushed.is_empty() {
                     items.push(colour(&[], true)?);
@@ -1433,13 +1433,30 @@ impl<'a> Sweep<'a> {
             };
             let done = all();
             let tape = tape::take();
-            tape_room.1 = tape.len();
-            done?;
+            Some(done.map(|()| (tape, items)))
+        };
+        // every recording stays on one thread from its `clear` to its `take`: neither
+        // closure runs parallel work of its own inside one (a recording evaluation is serial)
+        let (solids, nodes) = rayon::join(record_solids, record_nodes);
+        let mut recorded = Recordings {
+            tapes: Vec::new(),
+            items: Vec::new(),
+        };
+        let longest = solids.iter().flatten().map(|(t, _)| t.len()).max();
+        tape_room.0 = longest.unwrap_or(0);
+        for r in solids.into_iter().chain(nodes) {
+            let (tape, items) = r?;
             let k = recorded.tapes.len();
             recorded.tapes.push(tape);
             recorded
                 .items
                 .extend(items.into_iter().map(|r| Recorded { tape: k, ..r }));
+        }
+        if let Some(t) = (!self.model.contacts.is_empty())
+            .then(|| recorded.tapes.last())
+            .flatten()
+        {
+            tape_room.1 = t.len();
         }
         cost.evaluation_seconds += t.elapsed().as_secs_f64();
         cost.partial_evaluations += recorded.items.len();
@@ -1639,9 +1656,8 @@ impl<'a> Sweep<'a> {
         }
         // hitting nodes: their history, normal forces and target forces
         let no_solid = vec![true; ne];
-        for colour in 0..self.node_colours {
-            let members: Vec<usize> = (0..nk).filter(|f| self.node_colour[*f] == colour).collect();
-            let skip = all_but(&members, nk);
+        for members in &self.colour_nodes {
+            let skip = all_but(members, nk);
             let pass = Pass {
                 seeds: Seeds::Z,
                 inputs: members.iter().map(|&f| self.nodes[f].2.clone()).collect(),
@@ -1873,9 +1889,8 @@ impl<'a> Sweep<'a> {
             self.local_passes(cost, s, state, &pass, ev, rows, cots, (mu_prev, nh))?;
         }
         let no_solid = vec![true; ne];
-        for colour in 0..self.node_colours {
-            let members: Vec<usize> = (0..nk).filter(|f| self.node_colour[*f] == colour).collect();
-            let skip = all_but(&members, nk);
+        for members in &self.colour_nodes {
+            let skip = all_but(members, nk);
             let pass = Pass {
                 seeds: Seeds::H,
                 inputs: (members.iter())
