@@ -8,7 +8,10 @@
 //! symbolic factorization is done once however far the node slides over its candidates.
 
 pub use super::eval::ContactEval;
-use super::geometry::{closest_on_segments, closest_on_segments_keeping, Segment};
+use super::geometry::{
+    closest_on_segments, closest_on_segments_keeping, node_jacobian, outside, project_smoothed,
+    Segment, SEGMENT_KEEP,
+};
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
     KernelParams, MotionControl, StoredAnchor, Target, TargetGeom,
@@ -201,6 +204,137 @@ fn closest_face<S: Scalar>(
     Ok((candidates[k], [pr.xi[0], pr.xi[1]]))
 }
 
+/// The candidate faces (of `candidates`) other than `f` that hold a node of face `f`: the
+/// faces whose normals [`nodal_normals`] averages at `f`'s nodes.
+fn faces_around(faces: &FaceSet, f: usize, candidates: &[usize]) -> Vec<usize> {
+    let own = faces.nodes(f);
+    (candidates.iter().copied())
+        .filter(|&g| g != f && faces.nodes(g).iter().any(|n| own.contains(n)))
+        .collect()
+}
+
+/// The target's unit outward normal at each node of face `f` ([`ContactPair::smoothing`]):
+/// the sum of `t_1 × t_2` at the node over `f` and the faces `around` that hold it (so
+/// weighted by their areas), normalised. Node `n` is at `position(n)`.
+fn nodal_normals<T: Scalar>(
+    faces: &FaceSet,
+    f: usize,
+    around: &[usize],
+    mut position: impl FnMut(usize) -> Result<Vector3<T>, ContactFailure>,
+) -> Result<[Vector3<T>; MAX_FACE_NODES], ContactFailure> {
+    let mut out = [Vector3::zeros(); MAX_FACE_NODES];
+    let mut segment_of = |g: usize| -> Result<Segment<T>, ContactFailure> {
+        let face = faces.face(g);
+        let mut nodes = [Vector3::zeros(); MAX_FACE_NODES];
+        for (x, &n) in nodes.iter_mut().zip(face.nodes) {
+            *x = position(n)?;
+        }
+        Ok(Segment {
+            family: face.family,
+            nodes,
+        })
+    };
+    let own = faces.nodes(f);
+    let seg = segment_of(f)?;
+    for (a, out) in out.iter_mut().enumerate().take(own.len()) {
+        *out = node_jacobian(&seg, a);
+    }
+    for &g in around {
+        let seg = segment_of(g)?;
+        for (b, n) in faces.nodes(g).iter().enumerate() {
+            if let Some(a) = own.iter().position(|m| m == n) {
+                out[a] += node_jacobian(&seg, b);
+            }
+        }
+    }
+    for n in out.iter_mut().take(own.len()) {
+        let len = n.dot(n).sqrt();
+        if !(len.value() > 0.0 && len.value().is_finite()) {
+            return Err(ContactFailure::Geometry(
+                super::geometry::GeometryError::DegenerateSegment {
+                    reason: "the faces around a target node have no mean normal",
+                },
+            ));
+        }
+        *n /= len;
+    }
+    Ok(out)
+}
+
+/// With smoothed normals, the contact face: of `start` and the candidate faces around it,
+/// the one onto which `x` projects along the smoothed normals (the least outside it; ties:
+/// `keep`, the last converged state's face, then `start`, then the lowest index; a face whose
+/// projection fails is passed over), and the start of the projection on it. `None` where `x` projects onto none of them, further than
+/// [`SEGMENT_KEEP`] beyond a free edge of the target: there the normals interpolated over
+/// the extension of a face would be extrapolated far, and the node is projected onto the
+/// face as without smoothing. Measured on the physics fuzzer (seeds 0-999): with the normals
+/// extrapolated however far (no band) 986 complete, seeds 15, 748 and 972 failing and 976
+/// passing; with this band 988, the other way round; at 1.0, 742 passes and 748 fails; at
+/// 1e-10 the nodes on the end planes of extruded blocks, on the free edge to round-off,
+/// flipped between the two and seven more seeds failed. A branch decision, on real parts.
+fn smoothed_face<S: Scalar>(
+    lifted: &Lifted<S>,
+    z: &[S],
+    faces: &FaceSet,
+    candidates: &[usize],
+    x: &Vector3<S>,
+    start: (usize, [f64; 2]),
+    keep: Option<usize>,
+) -> Option<(usize, [f64; 2])> {
+    let xr = x.map(|v| v.value());
+    let position = |n: usize| Ok(node_pos(lifted, z, n).map(|v| v.value()));
+    let mut best: Option<(f64, usize, [f64; 2])> = None;
+    let mut tried = vec![start.0];
+    tried.extend(faces_around(faces, start.0, candidates));
+    // the last converged state's face wins ties: a node beyond a free edge, or on an edge,
+    // projects equally far outside two faces, and the faceted pick alternates between them
+    let preferred = match keep {
+        Some(k) if candidates.contains(&k) => {
+            if !tried.contains(&k) {
+                tried.push(k);
+            }
+            k
+        }
+        _ => start.0,
+    };
+    for g in tried {
+        let around = faces_around(faces, g, candidates);
+        let Ok(normals) = nodal_normals(faces, g, &around, position) else {
+            continue;
+        };
+        let seg = segment(faces, g, |n| node_pos(lifted, z, n).map(|v| v.value()));
+        let from = if g == start.0 {
+            start.1
+        } else {
+            seg.family.centre_st()
+        };
+        let Ok(p) = project_smoothed(&xr, &seg, &normals, from) else {
+            continue;
+        };
+        let out = outside(seg.family, p.xi);
+        let better = match best {
+            None => true,
+            Some((o, b, _)) => {
+                out < o - 1e-12 || (out <= o + 1e-12 && b != preferred && (g == preferred || g < b))
+            }
+        };
+        if better {
+            best = Some((out, g, p.xi));
+        }
+    }
+    // nodes on a free edge (the faces of an extruded block at its end planes) project onto
+    // it to round-off, on either side: the band keeps them smoothed
+    best.filter(|(out, g, _)| {
+        let width = if faces.face(*g).family.is_triangle() {
+            0.5
+        } else {
+            1.0
+        };
+        *out <= SEGMENT_KEEP * width
+    })
+    .map(|(_, g, xi)| (g, xi))
+}
+
 /// Rigid translation of a pair's target at time `t`: the prescribed components from the
 /// motion magnitudes `values`; a pushed target's ([`MotionControl::Force`]) from their
 /// unknowns in `z` (`target`: the pair's [`ContactLayout::target`]), zero without them (where
@@ -332,10 +466,32 @@ pub(crate) fn evaluate<S: Scalar>(
                 },
                 Target::Rigid { .. } => (0, [0.0, 0.0]),
             };
+            // smoothed normals where the node projects onto the target's faces along them
+            let (face, xi_start, smoothed) = match &pair.target {
+                Target::Faces { faces } if pair.smoothing => match fz {
+                    Some(c) => (face, xi_start, c.smoothed),
+                    None => {
+                        let keep = keep_faces.and_then(|k| k.get(flat)).map(|c| c.face);
+                        let at = (face, xi_start);
+                        smoothed_face(lifted, z, faces, &pair.candidates[i], &x, at, keep)
+                            .map_or((face, xi_start, false), |(f, xi)| (f, xi, true))
+                    }
+                },
+                _ => (face, xi_start, false),
+            };
             let target = match &pair.target {
                 Target::Faces { faces } => TargetGeom::Face {
                     segment: segment(faces, face, |n| node_pos(lifted, z, n)),
                     xi_start,
+                    normals: if smoothed {
+                        let around = faces_around(faces, face, &pair.candidates[i]);
+                        Some(
+                            nodal_normals(faces, face, &around, |n| Ok(node_pos(lifted, z, n)))
+                                .map_err(err)?,
+                        )
+                    } else {
+                        None
+                    },
                 },
                 Target::Rigid { surface, .. } => TargetGeom::Rigid { surface, d },
             };
@@ -390,6 +546,7 @@ pub(crate) fn evaluate<S: Scalar>(
                     state: ContactState::Stick,
                     face,
                     anchor_face: face,
+                    smoothed,
                 });
             }
             // ---- residual ----
@@ -497,11 +654,21 @@ pub(crate) fn evaluate<S: Scalar>(
                 state: ko.state,
                 face,
                 anchor_face,
+                smoothed,
             };
             // ---- tangent by forward AD over the node's local unknowns ----
             if want_tangent {
                 let kt = local_tangent(
-                    model, layout, lifted, z, hist_old, time, p, i, face, fz, forced,
+                    model,
+                    layout,
+                    lifted,
+                    z,
+                    hist_old,
+                    time,
+                    (p, i, face),
+                    fz,
+                    forced,
+                    smoothed,
                 )
                 .map_err(err)?;
                 tangents.push((block.pattern_block, kt));
@@ -544,33 +711,41 @@ fn local_tangent<S: Scalar>(
     z: &[S],
     hist_old: &[S],
     time: f64,
-    p: usize,
-    i: usize,
-    face: usize,
+    (p, i, face): (usize, usize, usize),
     fz: Option<ContactChoice>,
     forced: bool,
+    smoothed: bool,
 ) -> Result<LocalTangent, ContactFailure> {
     let pair = &model.contacts[p];
     let seeds = match &pair.target {
         Target::Faces { faces } => {
-            // the anchor face's nodes that are not on the contact face
+            // the contact face's nodes, those of the faces around it where the normals are
+            // smoothed, and the anchor face's others
+            let mut nodes: Vec<usize> = faces.nodes(face).to_vec();
+            let mut add = |g: usize| {
+                for &n in faces.nodes(g) {
+                    if !nodes.contains(&n) {
+                        nodes.push(n);
+                    }
+                }
+            };
+            if smoothed {
+                faces_around(faces, face, &pair.candidates[i])
+                    .into_iter()
+                    .for_each(&mut add);
+            }
             let nh = pair.history_len();
             let h0 = layout.history[p] + nh * i;
-            let off_face = match pair.anchor(&hist_old[h0..h0 + nh]) {
-                Some(StoredAnchor::Face { face: af, .. }) => faces
-                    .nodes(af.min(faces.len() - 1))
-                    .iter()
-                    .filter(|n| !faces.nodes(face).contains(n))
-                    .count(),
-                _ => 0,
-            };
-            4 + 3 * (faces.nodes(face).len() + off_face)
+            if let Some(StoredAnchor::Face { face: af, .. }) = pair.anchor(&hist_old[h0..h0 + nh]) {
+                add(af.min(faces.len() - 1));
+            }
+            4 + 3 * nodes.len()
         }
         // the node, its multiplier, and the translations of a pushed target
         Target::Rigid { .. } => 4 + layout.target[p].iter().flatten().count(),
     };
     let args = (
-        model, layout, lifted, z, hist_old, time, p, i, face, fz, forced,
+        model, layout, lifted, z, hist_old, time, p, i, face, fz, forced, smoothed,
     );
     if seeds <= 4 {
         local_tangent_n::<S, 4>(args)
@@ -580,9 +755,13 @@ fn local_tangent<S: Scalar>(
         local_tangent_n::<S, 16>(args)
     } else if seeds <= 28 {
         local_tangent_n::<S, 28>(args)
-    } else {
-        // quadratic faces: up to 4 + 3 (8 + 8) seeds on a quad8 whose anchor lies on another
+    } else if seeds <= 52 {
+        // quadratic faces: up to 4 + 3 (8 + 8) seeds on a quad8 whose anchor lies on another;
+        // smoothed quad4 faces: 4 + 3 x 16 on a regular 3D grid
         local_tangent_n::<S, 52>(args)
+    } else {
+        // smoothed normals around a node of a higher valence, an anchor outside them
+        local_tangent_n::<S, 76>(args)
     }
 }
 
@@ -599,11 +778,15 @@ type TangentArgs<'a, S> = (
     usize,
     Option<ContactChoice>,
     bool,
+    bool,
 );
 
 /// [`local_tangent`] with `N`-wide duals (`N` at least the number of seeds).
 fn local_tangent_n<S: Scalar, const N: usize>(
-    (model, layout, lifted, z, hist_old, time, p, i, face, fz, forced): TangentArgs<'_, S>,
+    (model, layout, lifted, z, hist_old, time, p, i, face, fz, forced, smoothed): TangentArgs<
+        '_,
+        S,
+    >,
 ) -> Result<LocalTangent, ContactFailure> {
     type Ad<const N: usize> = DualSVec64<N>;
     let pair = &model.contacts[p];
@@ -676,10 +859,19 @@ fn local_tangent_n<S: Scalar, const N: usize>(
             for (x, &n) in seg.nodes.iter_mut().zip(faces.nodes(face)) {
                 *x += node_ad(n, &mut slots)?;
             }
+            let normals = if smoothed {
+                let around = faces_around(faces, face, &pair.candidates[i]);
+                Some(nodal_normals(faces, face, &around, |n| {
+                    Ok(xref(n) + node_ad(n, &mut slots)?)
+                })?)
+            } else {
+                None
+            };
             (
                 TargetGeom::Face {
                     segment: seg,
                     xi_start: seg.family.centre_st(),
+                    normals,
                 },
                 Some(faces.nodes(face)),
             )

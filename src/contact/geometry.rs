@@ -102,6 +102,16 @@
 //! at the boundary point (the corner's own normal at a node), and `ξ` has one (edge) or two
 //! (corner) components at `±1`.
 //!
+//! # Smoothed normals ([`project_smoothed`])
+//!
+//! A pair with `smoothing` gives each face the target's nodal normals `n_a` (the area-weighted
+//! mean of the normals of the faces around each node, formed by the contact assembly) and
+//! projects a hitting point along `n̂(ξ) = Σ N_a n_a / |Σ N_a n_a|` instead of onto the closest
+//! point: `x − x̄(ξ) ∥ n̂(ξ)`, `gap = (x − x̄) · n̂`, `normal = n̂`. Faces sharing an edge share
+//! its nodes' normals, so gap and normal are continuous across it; on a flat patch this is the
+//! closest point. Its derivatives follow the closest point's scheme (Newton on real parts, one
+//! correction in `S`).
+//!
 //! # Rigid analytic surfaces ([`RigidSurface`])
 //!
 //! Each is moved by a rigid translation `d`; `ξ` are material surface coordinates (a point fixed
@@ -969,6 +979,197 @@ pub(crate) fn project_on_segment<S: Scalar>(
     let mut p = finish_interior(&xl, &sl, xi0, h)?;
     p.point += c;
     Ok(p)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Smoothed normals
+// ---------------------------------------------------------------------------------------------
+
+/// The normal field of a face smoothed by its nodal normals: `n(ξ) = Σ N_a(ξ) n_a`, and the
+/// residual of the projection along it, `r_α = (d − (d · n̂) n̂) · t_α` with `d = x − x̄(ξ)` and
+/// `n̂ = n / |n|`: zero where `x − x̄(ξ)` is parallel to `n̂(ξ)`. Returns `r`, the face's point
+/// and `n̂`.
+fn smoothed_residual<S: Scalar>(
+    x: &Vector3<S>,
+    seg: &Segment<S>,
+    normals: &[Vector3<S>; MAX_FACE_NODES],
+    xi: &[S; 2],
+) -> ([S; 2], SurfacePoint<S>, Vector3<S>) {
+    let p = surface_point(seg, xi);
+    let f = seg.family.interpolation(*xi);
+    let mut n = Vector3::zeros();
+    for (na, w) in normals.iter().zip(f.n).take(seg.family.n_nodes()) {
+        n += na * w;
+    }
+    let n = n / safe_norm(&n);
+    let d = x - p.x;
+    let dp = d - n * d.dot(&n);
+    ([dp.dot(&p.t1), dp.dot(&p.t2)], p, n)
+}
+
+/// The Jacobian `∂r_α/∂ξ^β` of [`smoothed_residual`] at `xi` (real parts, by dual numbers in
+/// each direction) and `r` there.
+fn smoothed_jacobian(
+    x: &Vector3<f64>,
+    seg: &Segment<f64>,
+    normals: &[Vector3<f64>; MAX_FACE_NODES],
+    xi: [f64; 2],
+) -> ([f64; 2], [[f64; 2]; 2]) {
+    use num_dual::Dual64;
+    let lift = |v: &Vector3<f64>| v.map(Dual64::from_re);
+    let xd = lift(x);
+    let sd = Segment {
+        family: seg.family,
+        nodes: seg.nodes.map(|n| lift(&n)),
+    };
+    let nd = normals.map(|n| lift(&n));
+    let column = |k: usize| {
+        let mut at = [Dual64::from_re(xi[0]), Dual64::from_re(xi[1])];
+        at[k].eps = 1.0;
+        smoothed_residual(&xd, &sd, &nd, &at).0
+    };
+    let (c0, c1) = (column(0), column(1));
+    (
+        [c0[0].re, c0[1].re],
+        [[c0[0].eps, c1[0].eps], [c0[1].eps, c1[1].eps]],
+    )
+}
+
+/// Projection of `x` onto the face `seg` along the face's smoothed normal field: the point
+/// `x̄(ξ)` whose normal `n̂(ξ) = Σ N_a(ξ) n_a / |Σ N_a(ξ) n_a|`, interpolated from the nodal
+/// normals `normals` (unit, outward, the first `family.n_nodes()`), passes through `x`. The
+/// gap is `(x − x̄) · n̂` and the normal `n̂`.
+///
+/// Why: on a faceted target the closest-point normal jumps at every edge, and so does the gap
+/// of a node held on a face beyond its edge ([`SEGMENT_KEEP`]); a Lagrange multiplier row then
+/// jumps by the constraint scale times that gap when the node changes face, and Newton cycles
+/// (the physics fuzzer's slider on a dented base). Two faces sharing an edge share its nodes'
+/// normals, so on that edge they give the same `x̄`, `n̂` and gap: the projection, the gap and
+/// the normal are continuous across faces (Nagata-free normal smoothing, as the averaged
+/// nodal normals of mortar methods). On a flat patch every nodal normal is the face normal and
+/// this is the closest-point projection.
+///
+/// Newton on `r(ξ) = 0` in `f64` (the Jacobian by dual numbers), then one correction in `S`,
+/// `ξ = ξ₀ − J⁻¹ r(ξ₀)`: exact first derivatives by the implicit function theorem, as
+/// [`project_on_segment`]'s. `ξ` is not confined to the face (`inside` says whether it lies in
+/// it).
+///
+/// # Errors
+/// Those of [`project_on_segment`]; [`GeometryError::AmbiguousProjection`] where the smoothed
+/// normal vanishes or the Jacobian is singular.
+pub(crate) fn project_smoothed<S: Scalar>(
+    x: &Vector3<S>,
+    seg: &Segment<S>,
+    normals: &[Vector3<S>; MAX_FACE_NODES],
+    xi_start: [f64; 2],
+) -> Result<Projection<S>, GeometryError> {
+    let xr = re_vec(x);
+    if !finite_vec(&xr) {
+        return Err(GeometryError::NonFinite {
+            what: "hitting point",
+        });
+    }
+    let nr = normals.map(|n| re_vec(&n));
+    if !nr.iter().take(seg.family.n_nodes()).all(finite_vec) {
+        return Err(GeometryError::NonFinite {
+            what: "nodal normals",
+        });
+    }
+    let h = check_face(&seg.real())?;
+    let (xl, sl, c) = seg.localized(x);
+    let (xlr, slr) = (re_vec(&xl), sl.real());
+    let singular = GeometryError::AmbiguousProjection {
+        reason: "singular smoothed-normal projection (the smoothed normal lies in the face)",
+    };
+    let solve = |j: [[f64; 2]; 2], r: [f64; 2]| -> Option<[f64; 2]> {
+        let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+        let scale = (j[0][0].abs() + j[0][1].abs()) * (j[1][0].abs() + j[1][1].abs());
+        (det.abs() > 1e-12 * scale && det.is_finite()).then(|| {
+            [
+                (j[1][1] * r[0] - j[0][1] * r[1]) / det,
+                (j[0][0] * r[1] - j[1][0] * r[0]) / det,
+            ]
+        })
+    };
+    let mut xi = xi_start;
+    let mut converged = false;
+    let mut residual = f64::INFINITY;
+    let mut iterations = 0;
+    while iterations < MAX_NEWTON_ITERATIONS {
+        iterations += 1;
+        let (r, j) = smoothed_jacobian(&xlr, &slr, &nr, xi);
+        residual = r[0].abs().max(r[1].abs()) / ((xlr.norm() + h) * h);
+        let Some(mut step) = solve(j, r) else {
+            return Err(singular);
+        };
+        let size = step[0].abs().max(step[1].abs());
+        if size > MAX_STEP {
+            step = step.map(|v| v * MAX_STEP / size);
+        }
+        xi = [xi[0] - step[0], xi[1] - step[1]];
+        if !(xi[0].is_finite() && xi[1].is_finite()) {
+            break;
+        }
+        if size < STEP_TOLERANCE || residual < RESIDUAL_TOLERANCE {
+            converged = true;
+            break;
+        }
+    }
+    if !converged {
+        return Err(GeometryError::NoConvergence {
+            iterations,
+            residual,
+        });
+    }
+    // the correction in S, with the Jacobian at the converged point
+    let (_, j) = smoothed_jacobian(&xlr, &slr, &nr, xi);
+    let at = [S::lift(xi[0]), S::lift(xi[1])];
+    let (r, _, _) = smoothed_residual(&xl, &sl, normals, &at);
+    let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+    if solve(j, [0.0, 0.0]).is_none() {
+        return Err(singular);
+    }
+    let xi_s = [
+        at[0] - (r[0] * j[1][1] - r[1] * j[0][1]) / det,
+        at[1] - (r[1] * j[0][0] - r[0] * j[1][0]) / det,
+    ];
+    let (_, p, n) = smoothed_residual(&xl, &sl, normals, &xi_s);
+    let jn = p.t1.cross(&p.t2);
+    if !greater(jn.dot(&n).value(), AREA_TOLERANCE * h * h) {
+        return Err(GeometryError::DegenerateSegment {
+            reason: "the smoothed normal turns away from the face at the projection point",
+        });
+    }
+    let gap = (xl - p.x).dot(&n);
+    let inside = seg
+        .family
+        .contains([xi_s[0].value(), xi_s[1].value()], QUAD_INSIDE_TOLERANCE);
+    Ok(Projection {
+        xi: xi_s,
+        point: p.x + c,
+        t1: p.t1,
+        t2: p.t2,
+        normal: n,
+        gap,
+        inside,
+    })
+}
+
+/// How far `st` lies outside the natural domain of `family` (0 inside), in `ξ`.
+pub(crate) fn outside(family: FaceFamily, st: [f64; 2]) -> f64 {
+    if family.is_triangle() {
+        (-st[0]).max(-st[1]).max(st[0] + st[1] - 1.0).max(0.0)
+    } else {
+        (st[0].abs() - 1.0).max(st[1].abs() - 1.0).max(0.0)
+    }
+}
+
+/// The outward normal `t_1 × t_2` (not normalised: it weighs by area) of face `seg` at its
+/// node `a`.
+pub(crate) fn node_jacobian<S: Scalar>(seg: &Segment<S>, a: usize) -> Vector3<S> {
+    let st = seg.family.node_st(a);
+    let p = surface_point(seg, &[S::lift(st[0]), S::lift(st[1])]);
+    p.t1.cross(&p.t2)
 }
 
 /// [`project_on_segment`] onto a bilinear quad.

@@ -1011,3 +1011,153 @@ fn a_node_sliding_over_curved_faces_sees_a_continuous_gap() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Smoothed normals
+// ---------------------------------------------------------------------------------------------
+
+fn all_normals(n: V3) -> [V3; MAX_FACE_NODES] {
+    [n; MAX_FACE_NODES]
+}
+
+/// On a flat face whose nodal normals are all the face normal, the projection along the
+/// smoothed normal is the closest-point projection (both invariants of the plane: the foot
+/// of the perpendicular), inside and outside the face.
+#[test]
+fn smoothed_projection_on_a_flat_face_is_the_closest_point() {
+    let q = flat_quad();
+    let n = (q[1] - q[0]).cross(&(q[3] - q[0])).normalize();
+    let seg = Segment::quad4(q);
+    for x in [
+        V3::new(0.3, -0.2, 0.8),
+        V3::new(-0.5, 0.4, -0.6),
+        V3::new(2.5, 0.7, 0.05),
+    ] {
+        let s = project_smoothed(&x, &seg, &all_normals(n), [0.0, 0.0]).unwrap();
+        let c = project_on_quad(&x, &q, [0.0, 0.0]).unwrap();
+        for (i, (a, b)) in values(&s).iter().zip(values(&c)).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-13 * (1.0 + b.abs()),
+                "output {i}: {a:e} vs {b:e}"
+            );
+        }
+        assert_eq!(s.inside, c.inside);
+        // the foot of the perpendicular: x - point along n, gap its length
+        assert!(((x - s.point) - n * s.gap).norm() <= 1e-13);
+    }
+}
+
+/// Two faces meeting at an edge with a kink of 30 degrees (a roof), the nodal normals at the
+/// shared edge the mean of the two face normals. A point on the ray from an edge point along
+/// that mean normal projects onto the edge from either face, with the same gap (the distance
+/// along the ray), normal and point: the gap and normal do not jump from face to face. A
+/// closest-point projection gives the same gap there but the two faces' own normals.
+#[test]
+fn smoothed_projection_is_continuous_across_a_kinked_edge() {
+    let a = 30f64.to_radians();
+    // face A: x in [-1, 0] in the plane y = 0; face B: from the edge x = 0 up at angle a
+    let (e0, e1) = (V3::new(0.0, 0.0, 0.0), V3::new(0.0, 0.0, 1.0));
+    let b_far = V3::new(a.cos(), a.sin(), 0.0);
+    let face_a = [V3::new(-1.0, 0.0, 1.0), e1, e0, V3::new(-1.0, 0.0, 0.0)];
+    let face_b = [e1, b_far + e1, b_far, e0];
+    let na = (face_a[1] - face_a[0])
+        .cross(&(face_a[3] - face_a[0]))
+        .normalize();
+    let nb = (face_b[1] - face_b[0])
+        .cross(&(face_b[3] - face_b[0]))
+        .normalize();
+    assert!(na.y > 0.0 && nb.y > 0.0, "outward normals point up");
+    let ne = (na + nb).normalize();
+    // nodal normals in each face's node order: the shared edge's nodes get the mean
+    let mut normals_a8 = [V3::zeros(); MAX_FACE_NODES];
+    let mut normals_b8 = [V3::zeros(); MAX_FACE_NODES];
+    normals_a8[..4].copy_from_slice(&[na, ne, ne, na]);
+    normals_b8[..4].copy_from_slice(&[ne, nb, nb, ne]);
+    for (t, gap) in [(0.3, 0.2), (0.7, -0.05), (0.5, 0.0)] {
+        let edge_point = V3::new(0.0, 0.0, t);
+        let x = edge_point + ne * gap;
+        let pa = project_smoothed(&x, &Segment::quad4(face_a), &normals_a8, [0.0, 0.0]).unwrap();
+        let pb = project_smoothed(&x, &Segment::quad4(face_b), &normals_b8, [0.0, 0.0]).unwrap();
+        for p in [&pa, &pb] {
+            assert!((p.gap - gap).abs() <= 1e-13, "gap {:e} vs {gap:e}", p.gap);
+            assert!((p.normal - ne).norm() <= 1e-13);
+            assert!((p.point - edge_point).norm() <= 1e-13);
+        }
+        // the edge is face A's side from node 1 to node 2 (xi^1 = +1), face B's from node 0
+        // to node 3 (xi^1 = -1)
+        assert!((pa.xi[0] - 1.0).abs() <= 1e-13 && (pb.xi[0] + 1.0).abs() <= 1e-13);
+        // the faceted projection: each face's own normal at the edge
+        if gap > 0.0 {
+            let ca = project_on_quad(&x, &face_a, [0.0, 0.0]).unwrap();
+            assert!((ca.normal - na).norm() <= 1e-13);
+        }
+    }
+}
+
+/// The derivative parts of the smoothed projection (dual numbers: one correction from the
+/// converged real solution, the implicit function theorem) against central differences of
+/// the f64 projection, seeding the hitting point, a node of a warped face and a nodal
+/// normal.
+#[test]
+fn smoothed_projection_derivatives_match_central_differences() {
+    let q = warped_quad();
+    let mut normals = [V3::zeros(); MAX_FACE_NODES];
+    let tilt = [
+        V3::new(0.1, -0.05, 1.0),
+        V3::new(-0.08, 0.02, 1.0),
+        V3::new(0.05, 0.1, 1.0),
+        V3::new(-0.02, -0.1, 1.0),
+    ];
+    for (n, t) in normals.iter_mut().zip(tilt) {
+        *n = t.normalize();
+    }
+    let x = V3::new(0.35, -0.25, 0.6);
+    let run = |dx: V3, dnode: V3, dnormal: V3| {
+        let mut qq = q;
+        qq[2] += dnode;
+        let mut nn = normals;
+        nn[1] += dnormal;
+        project_smoothed(&(x + dx), &Segment::quad4(qq), &nn, [0.0, 0.0]).unwrap()
+    };
+    let base = run(V3::zeros(), V3::zeros(), V3::zeros());
+    assert!(base.inside);
+    let seed = |v: V3, c: usize| {
+        let mut d = v.map(Dual64::from_re);
+        d[c].eps = 1.0;
+        d
+    };
+    let qd = lift_quad::<Dual64>(&q);
+    let nd = normals.map(|n| n.map(Dual64::from_re));
+    for c in 0..3 {
+        let e = V3::ith(c, 1.0);
+        // the hitting point
+        let p = project_smoothed(&seed(x, c), &Segment::quad4(qd), &nd, [0.0, 0.0]).unwrap();
+        assert_same_real(&p.to_real(), &base, "real parts");
+        let fd = central_fd(|h| run(e * h, V3::zeros(), V3::zeros()));
+        assert_derivatives(&parts(&p, 0), &fd, "hitting point");
+        // node 2 of the face
+        let mut qs = qd;
+        qs[2] = seed(q[2], c);
+        let p = project_smoothed(
+            &x.map(Dual64::from_re),
+            &Segment::quad4(qs),
+            &nd,
+            [0.0, 0.0],
+        )
+        .unwrap();
+        let fd = central_fd(|h| run(V3::zeros(), e * h, V3::zeros()));
+        assert_derivatives(&parts(&p, 0), &fd, "face node");
+        // nodal normal 1 (not renormalised: the interpolation normalises)
+        let mut ns = nd;
+        ns[1] = seed(normals[1], c);
+        let p = project_smoothed(
+            &x.map(Dual64::from_re),
+            &Segment::quad4(qd),
+            &ns,
+            [0.0, 0.0],
+        )
+        .unwrap();
+        let fd = central_fd(|h| run(V3::zeros(), V3::zeros(), e * h));
+        assert_derivatives(&parts(&p, 0), &fd, "nodal normal");
+    }
+}

@@ -58,7 +58,7 @@ use crate::scalar::Scalar;
 pub use assembly::ContactError;
 pub use friction::Friction;
 use friction::{FrictionBranch, FrictionLaw};
-use geometry::{project_on_segment, Projection, RigidSurface, Segment};
+use geometry::{project_on_segment, project_smoothed, Projection, RigidSurface, Segment};
 use nalgebra::Vector3;
 
 /// How the normal force is computed.
@@ -216,6 +216,13 @@ pub struct ContactPair {
     pub activation: f64,
     /// Candidate target faces of each hitting node (indices into `Target::Faces::faces`).
     pub candidates: Vec<Vec<usize>>,
+    /// A deformable target's normals smoothed: each hitting node is projected along the
+    /// normal interpolated from the target's nodal normals (each the area-weighted mean of
+    /// the node's candidate faces' normals), not onto the closest point of a facet, so that
+    /// the gap and the normal are continuous from face to face
+    /// ([`geometry::project_smoothed`]). Linear faces (quad4, tri3) only: a quadratic face is
+    /// curved already, and its smoothing would widen the local tangent beyond its duals.
+    pub smoothing: bool,
 }
 
 impl ContactPair {
@@ -435,6 +442,10 @@ pub struct ContactChoice {
     pub face: usize,
     /// Face of the new anchor (deformable target).
     pub anchor_face: usize,
+    /// Projected along smoothed normals ([`ContactPair::smoothing`]; false where the node
+    /// lies beyond a free edge of the target and is projected onto the face as without).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub smoothed: bool,
 }
 
 impl Default for ContactChoice {
@@ -443,6 +454,7 @@ impl Default for ContactChoice {
             state: ContactState::Open,
             face: 0,
             anchor_face: 0,
+            smoothed: false,
         }
     }
 }
@@ -455,6 +467,10 @@ pub enum TargetGeom<'a, S: Scalar> {
         segment: Segment<S>,
         /// Starting point of the closest-point Newton iteration.
         xi_start: [f64; 2],
+        /// The target's nodal normals at the face's nodes, where the pair smooths them
+        /// ([`ContactPair::smoothing`]): the projection is then along the interpolated normal
+        /// ([`geometry::project_smoothed`]), else the closest point.
+        normals: Option<[Vector3<S>; MAX_FACE_NODES]>,
     },
     /// A rigid target.
     Rigid {
@@ -639,7 +655,16 @@ pub fn node_kernel<S: Scalar>(
 ) -> Result<KernelOut<S>, ContactFailure> {
     let x = &(x_ref + u);
     let proj = match target {
-        TargetGeom::Face { segment, xi_start } => project_on_segment(x, segment, *xi_start),
+        TargetGeom::Face {
+            segment,
+            xi_start,
+            normals: None,
+        } => project_on_segment(x, segment, *xi_start),
+        TargetGeom::Face {
+            segment,
+            xi_start,
+            normals: Some(normals),
+        } => project_smoothed(x, segment, normals, *xi_start),
         TargetGeom::Rigid { surface, d } => surface.project(x, d),
     }
     .map_err(ContactFailure::Geometry)?;

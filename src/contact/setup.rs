@@ -350,7 +350,8 @@ pub struct PairDerivation {
 /// `search_radius` (default: three face diameters plus how far the prescribed displacements
 /// move the two bodies), the default constraint scale and the default tangential penalty
 /// (`c_T E* A_i / h_i`). The same derivation a scene's pair gets; for models built in code or
-/// imported. Lagrange multipliers, activation 1; change the returned pair's fields to taste.
+/// imported. Lagrange multipliers, activation 1, smoothed normals on linear target faces;
+/// change the returned pair's fields to taste.
 #[allow(clippy::too_many_arguments)]
 pub fn pair_between_faces(
     name: &str,
@@ -410,6 +411,8 @@ pub fn pair_between_faces(
         constraint_scale: scale,
         activation: 1.0,
         candidates: r.candidates,
+        // as a scene's pair: smoothed normals on linear target faces
+        smoothing: (0..target.len()).all(|f| !target.face(f).family.is_quadratic()),
     };
     Ok((
         pair,

@@ -1232,6 +1232,36 @@ impl Scene {
                 }
                 (None, None) => (100.0 * scale, vec![1.0; hitting.len()]),
             };
+            let smoothing = match (&target, c.smoothing) {
+                (Target::Faces { faces }, choice) => {
+                    let linear = (0..faces.len()).all(|f| !faces.face(f).family.is_quadratic());
+                    match choice {
+                        Some(Smoothing::Normals) if !linear => {
+                            return Err(invalid(
+                                &format!("{at}.smoothing"),
+                                "smoothed normals need linear target faces (quad4, tri3); a quadratic face is curved already".to_string(),
+                            ))
+                        }
+                        Some(choice) => choice == Smoothing::Normals,
+                        None => {
+                            notes.push(if linear {
+                                format!("{at} '{}': smoothed normals (the hitting nodes projected along the target's averaged nodal normals: gap and normal continuous from face to face)", c.name)
+                            } else {
+                                format!("{at} '{}': no smoothing (quadratic target faces, curved already)", c.name)
+                            });
+                            linear
+                        }
+                    }
+                }
+                (Target::Rigid { .. }, Some(Smoothing::Normals)) => {
+                    return Err(invalid(
+                        &format!("{at}.smoothing"),
+                        "a rigid target's surface is smooth already: smoothing is for face targets"
+                            .to_string(),
+                    ))
+                }
+                (Target::Rigid { .. }, _) => false,
+            };
             out.push(ContactPair {
                 name: c.name.clone(),
                 hitting,
@@ -1245,6 +1275,7 @@ impl Scene {
                 constraint_scale: scale,
                 activation,
                 candidates,
+                smoothing,
             });
         }
         Ok(out)

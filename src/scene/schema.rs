@@ -519,6 +519,22 @@ pub struct ContactSpec {
     /// configuration); default 3 x the largest face diagonal.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub search_radius: Option<f64>,
+    /// A deformable target's surface as the hitting nodes see it: `"normals"`, projected
+    /// along the normal interpolated from averaged nodal normals (gap and normal continuous
+    /// from face to face), or `"none"`, the closest point on the faces. Default: see
+    /// [`crate::contact::ContactPair::smoothing`]. Linear target faces only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub smoothing: Option<Smoothing>,
+}
+
+/// How a deformable target's surface is seen by the hitting nodes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Smoothing {
+    /// The faces as they are: closest-point projection, normals jump at the edges.
+    None,
+    /// Averaged nodal normals, interpolated over each face.
+    Normals,
 }
 
 pub(crate) fn lagrange() -> NormalLaw {

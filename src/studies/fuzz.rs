@@ -471,6 +471,7 @@ pub fn generate(seed: u64) -> Scene {
                 constraint_scale: None,
                 activation: None,
                 search_radius: None,
+                smoothing: None,
             }];
             for c in [Component::X, Component::Y] {
                 responses.push(ResponseSpec::Reaction {
@@ -595,6 +596,7 @@ fn rigid_contact(
         constraint_scale: None,
         activation: None,
         search_radius: None,
+        smoothing: None,
     }
 }
 

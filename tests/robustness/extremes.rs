@@ -991,6 +991,7 @@ fn closing_node() -> Scene {
             constraint_scale: Some(1.0),
             activation: None,
             search_radius: None,
+            smoothing: None,
         }],
         steps: vec![StepSpec {
             end: 1.0,

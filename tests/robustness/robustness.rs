@@ -1464,3 +1464,24 @@ fn a_model_with_parallel_factorization_is_bit_identical_across_thread_counts() {
     );
     assert_same_bits(&one, &two, "parallel factorization, one thread vs two");
 }
+
+/// `contacts[].smoothing = "normals"` where it has no meaning is a typed error naming the
+/// field: on a rigid target (an analytic surface), and on quadratic target faces (curved
+/// already; their smoothing would widen the local tangent beyond its duals).
+#[test]
+fn smoothing_is_refused_where_it_has_no_meaning() {
+    use fricsens::scene::Smoothing;
+    let text = edited("klarbring-2dof", |s| {
+        s.contacts[0].smoothing = Some(Smoothing::Normals)
+    });
+    rejects(&text, &["field `contacts[0].smoothing`:", "rigid target"]);
+    let text = edited("contact-patch", |s| {
+        s.contacts[0].smoothing = Some(Smoothing::Normals)
+    })
+    .replace("[[bodies]]\n", "[[bodies]]\nelement = \"hex20\"\n");
+    assert!(text.contains("element = \"hex20\""));
+    rejects(
+        &text,
+        &["field `contacts[0].smoothing`:", "linear target faces"],
+    );
+}

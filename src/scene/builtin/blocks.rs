@@ -61,6 +61,9 @@ pub fn contact_patch(friction: Option<f64>) -> Scene {
             constraint_scale: None,
             activation: None,
             search_radius: None,
+            // faceted node-to-segment contact, the paper's: the built-in scenes' results are the
+            // report's regression checks (user scenes smooth by default)
+            smoothing: Some(Smoothing::None),
         }],
         steps: vec![StepSpec {
             end: 1.0,
@@ -145,6 +148,9 @@ pub fn sliding_block(friction: Option<f64>) -> Scene {
             // the slider travels 3 units: every face it may reach is a candidate
             activation: None,
             search_radius: Some(6.0),
+            // faceted node-to-segment contact, the paper's: the built-in scenes' results are the
+            // report's regression checks (user scenes smooth by default)
+            smoothing: Some(Smoothing::None),
         }],
         steps: vec![
             StepSpec {

@@ -60,6 +60,7 @@ pub fn klarbring_2dof(increments_per_unit: usize) -> Scene {
             constraint_scale: Some(1.0),
             activation: None,
             search_radius: None,
+            smoothing: None,
         }],
         steps: vec![StepSpec {
             end: 5.0,
@@ -159,6 +160,7 @@ pub fn jenkins(increments_per_unit: usize) -> Scene {
             constraint_scale: Some(1.0),
             activation: None,
             search_radius: None,
+            smoothing: None,
         }],
         steps: vec![StepSpec {
             end: 5.0,

@@ -124,6 +124,7 @@ pub fn hertz(h: &HertzSpec) -> Scene {
             constraint_scale: None,
             activation: None,
             search_radius: None,
+            smoothing: None,
         }],
         steps: vec![StepSpec {
             end: 1.0,

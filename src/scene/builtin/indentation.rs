@@ -142,6 +142,7 @@ pub(crate) fn indentation_mesh(
             constraint_scale: None,
             activation: None,
             search_radius: None,
+            smoothing: None,
         }],
         steps: vec![
             StepSpec {

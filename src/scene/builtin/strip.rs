@@ -102,6 +102,7 @@ pub fn strip_pullout(s: &StripSpec) -> Scene {
             constraint_scale: None,
             activation: None,
             search_radius: None,
+            smoothing: None,
         }],
         steps: vec![StepSpec {
             end: 2.0,
