@@ -214,8 +214,9 @@ fn faces_around(faces: &FaceSet, f: usize, candidates: &[usize]) -> Vec<usize> {
 }
 
 /// The target's unit outward normal at each node of face `f` ([`ContactPair::smoothing`]):
-/// the sum of `t_1 × t_2` at the node over `f` and the faces `around` that hold it (so
-/// weighted by their areas), normalised. Node `n` is at `position(n)`.
+/// the sum of `t_1 × t_2` at the node over `f` and the faces `around` that hold it (each
+/// face's Jacobian there: a quad4's area over four, a tri3's twice its area), normalised.
+/// Node `n` is at `position(n)`.
 fn nodal_normals<T: Scalar>(
     faces: &FaceSet,
     f: usize,
@@ -314,8 +315,10 @@ fn smoothed_face<S: Scalar>(
         let out = outside(seg.family, p.xi);
         let better = match best {
             None => true,
+            // ties: the preferred face, then the start, then the lowest index
             Some((o, b, _)) => {
-                out < o - 1e-12 || (out <= o + 1e-12 && b != preferred && (g == preferred || g < b))
+                let rank = |f: usize| (f != preferred, f != start.0, f);
+                out < o - 1e-12 || (out <= o + 1e-12 && rank(g) < rank(b))
             }
         };
         if better {
@@ -668,7 +671,7 @@ pub(crate) fn evaluate<S: Scalar>(
                     (p, i, face),
                     fz,
                     forced,
-                    smoothed,
+                    smoothed.then_some(xi_start),
                 )
                 .map_err(err)?;
                 tangents.push((block.pattern_block, kt));
@@ -699,10 +702,13 @@ fn project_on_segment_s<S: Scalar>(
 
 /// The dense block tangent of one hitting node (rows and columns in block order), from one
 /// evaluation of the kernel with the node's local unknowns seeded: the hitting node (3), the
-/// nodes of the contact face and of the stick anchor's face (3 each, shared nodes once), the
-/// multiplier (1). The dual type is as wide as the seeds need: 4 against a rigid target, 16
-/// where the anchor lies on the contact face (or there is none), 28 where it lies on another
-/// face (every op on a 28-wide dual costs about seven times one on a 4-wide one).
+/// nodes of the contact face, of the faces around it where its normals are smoothed
+/// (`smoothed`), and of the stick anchor's face (3 each, shared nodes once), the multiplier
+/// (1). The dual type is as wide as the seeds need: 4 against a rigid target, 16 where the
+/// anchor lies on the contact face (or there is none), 28 where it lies on another face, 52
+/// or 76 with smoothed normals (every op on a 28-wide dual costs about seven times one on a
+/// 4-wide one); more is [`ContactFailure::TooManySeeds`]. The smoothed projection starts
+/// from `xi_start`, where the residual's converged.
 #[allow(clippy::too_many_arguments)]
 fn local_tangent<S: Scalar>(
     model: &Model,
@@ -714,7 +720,7 @@ fn local_tangent<S: Scalar>(
     (p, i, face): (usize, usize, usize),
     fz: Option<ContactChoice>,
     forced: bool,
-    smoothed: bool,
+    smoothed: Option<[f64; 2]>,
 ) -> Result<LocalTangent, ContactFailure> {
     let pair = &model.contacts[p];
     let seeds = match &pair.target {
@@ -729,7 +735,7 @@ fn local_tangent<S: Scalar>(
                     }
                 }
             };
-            if smoothed {
+            if smoothed.is_some() {
                 faces_around(faces, face, &pair.candidates[i])
                     .into_iter()
                     .for_each(&mut add);
@@ -759,9 +765,11 @@ fn local_tangent<S: Scalar>(
         // quadratic faces: up to 4 + 3 (8 + 8) seeds on a quad8 whose anchor lies on another;
         // smoothed quad4 faces: 4 + 3 x 16 on a regular 3D grid
         local_tangent_n::<S, 52>(args)
-    } else {
+    } else if seeds <= 76 {
         // smoothed normals around a node of a higher valence, an anchor outside them
         local_tangent_n::<S, 76>(args)
+    } else {
+        Err(ContactFailure::TooManySeeds { seeds, most: 76 })
     }
 }
 
@@ -778,7 +786,7 @@ type TangentArgs<'a, S> = (
     usize,
     Option<ContactChoice>,
     bool,
-    bool,
+    Option<[f64; 2]>,
 );
 
 /// [`local_tangent`] with `N`-wide duals (`N` at least the number of seeds).
@@ -859,7 +867,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
             for (x, &n) in seg.nodes.iter_mut().zip(faces.nodes(face)) {
                 *x += node_ad(n, &mut slots)?;
             }
-            let normals = if smoothed {
+            let normals = if smoothed.is_some() {
                 let around = faces_around(faces, face, &pair.candidates[i]);
                 Some(nodal_normals(faces, face, &around, |n| {
                     Ok(xref(n) + node_ad(n, &mut slots)?)
@@ -870,7 +878,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
             (
                 TargetGeom::Face {
                     segment: seg,
-                    xi_start: seg.family.centre_st(),
+                    xi_start: smoothed.unwrap_or(seg.family.centre_st()),
                     normals,
                 },
                 Some(faces.nodes(face)),

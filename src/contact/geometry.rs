@@ -102,7 +102,7 @@
 //! at the boundary point (the corner's own normal at a node), and `ξ` has one (edge) or two
 //! (corner) components at `±1`.
 //!
-//! # Smoothed normals ([`project_smoothed`])
+//! # Smoothed normals (`project_smoothed`)
 //!
 //! A pair with `smoothing` gives each face the target's nodal normals `n_a` (the area-weighted
 //! mean of the normals of the faces around each node, formed by the contact assembly) and

@@ -217,10 +217,11 @@ pub struct ContactPair {
     /// Candidate target faces of each hitting node (indices into `Target::Faces::faces`).
     pub candidates: Vec<Vec<usize>>,
     /// A deformable target's normals smoothed: each hitting node is projected along the
-    /// normal interpolated from the target's nodal normals (each the area-weighted mean of
-    /// the node's candidate faces' normals), not onto the closest point of a facet, so that
+    /// normal interpolated from the target's nodal normals (each the normalised sum of the
+    /// node's candidate faces' `t_1 × t_2` there: a quad4's area over four, a tri3's twice its
+    /// area), not onto the closest point of a facet, so that
     /// the gap and the normal are continuous from face to face
-    /// ([`geometry::project_smoothed`]). Linear faces (quad4, tri3) only: a quadratic face is
+    /// (`geometry::project_smoothed`). Linear faces (quad4, tri3) only: a quadratic face is
     /// curved already, and its smoothing would widen the local tangent beyond its duals.
     pub smoothing: bool,
 }
@@ -443,7 +444,8 @@ pub struct ContactChoice {
     /// Face of the new anchor (deformable target).
     pub anchor_face: usize,
     /// Projected along smoothed normals ([`ContactPair::smoothing`]; false where the node
-    /// lies beyond a free edge of the target and is projected onto the face as without).
+    /// lies beyond a free edge of the target, or no smoothed projection onto the faces
+    /// around its closest one succeeds, and it is projected onto the face as without).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub smoothed: bool,
 }
@@ -469,7 +471,7 @@ pub enum TargetGeom<'a, S: Scalar> {
         xi_start: [f64; 2],
         /// The target's nodal normals at the face's nodes, where the pair smooths them
         /// ([`ContactPair::smoothing`]): the projection is then along the interpolated normal
-        /// ([`geometry::project_smoothed`]), else the closest point.
+        /// (`geometry::project_smoothed`), else the closest point.
         normals: Option<[Vector3<S>; MAX_FACE_NODES]>,
     },
     /// A rigid target.
@@ -638,6 +640,17 @@ pub enum ContactFailure {
     OutsideCandidates {
         /// The target node (global mesh node number).
         node: usize,
+    },
+    /// The local tangent of a node on smoothed normals would seed more unknowns than its
+    /// widest dual numbers hold (the faces around the contact face of a high valence).
+    #[error(
+        "the smoothed normals around the contact face need {seeds} local unknowns in the tangent, more than the {most} it holds: set smoothing = \"none\" on this pair"
+    )]
+    TooManySeeds {
+        /// The unknowns the tangent would seed.
+        seeds: usize,
+        /// The most it holds.
+        most: usize,
     },
 }
 

@@ -412,7 +412,7 @@ pub fn pair_between_faces(
         activation: 1.0,
         candidates: r.candidates,
         // as a scene's pair: smoothed normals on linear target faces
-        smoothing: (0..target.len()).all(|f| !target.face(f).family.is_quadratic()),
+        smoothing: !target.has_quadratic(),
     };
     Ok((
         pair,

@@ -1234,7 +1234,7 @@ impl Scene {
             };
             let smoothing = match (&target, c.smoothing) {
                 (Target::Faces { faces }, choice) => {
-                    let linear = (0..faces.len()).all(|f| !faces.face(f).family.is_quadratic());
+                    let linear = !faces.has_quadratic();
                     match choice {
                         Some(Smoothing::Normals) if !linear => {
                             return Err(invalid(

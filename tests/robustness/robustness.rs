@@ -1478,7 +1478,8 @@ fn smoothing_is_refused_where_it_has_no_meaning() {
     let text = edited("contact-patch", |s| {
         s.contacts[0].smoothing = Some(Smoothing::Normals)
     })
-    .replace("[[bodies]]\n", "[[bodies]]\nelement = \"hex20\"\n");
+    .replace("[[bodies]]\n", "[[bodies]]\nelement = \"hex20\"\n")
+    .replace("\"incompatible-modes\"", "\"reduced\"");
     assert!(text.contains("element = \"hex20\""));
     rejects(
         &text,
