@@ -9,8 +9,8 @@
 
 pub use super::eval::ContactEval;
 use super::geometry::{
-    closest_on_segments, closest_on_segments_keeping, node_jacobian, outside, project_smoothed,
-    Segment, SEGMENT_KEEP,
+    closest_on_segments, closest_on_segments_keeping, node_jacobian, project_smoothed, Segment,
+    SEGMENT_KEEP,
 };
 use super::{
     node_kernel, AnchorGeom, ContactChoice, ContactFailure, ContactPair, ContactState,
@@ -22,6 +22,7 @@ use crate::model::{node_dof, node_dofs, Lifted, Model};
 use crate::scalar::Scalar;
 use nalgebra::Vector3;
 use num_dual::DualSVec64;
+use std::convert::Infallible;
 
 /// Local unknowns of one hitting node's block.
 #[derive(Clone, Debug)]
@@ -147,15 +148,27 @@ fn segment<T: Scalar>(
     f: usize,
     position: impl Fn(usize) -> Vector3<T>,
 ) -> Segment<T> {
+    match try_segment(faces, f, |n| Ok::<_, Infallible>(position(n))) {
+        Ok(seg) => seg,
+        Err(never) => match never {},
+    }
+}
+
+/// [`segment`] with a `position` that may fail.
+fn try_segment<T: Scalar, E>(
+    faces: &FaceSet,
+    f: usize,
+    mut position: impl FnMut(usize) -> Result<Vector3<T>, E>,
+) -> Result<Segment<T>, E> {
     let face = faces.face(f);
     let mut nodes = [Vector3::zeros(); MAX_FACE_NODES];
     for (x, &n) in nodes.iter_mut().zip(face.nodes) {
-        *x = position(n);
+        *x = position(n)?;
     }
-    Segment {
+    Ok(Segment {
         family: face.family,
         nodes,
-    }
+    })
 }
 
 /// The stick anchor at `xi` on target face `f`: reference positions `reference(node)` and
@@ -205,7 +218,7 @@ fn closest_face<S: Scalar>(
 }
 
 /// The candidate faces (of `candidates`) other than `f` that hold a node of face `f`: the
-/// faces whose normals [`nodal_normals`] averages at `f`'s nodes.
+/// faces whose normals [`nodal_normals`] sums at `f`'s nodes.
 fn faces_around(faces: &FaceSet, f: usize, candidates: &[usize]) -> Vec<usize> {
     let own = faces.nodes(f);
     (candidates.iter().copied())
@@ -213,53 +226,69 @@ fn faces_around(faces: &FaceSet, f: usize, candidates: &[usize]) -> Vec<usize> {
         .collect()
 }
 
-/// The target's unit outward normal at each node of face `f` ([`ContactPair::smoothing`]):
-/// the sum of `t_1 × t_2` at the node over `f` and the faces `around` that hold it (each
-/// face's Jacobian there: a quad4's area over four, a tri3's twice its area), normalised.
-/// Node `n` is at `position(n)`.
+/// The target's unit outward normals at `nodes` ([`ContactPair::smoothing`]): at each, the
+/// sum of `t_1 × t_2` at the node over the candidate faces that hold it (each face's Jacobian
+/// there: a quad4's area over four, a tri3's twice its area), normalised; `None` where the
+/// sum vanishes. The sum runs over the same faces in the order of `candidates` whichever face
+/// asks, so faces sharing a node share its normal to the last bit. Node `n` is at
+/// `position(n)`.
 fn nodal_normals<T: Scalar>(
     faces: &FaceSet,
-    f: usize,
-    around: &[usize],
+    candidates: &[usize],
+    nodes: &[usize],
     mut position: impl FnMut(usize) -> Result<Vector3<T>, ContactFailure>,
-) -> Result<[Vector3<T>; MAX_FACE_NODES], ContactFailure> {
-    let mut out = [Vector3::zeros(); MAX_FACE_NODES];
-    let mut segment_of = |g: usize| -> Result<Segment<T>, ContactFailure> {
-        let face = faces.face(g);
-        let mut nodes = [Vector3::zeros(); MAX_FACE_NODES];
-        for (x, &n) in nodes.iter_mut().zip(face.nodes) {
-            *x = position(n)?;
+) -> Result<Vec<Option<Vector3<T>>>, ContactFailure> {
+    let mut sum = vec![Vector3::zeros(); nodes.len()];
+    for &g in candidates {
+        let held = faces.nodes(g);
+        if !held.iter().any(|n| nodes.contains(n)) {
+            continue;
         }
-        Ok(Segment {
-            family: face.family,
-            nodes,
-        })
-    };
-    let own = faces.nodes(f);
-    let seg = segment_of(f)?;
-    for (a, out) in out.iter_mut().enumerate().take(own.len()) {
-        *out = node_jacobian(&seg, a);
-    }
-    for &g in around {
-        let seg = segment_of(g)?;
-        for (b, n) in faces.nodes(g).iter().enumerate() {
-            if let Some(a) = own.iter().position(|m| m == n) {
-                out[a] += node_jacobian(&seg, b);
+        let seg = try_segment(faces, g, &mut position)?;
+        for (b, n) in held.iter().enumerate() {
+            if let Some(a) = nodes.iter().position(|m| m == n) {
+                sum[a] += node_jacobian(&seg, b);
             }
         }
     }
-    for n in out.iter_mut().take(own.len()) {
-        let len = n.dot(n).sqrt();
-        if !(len.value() > 0.0 && len.value().is_finite()) {
-            return Err(ContactFailure::Geometry(
-                super::geometry::GeometryError::DegenerateSegment {
-                    reason: "the faces around a target node have no mean normal",
-                },
-            ));
-        }
-        *n /= len;
+    Ok(sum
+        .into_iter()
+        .map(|n| {
+            let len = n.dot(&n).sqrt();
+            (len.value() > 0.0 && len.value().is_finite()).then(|| n / len)
+        })
+        .collect())
+}
+
+/// Face `f`'s nodal normals, looked up in `normals` (of [`nodal_normals`] at `nodes`, which
+/// hold `f`'s); `None` where one of them vanishes.
+fn face_normals<T: Scalar>(
+    faces: &FaceSet,
+    f: usize,
+    nodes: &[usize],
+    normals: &[Option<Vector3<T>>],
+) -> Option<[Vector3<T>; MAX_FACE_NODES]> {
+    let mut out = [Vector3::zeros(); MAX_FACE_NODES];
+    for (o, n) in out.iter_mut().zip(faces.nodes(f)) {
+        *o = normals[nodes.iter().position(|m| m == n)?]?;
     }
-    Ok(out)
+    Some(out)
+}
+
+/// The nodal normals of the contact face `f` in `T`, or the typed failure where one vanishes.
+fn contact_face_normals<T: Scalar>(
+    faces: &FaceSet,
+    f: usize,
+    candidates: &[usize],
+    position: impl FnMut(usize) -> Result<Vector3<T>, ContactFailure>,
+) -> Result<[Vector3<T>; MAX_FACE_NODES], ContactFailure> {
+    let nodes = faces.nodes(f);
+    let normals = nodal_normals(faces, candidates, nodes, position)?;
+    face_normals(faces, f, nodes, &normals).ok_or(ContactFailure::Geometry(
+        super::geometry::GeometryError::DegenerateSegment {
+            reason: "the faces around a target node have no mean normal",
+        },
+    ))
 }
 
 /// With smoothed normals, the contact face: of `start` and the candidate faces around it,
@@ -298,9 +327,20 @@ fn smoothed_face<S: Scalar>(
         }
         _ => start.0,
     };
+    // every tried face's nodal normals, each node's once
+    let mut nodes: Vec<usize> = Vec::new();
+    for &g in &tried {
+        for &n in faces.nodes(g) {
+            if !nodes.contains(&n) {
+                nodes.push(n);
+            }
+        }
+    }
+    let Ok(normals) = nodal_normals(faces, candidates, &nodes, position) else {
+        return None;
+    };
     for g in tried {
-        let around = faces_around(faces, g, candidates);
-        let Ok(normals) = nodal_normals(faces, g, &around, position) else {
+        let Some(normals) = face_normals(faces, g, &nodes, &normals) else {
             continue;
         };
         let seg = segment(faces, g, |n| node_pos(lifted, z, n).map(|v| v.value()));
@@ -312,7 +352,7 @@ fn smoothed_face<S: Scalar>(
         let Ok(p) = project_smoothed(&xr, &seg, &normals, from) else {
             continue;
         };
-        let out = outside(seg.family, p.xi);
+        let out = seg.family.distance_outside(p.xi);
         let better = match best {
             None => true,
             // ties: the preferred face, then the start, then the lowest index
@@ -487,10 +527,11 @@ pub(crate) fn evaluate<S: Scalar>(
                     segment: segment(faces, face, |n| node_pos(lifted, z, n)),
                     xi_start,
                     normals: if smoothed {
-                        let around = faces_around(faces, face, &pair.candidates[i]);
                         Some(
-                            nodal_normals(faces, face, &around, |n| Ok(node_pos(lifted, z, n)))
-                                .map_err(err)?,
+                            contact_face_normals(faces, face, &pair.candidates[i], |n| {
+                                Ok(node_pos(lifted, z, n))
+                            })
+                            .map_err(err)?,
                         )
                     } else {
                         None
@@ -868,10 +909,12 @@ fn local_tangent_n<S: Scalar, const N: usize>(
                 *x += node_ad(n, &mut slots)?;
             }
             let normals = if smoothed.is_some() {
-                let around = faces_around(faces, face, &pair.candidates[i]);
-                Some(nodal_normals(faces, face, &around, |n| {
-                    Ok(xref(n) + node_ad(n, &mut slots)?)
-                })?)
+                Some(contact_face_normals(
+                    faces,
+                    face,
+                    &pair.candidates[i],
+                    |n| Ok(xref(n) + node_ad(n, &mut slots)?),
+                )?)
             } else {
                 None
             };

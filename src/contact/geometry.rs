@@ -964,8 +964,23 @@ pub(crate) fn project_on_segment<S: Scalar>(
     seg: &Segment<S>,
     xi_start: [f64; 2],
 ) -> Result<Projection<S>, GeometryError> {
-    let xr = re_vec(x);
-    if !finite_vec(&xr) {
+    let (h, xl, sl, c) = checked_local(x, seg, xi_start)?;
+    let xi0 = newton_real(&re_vec(&xl), &sl.real(), h, xi_start)?;
+    let mut p = finish_interior(&xl, &sl, xi0, h)?;
+    p.point += c;
+    Ok(p)
+}
+
+/// The checks every projection makes of its input (a finite hitting point and start, a face
+/// [`check_face`] accepts), then the face's size `h` and `x` and `seg` localized
+/// ([`Segment::localized`]: relative to the face's first node `c`).
+#[allow(clippy::type_complexity)]
+fn checked_local<S: Scalar>(
+    x: &Vector3<S>,
+    seg: &Segment<S>,
+    xi_start: [f64; 2],
+) -> Result<(f64, Vector3<S>, Segment<S>, Vector3<S>), GeometryError> {
+    if !finite_vec(&re_vec(x)) {
         return Err(GeometryError::NonFinite {
             what: "hitting point",
         });
@@ -975,10 +990,20 @@ pub(crate) fn project_on_segment<S: Scalar>(
     }
     let h = check_face(&seg.real())?;
     let (xl, sl, c) = seg.localized(x);
-    let xi0 = newton_real(&re_vec(&xl), &sl.real(), h, xi_start)?;
-    let mut p = finish_interior(&xl, &sl, xi0, h)?;
-    p.point += c;
-    Ok(p)
+    Ok((h, xl, sl, c))
+}
+
+/// `J⁻¹ r` for a 2 x 2 `J` (by Cramer's rule), `None` where `J` is singular relative to its
+/// entries.
+fn solve_2x2<S: Scalar>(j: [[f64; 2]; 2], r: [S; 2]) -> Option<[S; 2]> {
+    let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+    let scale = (j[0][0].abs() + j[0][1].abs()) * (j[1][0].abs() + j[1][1].abs());
+    (det.abs() > 1e-12 * scale && det.is_finite()).then(|| {
+        [
+            (r[0] * j[1][1] - r[1] * j[0][1]) / det,
+            (r[1] * j[0][0] - r[0] * j[1][0]) / det,
+        ]
+    })
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1063,33 +1088,16 @@ pub(crate) fn project_smoothed<S: Scalar>(
     normals: &[Vector3<S>; MAX_FACE_NODES],
     xi_start: [f64; 2],
 ) -> Result<Projection<S>, GeometryError> {
-    let xr = re_vec(x);
-    if !finite_vec(&xr) {
-        return Err(GeometryError::NonFinite {
-            what: "hitting point",
-        });
-    }
     let nr = normals.map(|n| re_vec(&n));
     if !nr.iter().take(seg.family.n_nodes()).all(finite_vec) {
         return Err(GeometryError::NonFinite {
             what: "nodal normals",
         });
     }
-    let h = check_face(&seg.real())?;
-    let (xl, sl, c) = seg.localized(x);
+    let (h, xl, sl, c) = checked_local(x, seg, xi_start)?;
     let (xlr, slr) = (re_vec(&xl), sl.real());
     let singular = GeometryError::AmbiguousProjection {
         reason: "singular smoothed-normal projection (the smoothed normal lies in the face)",
-    };
-    let solve = |j: [[f64; 2]; 2], r: [f64; 2]| -> Option<[f64; 2]> {
-        let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
-        let scale = (j[0][0].abs() + j[0][1].abs()) * (j[1][0].abs() + j[1][1].abs());
-        (det.abs() > 1e-12 * scale && det.is_finite()).then(|| {
-            [
-                (j[1][1] * r[0] - j[0][1] * r[1]) / det,
-                (j[0][0] * r[1] - j[1][0] * r[0]) / det,
-            ]
-        })
     };
     let mut xi = xi_start;
     let mut converged = false;
@@ -1099,7 +1107,7 @@ pub(crate) fn project_smoothed<S: Scalar>(
         iterations += 1;
         let (r, j) = smoothed_jacobian(&xlr, &slr, &nr, xi);
         residual = r[0].abs().max(r[1].abs()) / ((xlr.norm() + h) * h);
-        let Some(mut step) = solve(j, r) else {
+        let Some(mut step) = solve_2x2(j, r) else {
             return Err(singular);
         };
         let size = step[0].abs().max(step[1].abs());
@@ -1125,14 +1133,8 @@ pub(crate) fn project_smoothed<S: Scalar>(
     let (_, j) = smoothed_jacobian(&xlr, &slr, &nr, xi);
     let at = [S::lift(xi[0]), S::lift(xi[1])];
     let (r, _, _) = smoothed_residual(&xl, &sl, normals, &at);
-    let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
-    if solve(j, [0.0, 0.0]).is_none() {
-        return Err(singular);
-    }
-    let xi_s = [
-        at[0] - (r[0] * j[1][1] - r[1] * j[0][1]) / det,
-        at[1] - (r[1] * j[0][0] - r[0] * j[1][0]) / det,
-    ];
+    let step = solve_2x2(j, r).ok_or(singular)?;
+    let xi_s = [at[0] - step[0], at[1] - step[1]];
     let (_, p, n) = smoothed_residual(&xl, &sl, normals, &xi_s);
     let jn = p.t1.cross(&p.t2);
     if !greater(jn.dot(&n).value(), AREA_TOLERANCE * h * h) {
@@ -1153,15 +1155,6 @@ pub(crate) fn project_smoothed<S: Scalar>(
         gap,
         inside,
     })
-}
-
-/// How far `st` lies outside the natural domain of `family` (0 inside), in `ξ`.
-pub(crate) fn outside(family: FaceFamily, st: [f64; 2]) -> f64 {
-    if family.is_triangle() {
-        (-st[0]).max(-st[1]).max(st[0] + st[1] - 1.0).max(0.0)
-    } else {
-        (st[0].abs() - 1.0).max(st[1].abs() - 1.0).max(0.0)
-    }
 }
 
 /// The outward normal `t_1 × t_2` (not normalised: it weighs by area) of face `seg` at its

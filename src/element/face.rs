@@ -321,6 +321,16 @@ impl FaceFamily {
         }
     }
 
+    /// How far `st` lies outside the natural domain (0 inside), in `ξ`: the largest amount by
+    /// which one of the domain's bounding inequalities ([`FaceFamily::contains`]) fails.
+    pub fn distance_outside(self, st: [f64; 2]) -> f64 {
+        if self.is_triangle() {
+            (-st[0]).max(-st[1]).max(st[0] + st[1] - 1.0).max(0.0)
+        } else {
+            (st[0].abs() - 1.0).max(st[1].abs() - 1.0).max(0.0)
+        }
+    }
+
     /// The edges of the natural domain as pairs of corner numbers (counter-clockwise), each a
     /// straight line in `(s, t)` from the first corner's coordinates to the second's.
     pub fn edges(self) -> &'static [[usize; 2]] {

@@ -32,6 +32,40 @@ impl LinearSolver {
         tol: f64,
         max_iter: usize,
     ) -> Result<KrylovReport> {
+        self.gmres_oriented(a, false, rhs, ncols, tol, max_iter)
+    }
+
+    /// [`LinearSolver::gmres_multi`] on `a^T X = B`, right-preconditioned with the stored
+    /// factorization's transpose (`a^T M^-T Y = B`): the adjoint's transposed solve with the
+    /// converged tangent, Newton's last factor at hand.
+    pub(crate) fn gmres_transpose_multi(
+        &self,
+        a: &SparseMatrix,
+        rhs: &mut [f64],
+        ncols: usize,
+        tol: f64,
+        max_iter: usize,
+    ) -> Result<KrylovReport> {
+        self.gmres_oriented(a, true, rhs, ncols, tol, max_iter)
+    }
+
+    /// [`LinearSolver::gmres_multi`] with `a` and the factor transposed where `transpose`.
+    fn gmres_oriented(
+        &self,
+        a: &SparseMatrix,
+        transpose: bool,
+        rhs: &mut [f64],
+        ncols: usize,
+        tol: f64,
+        max_iter: usize,
+    ) -> Result<KrylovReport> {
+        let precondition = |x: &mut [f64], ncols: usize| {
+            if transpose {
+                self.solve_transpose_multi_in_place(x, ncols)
+            } else {
+                self.solve_multi_in_place(x, ncols)
+            }
+        };
         let n = self.pattern.n;
         check_len(a.n(), n)?;
         check_len(n * ncols, rhs.len())?;
@@ -39,11 +73,11 @@ impl LinearSolver {
         let norm = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>().sqrt();
         let b_norm: Vec<f64> = b.chunks(n.max(1)).map(norm).collect();
         // X0 = M^-1 B, R0 = B - a X0
-        self.solve_multi_in_place(rhs, ncols)?;
+        precondition(rhs, ncols)?;
         // the first solve; each iteration adds its block, the final combination its columns
         let mut solve_columns = ncols;
         let mut r = vec![0.0; n * ncols];
-        let start_relative = residuals(a, &b, rhs, &mut r, ncols)?;
+        let start_relative = residuals_of(a, transpose, &b, rhs, &mut r, ncols)?;
         let target: Vec<f64> = b_norm.iter().map(|bn| tol * bn).collect();
         let active: Vec<bool> = (0..ncols)
             .map(|c| norm(&r[c * n..(c + 1) * n]) > target[c])
@@ -66,10 +100,14 @@ impl LinearSolver {
             for j in block.clone() {
                 z.extend_from_slice(&arnoldi.basis[j]);
             }
-            self.solve_multi_in_place(&mut z, block.len())?;
+            precondition(&mut z, block.len())?;
             solve_columns += block.len();
             for (k, _) in block.enumerate() {
-                a.mul_vec(&z[k * n..(k + 1) * n], &mut w)?;
+                if transpose {
+                    a.mul_vec_transpose(&z[k * n..(k + 1) * n], &mut w)?;
+                } else {
+                    a.mul_vec(&z[k * n..(k + 1) * n], &mut w)?;
+                }
                 arnoldi.step(&mut w);
             }
         }
@@ -82,12 +120,12 @@ impl LinearSolver {
             // X += M^-1 (V Y), all columns in one solve
             let mut u = vec![0.0; n * ncols];
             arnoldi.combine(&mut u);
-            self.solve_multi_in_place(&mut u, ncols)?;
+            precondition(&mut u, ncols)?;
             solve_columns += ncols;
             for (xi, ui) in rhs.iter_mut().zip(&u) {
                 *xi += ui;
             }
-            residuals(a, &b, rhs, &mut r, ncols)?
+            residuals_of(a, transpose, &b, rhs, &mut r, ncols)?
         };
         // a column whose relative residual is above `tol` is still solved when its backward
         // error is that of a stable direct solve (`|K||x|` far above `|b|`: the relative
@@ -97,7 +135,11 @@ impl LinearSolver {
         let mut scale = vec![0.0; n];
         for c in 0..ncols {
             let (bc, xc) = (&b[c * n..(c + 1) * n], &rhs[c * n..(c + 1) * n]);
-            a.abs_mul_vec(xc, &mut scale)?;
+            if transpose {
+                a.abs_mul_vec_transpose(xc, &mut scale)?;
+            } else {
+                a.abs_mul_vec(xc, &mut scale)?;
+            }
             let den = scale
                 .iter()
                 .zip(bc)
@@ -303,19 +345,8 @@ impl BlockArnoldi {
     }
 }
 
-/// `r = b - a x` for `ncols` column-major columns, and each column's relative residual
-/// `|r| / |b|` (`|r|` where `b = 0`; NaN for a NaN column).
-pub(super) fn residuals(
-    a: &SparseMatrix,
-    b: &[f64],
-    x: &[f64],
-    r: &mut [f64],
-    ncols: usize,
-) -> Result<Vec<f64>> {
-    residuals_of(a, false, b, x, r, ncols)
-}
-
-/// [`residuals`] of `a x = b`, or of `a^T x = b` where `transpose`.
+/// `r = b - a x` (or `b - a^T x` where `transpose`) for `ncols` column-major columns, and
+/// each column's relative residual `|r| / |b|` (`|r|` where `b = 0`; NaN for a NaN column).
 pub(super) fn residuals_of(
     a: &SparseMatrix,
     transpose: bool,

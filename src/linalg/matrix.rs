@@ -294,6 +294,21 @@ impl SparseMatrix {
 
     /// `y = A^T x`.
     pub fn mul_vec_transpose(&self, x: &[f64], y: &mut [f64]) -> Result<()> {
+        self.mul_vec_transpose_mapped(x, y, |v| v)
+    }
+
+    /// `y = |A|^T |x|`, entrywise absolute values.
+    pub fn abs_mul_vec_transpose(&self, x: &[f64], y: &mut [f64]) -> Result<()> {
+        self.mul_vec_transpose_mapped(x, y, f64::abs)
+    }
+
+    /// `y = f(A)^T f(x)`, `f` applied to every entry of both.
+    fn mul_vec_transpose_mapped(
+        &self,
+        x: &[f64],
+        y: &mut [f64],
+        f: impl Fn(f64) -> f64,
+    ) -> Result<()> {
         let n = self.pattern.n;
         check_len(n, x.len())?;
         check_len(n, y.len())?;
@@ -302,7 +317,7 @@ impl SparseMatrix {
         for (j, yj) in y.iter_mut().enumerate() {
             let mut s = 0.0;
             for k in cp[j]..cp[j + 1] {
-                s += self.values[k] * x[ri[k]];
+                s += f(self.values[k]) * f(x[ri[k]]);
             }
             *yj = s;
         }

@@ -680,6 +680,45 @@ fn block_gmres_with_the_factor_of_a_neighbour_solves_a_low_rank_change_in_rank_o
     assert_eq!(zero.solve_columns, 1, "{zero:?}");
 }
 
+/// The adjoint's solve: `a^T X = B` by block GMRES preconditioned with the transpose of a
+/// neighbour's factor, on the unsymmetric matrix with three changed columns above (three
+/// changed rows of `a^T`: again a change of rank 3, so two iterations in exact arithmetic,
+/// one more for round-off), against a dense solve of the transpose.
+#[test]
+fn transposed_block_gmres_solves_the_transposed_system() {
+    let (a, b) = poisson_2d(12, 0.2);
+    let n = a.n();
+    let mut changed = a.clone();
+    let cp = a.pattern().col_ptr().to_vec();
+    for j in [17, 60, 100] {
+        for k in cp[j]..cp[j + 1] {
+            changed.values_mut()[k] += 2.0 * (1.0 + (k % 3) as f64);
+        }
+    }
+    let mut solver = LinearSolver::new(a.pattern().clone()).unwrap();
+    solver.factor(&a).unwrap();
+    let bb: Vec<f64> = b
+        .iter()
+        .copied()
+        .chain((0..n).map(|i| (i % 5) as f64))
+        .collect();
+    let col = |v: &[f64], c: usize| v[c * n..(c + 1) * n].to_vec();
+    let dense_t = to_dense(&changed).transpose().to_owned();
+    let mut x = bb.clone();
+    let report = solver
+        .gmres_transpose_multi(&changed, &mut x, 2, 1e-12, 30)
+        .unwrap();
+    assert!(report.converged, "{report:?}");
+    assert!(report.iterations <= 3, "{report:?}");
+    for c in 0..2 {
+        let reference = dense_solve(&dense_t, &col(&bb, c));
+        assert!(rel_err(&col(&x, c), &reference) < 1e-10);
+        // not the untransposed system's solution (the matrix is unsymmetric)
+        let untransposed = dense_solve(&to_dense(&changed), &col(&bb, c));
+        assert!(rel_err(&untransposed, &reference) > 1e-3);
+    }
+}
+
 #[test]
 fn cholesky_paths_match_lu_on_spd_poisson() {
     let (a, b) = poisson_2d(12, 0.0);

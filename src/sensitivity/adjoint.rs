@@ -96,15 +96,40 @@ struct Stored {
     /// the sweep's transposed solve needs no assembly of its own. Empty beyond
     /// [`TANGENT_ROOM`]: the sweep assembles it again.
     tangent: Vec<f64>,
-    /// Newton's last factorization (`--tangent last|refined`), where it was assembled on
-    /// the converged branches (`Converged::factor_matches`).
+    /// Newton's last factorization, where [`KeepFactors`] keeps it.
     factor: Option<KeptFactor>,
+    /// `factor` was assembled on the converged branches (`Converged::factor_matches`): it
+    /// is the tangent of `--tangent last|refined`, not only GMRES's preconditioner.
+    factor_matches: bool,
+}
+
+/// Which of Newton's last factorizations the forward run keeps for the sweep.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum KeepFactors {
+    /// None: the sweep factors every increment's converged tangent (`--tangent exact`, the
+    /// default).
+    None,
+    /// Those assembled on the converged branches, the tangent of `--tangent last|refined`.
+    Matching,
+    /// Every one: GMRES's preconditioner on the converged tangent
+    /// ([`Settings::adjoint_krylov`]).
+    Any,
+}
+
+impl KeepFactors {
+    fn of(settings: &Settings) -> Self {
+        match (settings.tangent, settings.adjoint_krylov) {
+            (TangentChoice::Exact, true) => KeepFactors::Any,
+            (TangentChoice::Exact, false) => KeepFactors::None,
+            _ => KeepFactors::Matching,
+        }
+    }
 }
 
 impl Stored {
-    /// What the sweep needs of `c`, Newton's last factorization with it if `factor`, its
+    /// What the sweep needs of `c`, Newton's last factorization with it as `keep` says, its
     /// tangent if `*tangent_room` bytes hold it (which it then takes from them).
-    fn new(c: &Converged<'_>, factor: bool, tangent_room: &mut usize) -> Self {
+    fn new(c: &Converged<'_>, keep: KeepFactors, tangent_room: &mut usize) -> Self {
         let values = c.tangent.values();
         let tangent = if 8 * values.len() <= *tangent_room {
             *tangent_room -= 8 * values.len();
@@ -112,12 +137,18 @@ impl Stored {
         } else {
             Vec::new()
         };
-        let factor = (factor && c.factor_matches)
+        let kept = match keep {
+            KeepFactors::None => false,
+            KeepFactors::Matching => c.factor_matches,
+            KeepFactors::Any => true,
+        };
+        let factor = kept
             .then_some(c.last_factor)
             .flatten()
             .and_then(LinearSolver::keep);
         Stored {
             factor,
+            factor_matches: c.factor_matches,
             index: c.index,
             time: c.time,
             z: c.z.to_vec(),
@@ -162,8 +193,8 @@ struct Recorder<'a> {
     stored: Vec<Stored>,
     /// The first user increment whose converged increments are stored.
     keep_from: usize,
-    /// Keep Newton's last factorization with each stored increment.
-    keep_factors: bool,
+    /// Which of Newton's last factorizations to keep with the stored increments.
+    keep_factors: KeepFactors,
     /// Per element: the first increment (position) at which a Gauss point of it is plastic
     /// (`usize::MAX`: not yet).
     first_plastic: Vec<usize>,
@@ -212,9 +243,9 @@ impl Observer for Recorder<'_> {
     }
 }
 
-/// A recomputed span's states, Newton's last factorizations with them if `.1`, their
+/// A recomputed span's states, Newton's last factorizations with them as `.1` says, their
 /// tangents while `.2` bytes hold them.
-struct Keeper(Vec<Stored>, bool, usize);
+struct Keeper(Vec<Stored>, KeepFactors, usize);
 
 impl Observer for Keeper {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
@@ -235,8 +266,8 @@ struct Store<'m> {
     last: Vec<Stored>,
     /// Bytes of the resume points.
     resume_bytes: usize,
-    /// Keep Newton's last factorizations.
-    keep_factors: bool,
+    /// Which of Newton's last factorizations to keep.
+    keep_factors: KeepFactors,
 }
 
 impl Store<'_> {
@@ -285,7 +316,7 @@ pub(super) fn run_adjoint(
     } else {
         ((users - 1) / every) * every
     };
-    let keep_factors = settings.tangent != TangentChoice::Exact;
+    let keep_factors = KeepFactors::of(settings);
     let mut rec = Recorder {
         keep_factors,
         engine: Engine::new(model, &[], settings.clone()),
@@ -357,7 +388,11 @@ pub(super) fn run_adjoint(
         resume_bytes,
         keep_factors,
     };
-    let tangent = (settings.tangent, settings.refine_steps);
+    let tangent = SweepTangent {
+        choice: settings.tangent,
+        refine_steps: settings.refine_steps,
+        krylov: settings.adjoint_krylov,
+    };
     let sweep = Sweep::new(
         model,
         params,
@@ -674,10 +709,22 @@ impl AdState {
 type Rows = Vec<(usize, [f64; W])>;
 
 /// One increment's transposed solve: the tangent at its converged state (the prescribed
-/// unknowns' rows and columns made identity), and Newton's last factorization if kept.
+/// unknowns' rows and columns made identity), and Newton's last factorization if kept
+/// (`matches`: assembled on the converged branches).
 struct Transposed<'x> {
     k: &'x SparseMatrix,
     factor: Option<&'x mut KeptFactor>,
+    matches: bool,
+}
+
+/// The transposed solves' options ([`Settings`]): the tangent, the refinement steps of
+/// [`TangentChoice::Refined`], and GMRES preconditioned with Newton's last factor for
+/// [`TangentChoice::Exact`] ([`Settings::adjoint_krylov`]).
+#[derive(Debug, Clone, Copy)]
+struct SweepTangent {
+    choice: TangentChoice,
+    refine_steps: usize,
+    krylov: bool,
 }
 
 /// One recording of an increment's local derivatives in reverse mode ([`Sweep::record`]):
@@ -691,6 +738,25 @@ struct Recorded {
     z: Vec<(usize, Rev)>,
     h: Vec<(usize, Rev)>,
     outputs: Vec<(usize, Rev)>,
+}
+
+impl Recorded {
+    /// The recording from tape position `start` to the tape's end, on the thread's tape
+    /// (numbered when the tapes are gathered).
+    fn since(
+        start: usize,
+        z: Vec<(usize, Rev)>,
+        h: Vec<(usize, Rev)>,
+        outputs: Vec<(usize, Rev)>,
+    ) -> Self {
+        Recorded {
+            tape: 0,
+            part: start..tape::len(),
+            z,
+            h,
+            outputs,
+        }
+    }
 }
 
 /// An increment's recordings: the tapes (a parallel task's elements one after the other on
@@ -767,9 +833,8 @@ struct Sweep<'a> {
     /// and the multiplier of its history is read by nothing before its first plastic
     /// increment, so the local Jacobians leave it out.
     first_plastic: Vec<usize>,
-    /// The tangent of the transposed solves, and the refinement steps of
-    /// [`TangentChoice::Refined`].
-    tangent: (TangentChoice, usize),
+    /// The transposed solves' options.
+    tangent: SweepTangent,
     /// [`Settings::adjoint_reverse`].
     reverse: Option<bool>,
 }
@@ -779,7 +844,7 @@ impl<'a> Sweep<'a> {
         model: &'a Model,
         params: &'a [Parameter],
         first_plastic: Vec<usize>,
-        tangent: (TangentChoice, usize),
+        tangent: SweepTangent,
         reverse: Option<bool>,
     ) -> Result<Self, AnalysisError> {
         let asm = Assembler::new(model, &[])?;
@@ -1006,6 +1071,7 @@ impl<'a> Sweep<'a> {
             let transposed = Transposed {
                 k: &k,
                 factor: factor.as_mut(),
+                matches: s.factor_matches,
             };
             self.solve_transposed(cost, transposed, &mut rhs, cols.len(), &mut solver)?;
             for (c, cot) in cots.iter_mut().enumerate() {
@@ -1106,14 +1172,15 @@ impl<'a> Sweep<'a> {
     }
 
     /// `K^T X = RHS` with the tangent `k` at the converged state (prescribed unknowns as
-    /// identity rows): factored anew and refined with double-double residuals
-    /// ([`TangentChoice::Exact`]), or with Newton's last factorization kept by the forward
-    /// run, alone ([`TangentChoice::Last`], the paper's choice: off by the order of Newton's last
-    /// correction) or with refinement steps against the converged tangent
-    /// ([`TangentChoice::Refined`]) — the transposes of what DDM solves with each. Where no
-    /// factorization was kept (Newton's last was of other branches, or a recomputed segment's
-    /// first increment converged without one), the converged tangent is factored, as DDM
-    /// does.
+    /// identity rows) — the transposes of what DDM solves with each tangent option:
+    /// [`TangentChoice::Exact`] factored anew, or by block GMRES preconditioned with
+    /// Newton's last factor kept by the forward run ([`Settings::adjoint_krylov`]; factored
+    /// where GMRES does not converge), and refined with double-double residuals either way; [`TangentChoice::Last`] with Newton's last factorization alone
+    /// (the paper's choice: off by the order of Newton's last correction), or
+    /// [`TangentChoice::Refined`] with refinement steps against the converged tangent, where
+    /// that factorization was assembled on the converged branches. Where it was not (or a
+    /// recomputed segment's first increment converged without one), the converged tangent
+    /// is factored, as DDM does.
     fn solve_transposed(
         &self,
         cost: &mut SensitivityCost,
@@ -1127,25 +1194,65 @@ impl<'a> Sweep<'a> {
             *solver = Some(LinearSolver::new(self.asm.pattern.clone())?);
         }
         let ls = solver.as_mut().expect("just made");
-        let (tangent, steps) = self.tangent;
-        if let (Some(kept), false) = (t.factor, tangent == TangentChoice::Exact) {
+        let SweepTangent {
+            choice,
+            refine_steps,
+            krylov,
+        } = self.tangent;
+        if let Some(kept) = t.factor {
             let start = Instant::now();
             let b = rhs.to_vec();
-            let steps = if tangent == TangentChoice::Refined {
-                steps
-            } else {
-                0
+            let solved = match choice {
+                TangentChoice::Last | TangentChoice::Refined if t.matches => {
+                    let steps = if choice == TangentChoice::Refined {
+                        refine_steps
+                    } else {
+                        0
+                    };
+                    let kept_solve = ls.with_kept(kept, |last| {
+                        last.solve_transpose_multi_in_place(rhs, ncols)?;
+                        last.refine_transpose_multi(kd, &b, rhs, ncols, steps)
+                    });
+                    kept_solve
+                        .is_ok()
+                        .then(|| cost.solve_columns += ncols * (1 + steps))
+                }
+                TangentChoice::Exact if krylov => {
+                    let krylov_solve = ls.with_kept(kept, |m| {
+                        // an error of GMRES counts as not converged: the factorization may work
+                        let report = m
+                            .gmres_transpose_multi(kd, rhs, ncols, KRYLOV_TOL, KRYLOV_MAX_ITER)
+                            .ok();
+                        let Some(report) = report.filter(|r| r.converged) else {
+                            return Ok(false);
+                        };
+                        cost.solve_columns += report.solve_columns;
+                        cost.krylov_solves += 1;
+                        cost.krylov_iterations += report.iterations;
+                        let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
+                            let rep = m.gmres_transpose_multi(
+                                kd,
+                                r,
+                                ncols,
+                                CORRECTION_TOL,
+                                KRYLOV_MAX_ITER,
+                            )?;
+                            cost.solve_columns += rep.solve_columns;
+                            cost.krylov_iterations += rep.iterations;
+                            Ok(())
+                        };
+                        refine_extended(kd, true, &b, rhs, ncols, cost, &mut correct)?;
+                        Ok(true)
+                    });
+                    matches!(krylov_solve, Ok(true)).then_some(())
+                }
+                _ => None,
             };
-            let kept_solve = ls.with_kept(kept, |last| {
-                last.solve_transpose_multi_in_place(rhs, ncols)?;
-                last.refine_transpose_multi(kd, &b, rhs, ncols, steps)
-            });
-            if kept_solve.is_ok() {
-                cost.solve_columns += ncols * (1 + steps);
-                cost.solve_seconds += start.elapsed().as_secs_f64();
+            cost.solve_seconds += start.elapsed().as_secs_f64();
+            if solved.is_some() {
                 return Ok(());
             }
-            // a factor of another kind than this solver's: factor anew
+            // no solve with the kept factor: factor anew
             rhs.copy_from_slice(&b);
         }
         let start = Instant::now();
@@ -1320,13 +1427,7 @@ impl<'a> Sweep<'a> {
                     (0..9).map(|k| (o.index(Entry::Stress(sl, k)), cauchy[(k / 3, k % 3)])),
                 );
             }
-            Ok::<_, AnalysisError>(Recorded {
-                tape: 0,
-                part: start..tape::len(),
-                z: zi,
-                h: hi,
-                outputs,
-            })
+            Ok::<_, AnalysisError>(Recorded::since(start, zi, hi, outputs))
         };
         let room = *tape_room;
         // two tasks per thread, each copying the state once: the hitting nodes' recording
@@ -1410,13 +1511,7 @@ impl<'a> Sweep<'a> {
                         .flat_map(|&f| self.node_outputs(f, ev, true))
                         .collect()
                 };
-                Ok::<_, AnalysisError>(Recorded {
-                    tape: 0,
-                    part: start..tape::len(),
-                    z: zi,
-                    h: hi,
-                    outputs,
-                })
+                Ok::<_, AnalysisError>(Recorded::since(start, zi, hi, outputs))
             };
             // the colours one after the other on this thread's tape
             tape::clear();
@@ -1444,6 +1539,9 @@ impl<'a> Sweep<'a> {
         };
         let longest = solids.iter().flatten().map(|(t, _)| t.len()).max();
         tape_room.0 = longest.unwrap_or(0);
+        if let Some(Ok((t, _))) = &nodes {
+            tape_room.1 = t.len();
+        }
         for r in solids.into_iter().chain(nodes) {
             let (tape, items) = r?;
             let k = recorded.tapes.len();
@@ -1451,12 +1549,6 @@ impl<'a> Sweep<'a> {
             recorded
                 .items
                 .extend(items.into_iter().map(|r| Recorded { tape: k, ..r }));
-        }
-        if let Some(t) = (!self.model.contacts.is_empty())
-            .then(|| recorded.tapes.last())
-            .flatten()
-        {
-            tape_room.1 = t.len();
         }
         cost.evaluation_seconds += t.elapsed().as_secs_f64();
         cost.partial_evaluations += recorded.items.len();

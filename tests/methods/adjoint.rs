@@ -379,6 +379,8 @@ fn adjoint_field_derivatives_are_drawn_on_the_mesh() {
 /// tangent of the iterate before convergence and of refinement steps with f64 residuals
 /// (5.7e-10 measured; the exact path's double-double residuals give 3.5e-12). With
 /// checkpoints the recomputed segments keep their factorizations too: bit for bit the same.
+/// The exact tangent solved by GMRES preconditioned with those factors (`adjoint_krylov`)
+/// gives the exact derivative.
 #[test]
 fn adjoint_takes_every_tangent_option_ddm_has() {
     let scene = Scene::load("leaf-spring-coarse").unwrap();
@@ -421,6 +423,38 @@ fn adjoint_takes_every_tangent_option_ddm_has() {
         for (a, c) in adj.increments.iter().zip(&cp.increments) {
             assert_eq!(a.derivatives, c.derivatives, "{tangent:?}, checkpointed");
         }
+    }
+    // the exact tangent by GMRES preconditioned with the kept factors (`--adjoint-krylov`,
+    // DDM's default solve transposed): the exact derivative, to the 1e-10 every exact path
+    // is held to; checkpointed, bit for bit the same
+    let krylov = |every| {
+        let settings = Settings {
+            method: Method::Adjoint,
+            adjoint_krylov: true,
+            adjoint_checkpoint: every,
+            ..Settings::default()
+        };
+        run_sensitivity(&model, &ps, &settings).unwrap().1
+    };
+    let gm = krylov(0);
+    let (w, at) = worst(&exact, &gm, &values, &[]);
+    assert!(
+        w < 1e-10,
+        "GMRES: adjoint and exact DDM differ by {w:.2e}: {at}"
+    );
+    assert!(
+        gm.cost.krylov_solves > 0,
+        "the transposed solves went by GMRES"
+    );
+    assert!(
+        gm.cost.stored_bytes
+            > run(Method::Adjoint, TangentChoice::Exact, 0)
+                .cost
+                .stored_bytes,
+        "the forward run kept its factors"
+    );
+    for (a, c) in gm.increments.iter().zip(&krylov(3).increments) {
+        assert_eq!(a.derivatives, c.derivatives, "GMRES, checkpointed");
     }
 }
 
