@@ -602,18 +602,24 @@ fn sensitivity(
             settings.method.name()
         ));
     }
-    if adjoint_krylov
-        && (settings.method != Method::Adjoint || settings.tangent != TangentChoice::Exact)
-    {
-        return Err(format!(
-            "--adjoint-krylov solves the adjoint's exact tangent by GMRES: use it with --method adjoint and --tangent exact (here --method {}{})",
-            settings.method.name(),
-            if settings.tangent == TangentChoice::Exact {
-                ""
-            } else {
-                " with another tangent"
-            }
-        ));
+    if adjoint_krylov {
+        let tangent = match settings.tangent {
+            TangentChoice::Exact => "exact",
+            TangentChoice::Last => "last",
+            TangentChoice::Refined => "refined",
+        };
+        if settings.method != Method::Adjoint || settings.tangent != TangentChoice::Exact {
+            return Err(format!(
+                "--adjoint-krylov solves the adjoint's exact tangent by GMRES: use it with --method adjoint and --tangent exact, not --method {} --tangent {tangent}",
+                settings.method.name()
+            ));
+        }
+        if !krylov {
+            return Err(
+                "--adjoint-krylov asks for GMRES, --no-krylov for factorizations: drop one of them"
+                    .into(),
+            );
+        }
     }
     if checkpoint == Some(0) {
         return Err(

@@ -56,6 +56,9 @@ pub(crate) struct ContactLayout {
     /// largest reference coordinate of its hitting nodes (measured against the round-off of a
     /// cylinder's `|x - c| - R`, a few 1e-16 of the coordinates).
     pub touch: Vec<f64>,
+    /// `smooth_group[pair][face]`: the smooth group of each target face of a pair with
+    /// smoothed normals ([`smooth_groups`]); empty for the other pairs.
+    pub smooth_group: Vec<Vec<usize>>,
 }
 
 impl ContactLayout {
@@ -73,19 +76,28 @@ impl ContactLayout {
         let mut next_t = first_target;
         let mut next_h = first_history;
         let mut flat = 0;
+        // the reference coordinates, made where a pair needs them
+        let reference = std::cell::OnceCell::new();
+        let coords = || {
+            reference.get_or_init(|| model.mesh.coordinates::<f64>(&model.mesh.block_geometry()))
+        };
         for pair in &model.contacts {
             l.lambda.push(next_l);
             l.history.push(next_h);
             l.flat.push(flat);
             let target = pair.pushed_unknowns(&mut next_t);
             let touch = if target.iter().any(Option::is_some) {
-                let x = model.mesh.coordinates::<f64>(&model.mesh.block_geometry());
+                let x = coords();
                 let size = (pair.hitting.iter()).fold(0.0f64, |m, &n| m.max(x[n].amax()));
                 1e-12 * size
             } else {
                 0.0
             };
             l.touch.push(touch);
+            l.smooth_group.push(match &pair.target {
+                Target::Faces { faces } if pair.smoothing => smooth_groups(faces, coords()),
+                _ => Vec::new(),
+            });
             let mut blocks = Vec::new();
             for (i, &s) in pair.hitting.iter().enumerate() {
                 let mut target_nodes = Vec::new();
@@ -217,8 +229,9 @@ fn closest_face<S: Scalar>(
     Ok((candidates[k], [pr.xi[0], pr.xi[1]]))
 }
 
-/// The candidate faces (of `candidates`) other than `f` that hold a node of face `f`: the
-/// faces whose normals [`nodal_normals`] sums at `f`'s nodes.
+/// The candidate faces (of `candidates`) other than `f` that hold a node of face `f`: those
+/// of `f`'s smooth group ([`smooth_groups`]) are the faces whose normals [`nodal_normals`]
+/// sums at `f`'s nodes.
 fn faces_around(faces: &FaceSet, f: usize, candidates: &[usize]) -> Vec<usize> {
     let own = faces.nodes(f);
     (candidates.iter().copied())
@@ -226,27 +239,90 @@ fn faces_around(faces: &FaceSet, f: usize, candidates: &[usize]) -> Vec<usize> {
         .collect()
 }
 
-/// The target's unit outward normals at `nodes` ([`ContactPair::smoothing`]): at each, the
-/// sum of `t_1 × t_2` at the node over the candidate faces that hold it (each face's Jacobian
-/// there: a quad4's area over four, a tri3's twice its area), normalised; `None` where the
-/// sum vanishes. The sum runs over the same faces in the order of `candidates` whichever face
-/// asks, so faces sharing a node share its normal to the last bit. Node `n` is at
-/// `position(n)`.
-fn nodal_normals<T: Scalar>(
+/// Faces of a smoothed target whose reference normals differ by more than this angle (in
+/// degrees) are not smoothed into each other where they meet, unless a chain of gentler
+/// faces joins them ([`smooth_groups`]: a crease that ends inside the surface): the edge is
+/// a feature, a block's corner, and a node's normal there averaged over both sides would
+/// tilt the gap over the whole rim face (by 45 degrees at a right-angled corner). 60 degrees
+/// keeps a curved surface faceted coarsely (a quarter circle in two facets, 45 degrees apart)
+/// smooth, and the corners of boxes and wedges sharp.
+pub(crate) const FEATURE_ANGLE_DEGREES: f64 = 60.0;
+
+/// The smooth group of each face of `faces` (nodes at reference coordinates `x`): two faces
+/// sharing a node are in one group where their normals (each the sum of its nodal
+/// `t_1 × t_2`) lie within [`FEATURE_ANGLE_DEGREES`] of each other, and groups are closed
+/// under that (the connected parts of the surface between its feature edges). A decision on
+/// the reference geometry, made once: the groups do not change with the deformation or
+/// within a run (a finite-difference rerun's perturbed geometry decides its own: an edge at
+/// 60 degrees to round-off could fall either way). Groups are numbered by their lowest face.
+pub(crate) fn smooth_groups(faces: &FaceSet, x: &[Vector3<f64>]) -> Vec<usize> {
+    let nf = faces.len();
+    let normal = |f: usize| {
+        let seg = segment(faces, f, |n| x[n]);
+        let n: Vector3<f64> = (0..seg.family.n_nodes())
+            .map(|a| node_jacobian(&seg, a))
+            .sum();
+        n.try_normalize(0.0)
+    };
+    let normals: Vec<Option<Vector3<f64>>> = (0..nf).map(normal).collect();
+    let cos_feature = FEATURE_ANGLE_DEGREES.to_radians().cos();
+    // union-find over the faces, joined across smooth shared nodes
+    let mut parent: Vec<usize> = (0..nf).collect();
+    fn root(parent: &mut [usize], mut f: usize) -> usize {
+        while parent[f] != f {
+            parent[f] = parent[parent[f]];
+            f = parent[f];
+        }
+        f
+    }
+    // the faces holding each node (the groups, connected parts, do not depend on the order)
+    let mut at_node: Vec<Vec<usize>> = vec![Vec::new(); x.len()];
+    for f in 0..nf {
+        for &n in faces.nodes(f) {
+            at_node[n].push(f);
+        }
+    }
+    for held in &at_node {
+        for (k, &f) in held.iter().enumerate() {
+            for &g in &held[k + 1..] {
+                let smooth = match (normals[f], normals[g]) {
+                    (Some(a), Some(b)) => a.dot(&b) >= cos_feature,
+                    _ => false,
+                };
+                if smooth {
+                    let (rf, rg) = (root(&mut parent, f), root(&mut parent, g));
+                    parent[rf.max(rg)] = rf.min(rg);
+                }
+            }
+        }
+    }
+    (0..nf).map(|f| root(&mut parent, f)).collect()
+}
+
+/// The target's unit outward normals at `keys`, each a node and a smooth group
+/// ([`ContactPair::smoothing`], [`smooth_groups`]: `groups` per face): at each, the sum of
+/// `t_1 × t_2` at the node over the candidate faces of that group that hold it (each face's
+/// Jacobian there: a quad4's area over four, a tri3's twice its area), normalised; `None`
+/// where the sum vanishes. The sum runs over the same faces in the order of `candidates`
+/// whichever face asks, so faces of a group sharing a node share its normal to the last bit.
+/// Node `n` is at `position(n)`.
+fn nodal_normals<T: Scalar, E>(
     faces: &FaceSet,
     candidates: &[usize],
-    nodes: &[usize],
-    mut position: impl FnMut(usize) -> Result<Vector3<T>, ContactFailure>,
-) -> Result<Vec<Option<Vector3<T>>>, ContactFailure> {
-    let mut sum = vec![Vector3::zeros(); nodes.len()];
+    groups: &[usize],
+    keys: &[(usize, usize)],
+    mut position: impl FnMut(usize) -> Result<Vector3<T>, E>,
+) -> Result<Vec<Option<Vector3<T>>>, E> {
+    let mut sum = vec![Vector3::zeros(); keys.len()];
     for &g in candidates {
+        let group = groups[g];
         let held = faces.nodes(g);
-        if !held.iter().any(|n| nodes.contains(n)) {
+        if !held.iter().any(|n| keys.contains(&(*n, group))) {
             continue;
         }
         let seg = try_segment(faces, g, &mut position)?;
         for (b, n) in held.iter().enumerate() {
-            if let Some(a) = nodes.iter().position(|m| m == n) {
+            if let Some(a) = keys.iter().position(|k| *k == (*n, group)) {
                 sum[a] += node_jacobian(&seg, b);
             }
         }
@@ -260,17 +336,28 @@ fn nodal_normals<T: Scalar>(
         .collect())
 }
 
-/// Face `f`'s nodal normals, looked up in `normals` (of [`nodal_normals`] at `nodes`, which
+/// The keys ([`nodal_normals`]) of face `f`'s nodes.
+fn face_keys<'a>(
+    faces: &'a FaceSet,
+    f: usize,
+    groups: &[usize],
+) -> impl Iterator<Item = (usize, usize)> + 'a {
+    let group = groups[f];
+    faces.nodes(f).iter().map(move |&n| (n, group))
+}
+
+/// Face `f`'s nodal normals, looked up in `normals` (of [`nodal_normals`] at `keys`, which
 /// hold `f`'s); `None` where one of them vanishes.
 fn face_normals<T: Scalar>(
     faces: &FaceSet,
     f: usize,
-    nodes: &[usize],
+    groups: &[usize],
+    keys: &[(usize, usize)],
     normals: &[Option<Vector3<T>>],
 ) -> Option<[Vector3<T>; MAX_FACE_NODES]> {
     let mut out = [Vector3::zeros(); MAX_FACE_NODES];
-    for (o, n) in out.iter_mut().zip(faces.nodes(f)) {
-        *o = normals[nodes.iter().position(|m| m == n)?]?;
+    for (o, key) in out.iter_mut().zip(face_keys(faces, f, groups)) {
+        *o = normals[keys.iter().position(|k| *k == key)?]?;
     }
     Some(out)
 }
@@ -280,11 +367,14 @@ fn contact_face_normals<T: Scalar>(
     faces: &FaceSet,
     f: usize,
     candidates: &[usize],
+    groups: &[usize],
     position: impl FnMut(usize) -> Result<Vector3<T>, ContactFailure>,
 ) -> Result<[Vector3<T>; MAX_FACE_NODES], ContactFailure> {
-    let nodes = faces.nodes(f);
-    let normals = nodal_normals(faces, candidates, nodes, position)?;
-    face_normals(faces, f, nodes, &normals).ok_or(ContactFailure::Geometry(
+    // the face's own term is among the candidates' (every contact face is a candidate)
+    debug_assert!(candidates.contains(&f), "contact face {f} not a candidate");
+    let keys: Vec<(usize, usize)> = face_keys(faces, f, groups).collect();
+    let normals = nodal_normals(faces, candidates, groups, &keys, position)?;
+    face_normals(faces, f, groups, &keys, &normals).ok_or(ContactFailure::Geometry(
         super::geometry::GeometryError::DegenerateSegment {
             reason: "the faces around a target node have no mean normal",
         },
@@ -292,27 +382,27 @@ fn contact_face_normals<T: Scalar>(
 }
 
 /// With smoothed normals, the contact face: of `start` and the candidate faces around it,
-/// the one onto which `x` projects along the smoothed normals (the least outside it; ties:
-/// `keep`, the last converged state's face, then `start`, then the lowest index; a face whose
-/// projection fails is passed over), and the start of the projection on it. `None` where `x` projects onto none of them, further than
-/// [`SEGMENT_KEEP`] beyond a free edge of the target: there the normals interpolated over
+/// the one onto which `xr` projects along the smoothed normals (each face's group's:
+/// `groups`, [`smooth_groups`]; the least outside it; ties: `keep`, the last converged
+/// state's face, then `start`, then the lowest index; a face whose projection fails is passed
+/// over), and the start of the projection on it; target node `n` is at `position(n)`. `None`
+/// where `xr` projects onto none of them, further than [`SEGMENT_KEEP`] beyond a free edge
+/// of the target: there the normals interpolated over
 /// the extension of a face would be extrapolated far, and the node is projected onto the
 /// face as without smoothing. Measured on the physics fuzzer (seeds 0-999): with the normals
 /// extrapolated however far (no band) 986 complete, seeds 15, 748 and 972 failing and 976
 /// passing; with this band 988, the other way round; at 1.0, 742 passes and 748 fails; at
 /// 1e-10 the nodes on the end planes of extruded blocks, on the free edge to round-off,
 /// flipped between the two and seven more seeds failed. A branch decision, on real parts.
-fn smoothed_face<S: Scalar>(
-    lifted: &Lifted<S>,
-    z: &[S],
+fn smoothed_face(
     faces: &FaceSet,
     candidates: &[usize],
-    x: &Vector3<S>,
+    groups: &[usize],
+    position: impl Fn(usize) -> Vector3<f64>,
+    xr: &Vector3<f64>,
     start: (usize, [f64; 2]),
     keep: Option<usize>,
 ) -> Option<(usize, [f64; 2])> {
-    let xr = x.map(|v| v.value());
-    let position = |n: usize| Ok(node_pos(lifted, z, n).map(|v| v.value()));
     let mut best: Option<(f64, usize, [f64; 2])> = None;
     let mut tried = vec![start.0];
     tried.extend(faces_around(faces, start.0, candidates));
@@ -327,29 +417,32 @@ fn smoothed_face<S: Scalar>(
         }
         _ => start.0,
     };
-    // every tried face's nodal normals, each node's once
-    let mut nodes: Vec<usize> = Vec::new();
+    // every tried face's nodal normals, each node's (of a group) once
+    let mut keys: Vec<(usize, usize)> = Vec::new();
     for &g in &tried {
-        for &n in faces.nodes(g) {
-            if !nodes.contains(&n) {
-                nodes.push(n);
+        for key in face_keys(faces, g, groups) {
+            if !keys.contains(&key) {
+                keys.push(key);
             }
         }
     }
-    let Ok(normals) = nodal_normals(faces, candidates, &nodes, position) else {
-        return None;
+    let normals = match nodal_normals(faces, candidates, groups, &keys, |n| {
+        Ok::<_, Infallible>(position(n))
+    }) {
+        Ok(normals) => normals,
+        Err(never) => match never {},
     };
     for g in tried {
-        let Some(normals) = face_normals(faces, g, &nodes, &normals) else {
+        let Some(normals) = face_normals(faces, g, groups, &keys, &normals) else {
             continue;
         };
-        let seg = segment(faces, g, |n| node_pos(lifted, z, n).map(|v| v.value()));
+        let seg = segment(faces, g, &position);
         let from = if g == start.0 {
             start.1
         } else {
             seg.family.centre_st()
         };
-        let Ok(p) = project_smoothed(&xr, &seg, &normals, from) else {
+        let Ok(p) = project_smoothed(xr, &seg, &normals, from) else {
             continue;
         };
         let out = seg.family.distance_outside(p.xi);
@@ -516,7 +609,10 @@ pub(crate) fn evaluate<S: Scalar>(
                     None => {
                         let keep = keep_faces.and_then(|k| k.get(flat)).map(|c| c.face);
                         let at = (face, xi_start);
-                        smoothed_face(lifted, z, faces, &pair.candidates[i], &x, at, keep)
+                        let groups = &layout.smooth_group[p];
+                        let position = |n| node_pos(lifted, z, n).map(|v| v.value());
+                        let xr = x.map(|v| v.value());
+                        smoothed_face(faces, &pair.candidates[i], groups, position, &xr, at, keep)
                             .map_or((face, xi_start, false), |(f, xi)| (f, xi, true))
                     }
                 },
@@ -528,9 +624,13 @@ pub(crate) fn evaluate<S: Scalar>(
                     xi_start,
                     normals: if smoothed {
                         Some(
-                            contact_face_normals(faces, face, &pair.candidates[i], |n| {
-                                Ok(node_pos(lifted, z, n))
-                            })
+                            contact_face_normals(
+                                faces,
+                                face,
+                                &pair.candidates[i],
+                                &layout.smooth_group[p],
+                                |n| Ok(node_pos(lifted, z, n)),
+                            )
                             .map_err(err)?,
                         )
                     } else {
@@ -743,8 +843,8 @@ fn project_on_segment_s<S: Scalar>(
 
 /// The dense block tangent of one hitting node (rows and columns in block order), from one
 /// evaluation of the kernel with the node's local unknowns seeded: the hitting node (3), the
-/// nodes of the contact face, of the faces around it where its normals are smoothed
-/// (`smoothed`), and of the stick anchor's face (3 each, shared nodes once), the multiplier
+/// nodes of the contact face, of the faces around it in its smooth group where its normals
+/// are smoothed (`smoothed`), and of the stick anchor's face (3 each, shared nodes once), the multiplier
 /// (1). The dual type is as wide as the seeds need: 4 against a rigid target, 16 where the
 /// anchor lies on the contact face (or there is none), 28 where it lies on another face, 52
 /// or 76 with smoothed normals (every op on a 28-wide dual costs about seven times one on a
@@ -766,8 +866,8 @@ fn local_tangent<S: Scalar>(
     let pair = &model.contacts[p];
     let seeds = match &pair.target {
         Target::Faces { faces } => {
-            // the contact face's nodes, those of the faces around it where the normals are
-            // smoothed, and the anchor face's others
+            // the contact face's nodes, those of the faces around it in its smooth group where
+            // the normals are smoothed, and the anchor face's others
             let mut nodes: Vec<usize> = faces.nodes(face).to_vec();
             let mut add = |g: usize| {
                 for &n in faces.nodes(g) {
@@ -777,8 +877,10 @@ fn local_tangent<S: Scalar>(
                 }
             };
             if smoothed.is_some() {
-                faces_around(faces, face, &pair.candidates[i])
-                    .into_iter()
+                // those of its smooth group: their normals enter the contact face's
+                let groups = &layout.smooth_group[p];
+                (faces_around(faces, face, &pair.candidates[i]).into_iter())
+                    .filter(|&g| groups[g] == groups[face])
                     .for_each(&mut add);
             }
             let nh = pair.history_len();
@@ -913,6 +1015,7 @@ fn local_tangent_n<S: Scalar, const N: usize>(
                     faces,
                     face,
                     &pair.candidates[i],
+                    &layout.smooth_group[p],
                     |n| Ok(xref(n) + node_ad(n, &mut slots)?),
                 )?)
             } else {
@@ -1095,4 +1198,69 @@ pub(crate) fn augment(
         changed = true;
     }
     changed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::element::face::FaceFamily;
+
+    /// Two faces of a block's top (z = 1) and one of its side (x = 2), meeting at a right
+    /// angle along x = 2: the side is a group of its own, the top's nodal normals at the rim
+    /// are the top's, as on a flat face; averaged over all three faces they tilt by 45
+    /// degrees there. A face turned by 30 degrees joins the top's group.
+    #[test]
+    fn feature_edges_part_the_smoothed_normals() {
+        let x: Vec<Vector3<f64>> = [
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [2.0, 0.0, 1.0],
+            [2.0, 1.0, 1.0],
+            [2.0, 0.0, 0.0],
+            [2.0, 1.0, 0.0],
+            // the top continued beyond x = 0, turned down by 30 degrees
+            [
+                -(30f64.to_radians().cos()),
+                0.0,
+                1.0 - 30f64.to_radians().sin(),
+            ],
+            [
+                -(30f64.to_radians().cos()),
+                1.0,
+                1.0 - 30f64.to_radians().sin(),
+            ],
+        ]
+        .iter()
+        .map(|p| Vector3::from(*p))
+        .collect();
+        let mut faces = FaceSet::new();
+        for nodes in [[0, 1, 2, 3], [1, 4, 5, 2], [4, 6, 7, 5], [8, 0, 3, 9]] {
+            faces.push(FaceFamily::Quad4, &nodes).unwrap();
+        }
+        let groups = smooth_groups(&faces, &x);
+        assert_eq!(groups, vec![0, 0, 2, 0]);
+        let candidates = [0, 1, 2, 3];
+        let position = |n: usize| Ok(x[n]);
+        let up = Vector3::new(0.0, 0.0, 1.0);
+        let normals = contact_face_normals(&faces, 1, &candidates, &groups, position).unwrap();
+        for n in &normals[..4] {
+            assert!((n - up).norm() < 1e-15, "{n}");
+        }
+        // one group: the rim node's normal halfway between the top's and the side's
+        let one = vec![0; 4];
+        let tilted = contact_face_normals(&faces, 1, &candidates, &one, position).unwrap();
+        let half = std::f64::consts::FRAC_1_SQRT_2;
+        assert!((tilted[1] - Vector3::new(half, 0.0, half)).norm() < 1e-15);
+        // across the 30-degree edge the normals are shared: the joint node's normal lies
+        // between the two faces' (15 degrees from each, the faces' areas being equal)
+        let left = contact_face_normals(&faces, 3, &candidates, &groups, position).unwrap();
+        let own = contact_face_normals(&faces, 0, &candidates, &groups, position).unwrap();
+        assert_eq!(
+            left[1], own[0],
+            "node 0 seen from both sides of the smooth edge"
+        );
+        assert!((own[0].dot(&up) - 15f64.to_radians().cos()).abs() < 1e-15);
+    }
 }

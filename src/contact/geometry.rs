@@ -1088,13 +1088,13 @@ pub(crate) fn project_smoothed<S: Scalar>(
     normals: &[Vector3<S>; MAX_FACE_NODES],
     xi_start: [f64; 2],
 ) -> Result<Projection<S>, GeometryError> {
+    let (h, xl, sl, c) = checked_local(x, seg, xi_start)?;
     let nr = normals.map(|n| re_vec(&n));
     if !nr.iter().take(seg.family.n_nodes()).all(finite_vec) {
         return Err(GeometryError::NonFinite {
             what: "nodal normals",
         });
     }
-    let (h, xl, sl, c) = checked_local(x, seg, xi_start)?;
     let (xlr, slr) = (re_vec(&xl), sl.real());
     let singular = GeometryError::AmbiguousProjection {
         reason: "singular smoothed-normal projection (the smoothed normal lies in the face)",

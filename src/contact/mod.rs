@@ -221,7 +221,9 @@ pub struct ContactPair {
     /// node's candidate faces' `t_1 × t_2` there: a quad4's area over four, a tri3's twice its
     /// area), not onto the closest point of a facet, so that
     /// the gap and the normal are continuous from face to face
-    /// (`geometry::project_smoothed`). Linear faces (quad4, tri3) only: a quadratic face is
+    /// (`geometry::project_smoothed`); faces meeting at a feature edge (more than 60 degrees
+    /// in the reference geometry, `assembly::FEATURE_ANGLE_DEGREES`) are not averaged into
+    /// each other. Linear faces (quad4, tri3) only: a quadratic face is
     /// curved already, and its smoothing would widen the local tangent beyond its duals.
     pub smoothing: bool,
 }

@@ -146,7 +146,7 @@ impl LinearSolver {
                 .map(|(s, b)| (s + b.abs()).powi(2))
                 .sum::<f64>()
                 .sqrt();
-            // |b - a x|, from the relative residual `residuals` measured
+            // |b - a x|, from the relative residual `residuals_of` measured
             let rn = relative[c] * if b_norm[c] > 0.0 { b_norm[c] } else { 1.0 };
             let omega = if rn == 0.0 { 0.0 } else { rn / den };
             if omega.is_nan() || omega > backward_error {

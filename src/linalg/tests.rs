@@ -602,6 +602,27 @@ fn gmres_accepts_a_direct_solves_backward_error_where_the_relative_residual_is_o
     assert!(rel_err(&x, &x_direct) < 2e-5, "{}", rel_err(&x, &x_direct));
 }
 
+/// The unsymmetric `a` with three columns changed by more than its own entries, `a`'s
+/// factorization, and two right-hand sides: `b` and a second one.
+fn changed_columns(a: &SparseMatrix, b: &[f64]) -> (SparseMatrix, LinearSolver, Vec<f64>) {
+    let n = a.n();
+    let mut changed = a.clone();
+    let cp = a.pattern().col_ptr().to_vec();
+    for j in [17, 60, 100] {
+        for k in cp[j]..cp[j + 1] {
+            changed.values_mut()[k] += 2.0 * (1.0 + (k % 3) as f64);
+        }
+    }
+    let mut solver = LinearSolver::new(a.pattern().clone()).unwrap();
+    solver.factor(a).unwrap();
+    let bb: Vec<f64> = b
+        .iter()
+        .copied()
+        .chain((0..n).map(|i| (i % 5) as f64))
+        .collect();
+    (changed, solver, bb)
+}
+
 #[test]
 fn block_gmres_with_the_factor_of_a_neighbour_solves_a_low_rank_change_in_rank_over_columns_plus_one_steps(
 ) {
@@ -614,20 +635,7 @@ fn block_gmres_with_the_factor_of_a_neighbour_solves_a_low_rank_change_in_rank_o
     // iteration spans the third, so block GMRES preconditioned with a's factor needs at
     // most 2 iterations in exact arithmetic (separate spaces: 3 each); the bound asserted
     // leaves one iteration for the tolerance's round-off
-    let mut changed = a.clone();
-    let cp = a.pattern().col_ptr().to_vec();
-    for j in [17, 60, 100] {
-        for k in cp[j]..cp[j + 1] {
-            changed.values_mut()[k] += 2.0 * (1.0 + (k % 3) as f64);
-        }
-    }
-    let mut solver = LinearSolver::new(a.pattern().clone()).unwrap();
-    solver.factor(&a).unwrap();
-    let bb: Vec<f64> = b
-        .iter()
-        .copied()
-        .chain((0..n).map(|i| (i % 5) as f64))
-        .collect();
+    let (changed, solver, bb) = changed_columns(&a, &b);
     let col = |v: &[f64], c: usize| v[c * n..(c + 1) * n].to_vec();
     let mut plain = bb.clone();
     solver.solve_multi_in_place(&mut plain, 2).unwrap();
@@ -688,20 +696,7 @@ fn block_gmres_with_the_factor_of_a_neighbour_solves_a_low_rank_change_in_rank_o
 fn transposed_block_gmres_solves_the_transposed_system() {
     let (a, b) = poisson_2d(12, 0.2);
     let n = a.n();
-    let mut changed = a.clone();
-    let cp = a.pattern().col_ptr().to_vec();
-    for j in [17, 60, 100] {
-        for k in cp[j]..cp[j + 1] {
-            changed.values_mut()[k] += 2.0 * (1.0 + (k % 3) as f64);
-        }
-    }
-    let mut solver = LinearSolver::new(a.pattern().clone()).unwrap();
-    solver.factor(&a).unwrap();
-    let bb: Vec<f64> = b
-        .iter()
-        .copied()
-        .chain((0..n).map(|i| (i % 5) as f64))
-        .collect();
+    let (changed, solver, bb) = changed_columns(&a, &b);
     let col = |v: &[f64], c: usize| v[c * n..(c + 1) * n].to_vec();
     let dense_t = to_dense(&changed).transpose().to_owned();
     let mut x = bb.clone();

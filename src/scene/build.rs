@@ -1245,7 +1245,7 @@ impl Scene {
                         Some(choice) => choice == Smoothing::Normals,
                         None => {
                             notes.push(if linear {
-                                format!("{at} '{}': smoothed normals (the hitting nodes projected along the target's averaged nodal normals: gap and normal continuous from face to face)", c.name)
+                                format!("{at} '{}': smoothed normals (the hitting nodes projected along the target's averaged nodal normals: gap and normal continuous from face to face; edges sharper than 60 degrees kept sharp)", c.name)
                             } else {
                                 format!("{at} '{}': no smoothing (quadratic target faces, curved already)", c.name)
                             });

@@ -1175,7 +1175,9 @@ impl<'a> Sweep<'a> {
     /// identity rows) — the transposes of what DDM solves with each tangent option:
     /// [`TangentChoice::Exact`] factored anew, or by block GMRES preconditioned with
     /// Newton's last factor kept by the forward run ([`Settings::adjoint_krylov`]; factored
-    /// where GMRES does not converge), and refined with double-double residuals either way; [`TangentChoice::Last`] with Newton's last factorization alone
+    /// where GMRES or its refinement fails: DDM stops at a failed refinement), and refined
+    /// with double-double residuals either way; [`TangentChoice::Last`] with Newton's last
+    /// factorization alone
     /// (the paper's choice: off by the order of Newton's last correction), or
     /// [`TangentChoice::Refined`] with refinement steps against the converged tangent, where
     /// that factorization was assembled on the converged branches. Where it was not (or a
@@ -1223,11 +1225,11 @@ impl<'a> Sweep<'a> {
                         let report = m
                             .gmres_transpose_multi(kd, rhs, ncols, KRYLOV_TOL, KRYLOV_MAX_ITER)
                             .ok();
+                        // its solves are work done, converged or not (as DDM counts them)
+                        cost.solve_columns += report.map_or(0, |r| r.solve_columns);
                         let Some(report) = report.filter(|r| r.converged) else {
                             return Ok(false);
                         };
-                        cost.solve_columns += report.solve_columns;
-                        cost.krylov_solves += 1;
                         cost.krylov_iterations += report.iterations;
                         let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
                             let rep = m.gmres_transpose_multi(
@@ -1242,6 +1244,7 @@ impl<'a> Sweep<'a> {
                             Ok(())
                         };
                         refine_extended(kd, true, &b, rhs, ncols, cost, &mut correct)?;
+                        cost.krylov_solves += 1;
                         Ok(true)
                     });
                     matches!(krylov_solve, Ok(true)).then_some(())
