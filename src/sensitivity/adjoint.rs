@@ -96,11 +96,10 @@ struct Stored {
     /// the sweep's transposed solve needs no assembly of its own. Empty beyond
     /// [`TANGENT_ROOM`]: the sweep assembles it again.
     tangent: Vec<f64>,
-    /// Newton's last factorization, where [`KeepFactors`] keeps it.
+    /// Newton's last factorization, where [`KeepFactors`] keeps it: for `--tangent
+    /// last|refined` only where it was assembled on the converged branches (then it is the
+    /// tangent), for GMRES any (a preconditioner).
     factor: Option<KeptFactor>,
-    /// `factor` was assembled on the converged branches (`Converged::factor_matches`): it
-    /// is the tangent of `--tangent last|refined`, not only GMRES's preconditioner.
-    factor_matches: bool,
 }
 
 /// Which of Newton's last factorizations the forward run keeps for the sweep.
@@ -148,7 +147,6 @@ impl Stored {
             .and_then(LinearSolver::keep);
         Stored {
             factor,
-            factor_matches: c.factor_matches,
             index: c.index,
             time: c.time,
             z: c.z.to_vec(),
@@ -710,11 +708,10 @@ type Rows = Vec<(usize, [f64; W])>;
 
 /// One increment's transposed solve: the tangent at its converged state (the prescribed
 /// unknowns' rows and columns made identity), and Newton's last factorization if kept
-/// (`matches`: assembled on the converged branches).
+/// ([`KeepFactors`]).
 struct Transposed<'x> {
     k: &'x SparseMatrix,
     factor: Option<&'x mut KeptFactor>,
-    matches: bool,
 }
 
 /// The transposed solves' options ([`Settings`]): the tangent, the refinement steps of
@@ -1071,7 +1068,6 @@ impl<'a> Sweep<'a> {
             let transposed = Transposed {
                 k: &k,
                 factor: factor.as_mut(),
-                matches: s.factor_matches,
             };
             self.solve_transposed(cost, transposed, &mut rhs, cols.len(), &mut solver)?;
             for (c, cot) in cots.iter_mut().enumerate() {
@@ -1205,7 +1201,8 @@ impl<'a> Sweep<'a> {
             let start = Instant::now();
             let b = rhs.to_vec();
             let solved = match choice {
-                TangentChoice::Last | TangentChoice::Refined if t.matches => {
+                // kept only where it is the converged branches' tangent (KeepFactors::Matching)
+                TangentChoice::Last | TangentChoice::Refined => {
                     let steps = if choice == TangentChoice::Refined {
                         refine_steps
                     } else {
