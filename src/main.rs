@@ -66,9 +66,9 @@ enum Command {
         /// scene's `[study] beta`, else 1e-6. `auto` (SDM, SDM central): each parameter's step
         /// chosen at every increment from a ladder of probes at the fixed state, and every
         /// derivative given an error bar (twice the sum of the difference from a shadow run at a
-        /// tenth of the step and the round-off expected); (FDM, FDM central): the same rule on
-        /// reruns at every step of a ladder, the noise from the Newton residual each rerun
-        /// reached.
+        /// tenth of the step and the round-off both runs expect); (FDM, FDM central): the same
+        /// rule on reruns at every step of a ladder, the noise from the Newton residual each
+        /// rerun reached.
         #[arg(long)]
         beta: Option<String>,
         /// Tangent of the sensitivity solve (SDM, DDM). `exact`: the tangent at the converged
@@ -795,7 +795,7 @@ fn sensitivity(
                 .map(|(p, b)| format!("{p} {b:.0e}"))
                 .collect();
             out!(
-                "  steps chosen at the last increment: {} (error bars: twice the sum of the difference from a run at a tenth of each step and the round-off expected)",
+                "  steps chosen at the last increment: {} (error bars: twice the sum of the difference from a run at a tenth of each step and the round-off both expect)",
                 steps.join(", ")
             );
         }

@@ -397,7 +397,8 @@ pub fn fdm_auto(
                 inc.derivatives[r][k] = v;
                 inc.roundoff[r][k] = probes[j].increments[i].roundoff[r][k];
                 let gap = (v - d(shadow, i, r, k)).abs();
-                let bar = auto::SAFETY * (gap + noise(j, i, k) * size_r);
+                // the chosen error is at most the gap plus the shadow's, whose noise is signed
+                let bar = auto::SAFETY * (gap + (noise(j, i, k) + noise(shadow, i, k)) * size_r);
                 inc.error_bars[r][k] = if bar.is_nan() { f64::INFINITY } else { bar };
             }
         }

@@ -119,48 +119,45 @@ fn error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
     ]);
 }
 
-/// Known shortfalls of the target (run with `--ignored`): SDM and SDM central on the Klarbring
+/// The J2 cycle by SDM and SDM central: forward SDM's bars on E and H bounded 82 % and 93 %
+/// while they counted the chosen run's round-off only. The shadow's (ten times larger, and
+/// signed) cancelled the truncation difference at the E step's shadow (1e-8, deep in
+/// round-off): a bar of 2.6e-11 under an error of 6.5e-11 at increment 10; the bar now adds
+/// it, as the chosen error is at most the difference plus the shadow's.
+#[test]
+fn error_bars_on_the_j2_cycle() {
+    meets_the_target(&[("uniaxial-j2", vec!["H", "E", "sigma_y"], &SDM_BOTH)]);
+}
+
+/// A known shortfall of the target (run with `--ignored`): SDM and SDM central on the Klarbring
 /// oscillator bound 142 of 150 each (from the slip-to-stick increment, t = 3.1, on, forward SDM
 /// at its auto step and central reruns at 1e-5 and 1e-6 agree on a d(plane-force-x)/d mu 3.6e-6
 /// off DDM's, and DDM is confirmed by an independent model and by equilibrium; the bias grows
 /// with the stick penalty, 1e-7 at 1e4 and 7.6e-4 at 1e8: README,
-/// *Choosing the step*; the chosen step and its shadow agree there, so the bar misses it), and
-/// forward SDM on the J2 cycle's E and H (the equivalent plastic strain's derivatives, 1e-8 of
-/// the stress's, err by up to three times their bars).
+/// *Choosing the step*; the chosen step and its shadow agree there, so the bar misses it).
 #[test]
 #[ignore = "a finding: below the 95 % target, see the doc comment"]
-fn error_bars_on_the_klarbring_oscillator_and_the_j2_cycle() {
-    meets_the_target(&[
-        ("klarbring-2dof", vec!["mu"], &SDM_BOTH),
-        ("uniaxial-j2", vec!["H", "E", "sigma_y"], &SDM_BOTH),
-    ]);
+fn error_bars_on_the_klarbring_oscillator() {
+    meets_the_target(&[("klarbring-2dof", vec!["mu"], &SDM_BOTH)]);
 }
 
 /// `--beta auto` for FDM and FDM central: the same plateau rule on reruns at every step of a
-/// ladder, the error bar from the next step down and the noise of the Newton residual each
-/// rerun actually reached. The 95 % target against DDM on the strip pull-out, the stacked
-/// leaves, the SVK bar and (forward) Jenkins; every chosen step on the method's ladder.
+/// ladder, the error bar from the next step down and the noise of the Newton residual both
+/// reruns actually reached. The 95 % target against DDM on the strip pull-out, the stacked
+/// leaves, the SVK bar, Jenkins and (forward) the J2 cycle; every chosen step on the method's
+/// ladder. Counting the chosen rerun's noise only, forward FDM on the J2 cycle bounded 166 of
+/// 180 (d(stress)/dH) and central FDM on Jenkins 93 of 98; Jenkins central still misses 4 (at
+/// increments 16 and 36, where the slide reverses, the reruns at 0.1 and 0.01 of mu on either
+/// side both cross the stick/slip switch and agree on a derivative of 0 where DDM's is 1, a
+/// false plateau the step below does not expose).
 #[test]
 fn fdm_error_bars_bound_the_true_error_in_95_percent_of_the_derivatives() {
     meets_the_target(&[
         ("strip-pullout", vec!["mu", "E"], &FDM_BOTH),
         ("stacked-leaves", vec!["E", "mu"], &FDM_BOTH),
         ("uniaxial-svk", vec!["E"], &FDM_BOTH),
-        ("jenkins", vec!["mu"], &FDM_BOTH[..1]),
-    ]);
-}
-
-/// Known shortfalls of FDM's bars (run with `--ignored`): forward FDM on the J2 cycle bounds
-/// 166 of 180 (d(stress)/dH at 13 increments, d(alpha)/dH at one), and central FDM on Jenkins
-/// 93 of 98: at increments 16 and 36, where the slide reverses, the reruns at 0.1 and 0.01 of
-/// mu on either side both cross the stick/slip switch and agree with each other on a
-/// derivative of 0 where DDM's is 1, a false plateau that the step below does not expose.
-#[test]
-#[ignore = "a finding: below the 95 % target, see the doc comment"]
-fn fdm_error_bars_on_the_j2_cycle_and_central_jenkins() {
-    meets_the_target(&[
+        ("jenkins", vec!["mu"], &FDM_BOTH),
         ("uniaxial-j2", vec!["H", "E", "sigma_y"], &FDM_BOTH[..1]),
-        ("jenkins", vec!["mu"], &FDM_BOTH[1..]),
     ]);
 }
 
