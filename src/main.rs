@@ -67,8 +67,8 @@ enum Command {
         /// chosen at every increment from a ladder of probes at the fixed state, and every
         /// derivative given an error bar (twice the sum of the difference from a shadow run at a
         /// tenth of the step and the round-off both runs expect); (FDM, FDM central): the same
-        /// rule on reruns at every step of a ladder, the noise from the Newton residual each
-        /// rerun reached.
+        /// rule on reruns at every step of a ladder, the noise from the Newton residual the
+        /// chosen and the shadow reruns reached.
         #[arg(long)]
         beta: Option<String>,
         /// Tangent of the sensitivity solve (SDM, DDM). `exact`: the tangent at the converged

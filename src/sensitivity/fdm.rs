@@ -257,8 +257,9 @@ pub(super) fn fdm_sweep(
 /// increment and for each parameter the step taken is the larger of the two neighbouring
 /// steps whose differences agree best over the responses sensitive to it (Stepleman &
 /// Winarsky's plateau), and the error bar is twice the sum of the difference
-/// from the next step down (a tenth of the chosen one, already run) and the noise the reruns
-/// actually carry: the relative residual Newton reached in each run at that increment, times
+/// from the next step down (a tenth of the chosen one, already run; the step above where the
+/// chosen one is the ladder's last) and the noise both steps' reruns actually carry: the
+/// relative residual Newton reached in each run at that increment, times
 /// the response's size over the history, over the step (not the tolerance, which the last
 /// quadratic Newton step usually beats by orders). Costs a rerun (two, central) per step of
 /// the ladder and parameter.
