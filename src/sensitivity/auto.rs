@@ -19,10 +19,9 @@
 //! a tenth (forward) or a hundredth (central) of the chosen one's, so their difference is at
 //! least 0.9 of the chosen error; where round-off dominates, the shadow's is expected ten
 //! times larger, and so is the difference, if the round-off takes the size expected. The
-//! bar is [`SAFETY`] times
-//! the sum of that difference and the round-off both runs expect (machine precision times the
-//! forces that cancel in each unbalance, through the solve, and in the response's own
-//! difference, over the step): the chosen error is at most the difference plus the shadow's
+//! bar is [`SAFETY`] times the sum of that difference and the round-off both runs expect
+//! (machine precision times the forces that cancel in each unbalance, through the solve, and
+//! in the response's own difference, over the step): the chosen error is at most the difference plus the shadow's
 //! error, and the shadow's round-off, ten times the chosen one's, is signed: it can cancel
 //! the truncation the difference should show (the J2 bar's stress for E, forward: a
 //! truncation of 7.5 times the step against a shadow at 1e-8 deep in round-off, a bar of

@@ -147,8 +147,8 @@ fn error_bars_on_the_klarbring_oscillator() {
 /// reruns actually reached. The 95 % target against DDM on the strip pull-out, the stacked
 /// leaves, the SVK bar, Jenkins and (forward) the J2 cycle; every chosen step on the method's
 /// ladder. Counting the chosen rerun's noise only, forward FDM on the J2 cycle bounded 166 of
-/// 180 (d(stress)/dH at 13 increments, d(alpha)/dH at one) and central FDM on Jenkins 93 of 98; Jenkins central still misses 4 (at
-/// increments 16 and 36, where the slide reverses, the reruns at 0.1 and 0.01 of mu on either
+/// 180 (d(stress)/dH at 13 increments, d(alpha)/dH at one) and central FDM on Jenkins 93 of
+/// 98; Jenkins central still misses 4 (at increments 16 and 36, where the slide reverses, the reruns at 0.1 and 0.01 of mu on either
 /// side both cross the stick/slip switch and agree on a derivative of 0 where DDM's is 1, a
 /// false plateau the step below does not expose).
 #[test]
