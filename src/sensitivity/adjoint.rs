@@ -1198,7 +1198,6 @@ impl<'a> Sweep<'a> {
             krylov,
         } = self.tangent;
         if let Some(kept) = t.factor {
-            let start = Instant::now();
             let b = rhs.to_vec();
             let solved = match choice {
                 // kept only where it is the converged branches' tangent (KeepFactors::Matching)
@@ -1208,47 +1207,28 @@ impl<'a> Sweep<'a> {
                     } else {
                         0
                     };
+                    let start = Instant::now();
                     let kept_solve = ls.with_kept(kept, |last| {
                         last.solve_transpose_multi_in_place(rhs, ncols)?;
                         last.refine_transpose_multi(kd, &b, rhs, ncols, steps)
                     });
+                    cost.solve_seconds += start.elapsed().as_secs_f64();
                     kept_solve
                         .is_ok()
                         .then(|| cost.solve_columns += ncols * (1 + steps))
                 }
                 TangentChoice::Exact if krylov => {
+                    // a refinement that fails counts as not solved, as GMRES that does not
+                    // converge: the converged tangent is factored anew below
                     let krylov_solve = ls.with_kept(kept, |m| {
-                        // an error of GMRES counts as not converged: the factorization may work
-                        let report = m
-                            .gmres_transpose_multi(kd, rhs, ncols, KRYLOV_TOL, KRYLOV_MAX_ITER)
-                            .ok();
-                        // its solves are work done, converged or not (as DDM counts them)
-                        cost.solve_columns += report.map_or(0, |r| r.solve_columns);
-                        let Some(report) = report.filter(|r| r.converged) else {
-                            return Ok(false);
-                        };
-                        cost.krylov_iterations += report.iterations;
-                        let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
-                            let rep = m.gmres_transpose_multi(
-                                kd,
-                                r,
-                                ncols,
-                                CORRECTION_TOL,
-                                KRYLOV_MAX_ITER,
-                            )?;
-                            cost.solve_columns += rep.solve_columns;
-                            cost.krylov_iterations += rep.iterations;
-                            Ok(())
-                        };
-                        refine_extended(kd, true, &b, rhs, ncols, cost, &mut correct)?;
-                        cost.krylov_solves += 1;
-                        Ok(true)
+                        krylov_refined(m, kd, true, rhs, ncols, cost, "transposed, adjoint")
                     });
                     matches!(krylov_solve, Ok(true)).then_some(())
                 }
-                _ => None,
+                // the exact tangent without GMRES keeps no factor; were one kept, the
+                // converged tangent is factored anew below as for any other miss
+                TangentChoice::Exact => None,
             };
-            cost.solve_seconds += start.elapsed().as_secs_f64();
             if solved.is_some() {
                 return Ok(());
             }
@@ -1259,18 +1239,8 @@ impl<'a> Sweep<'a> {
         ls.factor(kd)?;
         cost.factor_seconds += start.elapsed().as_secs_f64();
         cost.factorizations += 1;
-        let start = Instant::now();
-        let b = rhs.to_vec();
-        ls.solve_transpose_multi_in_place(rhs, ncols)?;
-        cost.solve_columns += ncols;
         // refined to the solution rounded to working precision, as DDM's solves are
-        let ls = &*ls;
-        let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
-            cost.solve_columns += ncols;
-            ls.solve_transpose_multi_in_place(r, ncols)
-        };
-        refine_extended(kd, true, &b, rhs, ncols, cost, &mut correct)?;
-        cost.solve_seconds += start.elapsed().as_secs_f64();
+        factored_refined(ls, kd, true, rhs, ncols, cost)?;
         Ok(())
     }
 

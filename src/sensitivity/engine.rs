@@ -211,6 +211,96 @@ pub(super) fn refine_extended(
     Ok(())
 }
 
+/// Solves `k x = b` (`k^T x = b` where `transpose`; `ncols` column-major columns) in place by
+/// GMRES preconditioned with the factorization `m` (of `k` or of a tangent near it) to
+/// [`KRYLOV_TOL`], refined with double-double residuals ([`refine_extended`], each correction
+/// by GMRES to [`CORRECTION_TOL`]), the work added to `cost`. `Ok(false)`, `rhs` as it came,
+/// where GMRES fails or does not converge: a factorization of `k` may work, and the caller
+/// makes one ([`factored_refined`]). `what` names the tangent in `FRICSENS_TRACE`'s output.
+/// DDM's solve and the adjoint's transposed one.
+pub(super) fn krylov_refined(
+    m: &LinearSolver,
+    k: &crate::linalg::SparseMatrix,
+    transpose: bool,
+    rhs: &mut [f64],
+    ncols: usize,
+    cost: &mut SensitivityCost,
+    what: &str,
+) -> Result<bool, crate::linalg::LinalgError> {
+    let gmres = |r: &mut [f64], tol: f64| {
+        if transpose {
+            m.gmres_transpose_multi(k, r, ncols, tol, KRYLOV_MAX_ITER)
+        } else {
+            m.gmres_multi(k, r, ncols, tol, KRYLOV_MAX_ITER)
+        }
+    };
+    let b = rhs.to_vec();
+    let start = Instant::now();
+    // an error of the solves counts as not converged: the factorization may work
+    let report = gmres(rhs, KRYLOV_TOL).ok();
+    if std::env::var_os("FRICSENS_TRACE").is_some() {
+        match &report {
+            Some(r) => eprintln!(
+                "  sensitivity GMRES ({what}): {} steps, |K x - b| / |b| = {:.2e}, backward error {:.2} eps{}",
+                r.iterations,
+                r.relative_residual,
+                r.backward_error / f64::EPSILON,
+                if r.converged { "" } else { ": not converged, factoring" }
+            ),
+            None => eprintln!("  sensitivity GMRES ({what}): failed, factoring"),
+        }
+    }
+    // its solves are work done, converged or not
+    cost.solve_columns += report.map_or(0, |r| r.solve_columns);
+    let Some(report) = report.filter(|r| r.converged) else {
+        cost.solve_seconds += start.elapsed().as_secs_f64();
+        rhs.copy_from_slice(&b);
+        return Ok(false);
+    };
+    cost.krylov_solves += 1;
+    cost.krylov_iterations += report.iterations;
+    let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
+        let rep = gmres(r, CORRECTION_TOL)?;
+        cost.solve_columns += rep.solve_columns;
+        cost.krylov_iterations += rep.iterations;
+        Ok(())
+    };
+    let refined = refine_extended(k, transpose, &b, rhs, ncols, cost, &mut correct);
+    cost.solve_seconds += start.elapsed().as_secs_f64();
+    refined.map(|()| true)
+}
+
+/// Solves `k x = b` (`k^T x = b` where `transpose`) in place with `s`, a factorization of `k`,
+/// refined with double-double residuals ([`refine_extended`]) to the solution rounded to
+/// working precision, as [`krylov_refined`]'s are; the work added to `cost`.
+pub(super) fn factored_refined(
+    s: &LinearSolver,
+    k: &crate::linalg::SparseMatrix,
+    transpose: bool,
+    rhs: &mut [f64],
+    ncols: usize,
+    cost: &mut SensitivityCost,
+) -> Result<(), crate::linalg::LinalgError> {
+    let solve = |r: &mut [f64]| {
+        if transpose {
+            s.solve_transpose_multi_in_place(r, ncols)
+        } else {
+            s.solve_multi_in_place(r, ncols)
+        }
+    };
+    let b = rhs.to_vec();
+    let start = Instant::now();
+    solve(rhs)?;
+    cost.solve_columns += ncols;
+    let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
+        cost.solve_columns += ncols;
+        solve(r)
+    };
+    let refined = refine_extended(k, transpose, &b, rhs, ncols, cost, &mut correct);
+    cost.solve_seconds += start.elapsed().as_secs_f64();
+    refined
+}
+
 /// Every response's value at the converged state.
 pub(super) fn response_values(c: &Converged<'_>) -> Vec<f64> {
     c.model
@@ -351,52 +441,14 @@ impl<'a> Engine<'a> {
                 c.last_factor
             };
             if let (true, Some(m)) = (self.settings.krylov, at_hand) {
-                let b = rhs.to_vec();
-                // an error of the solves counts as not converged: the factorization may work
-                let report = timed(&mut cost.solve_seconds, || {
-                    m.gmres_multi(&k, rhs, ncols, KRYLOV_TOL, KRYLOV_MAX_ITER)
-                })
-                .unwrap_or(crate::linalg::KrylovReport {
-                    iterations: 0,
-                    solve_columns: 0,
-                    relative_residual: f64::NAN,
-                    backward_error: f64::NAN,
-                    converged: false,
-                });
-                if std::env::var_os("FRICSENS_TRACE").is_some() {
-                    eprintln!(
-                        "  sensitivity GMRES ({}): {} steps, |K x - b| / |b| = {:.2e}, backward error {:.2} eps{}",
-                        if forced {
-                            "forced tangent"
-                        } else {
-                            "converged tangent"
-                        },
-                        report.iterations,
-                        report.relative_residual,
-                        report.backward_error / f64::EPSILON,
-                        if report.converged {
-                            ""
-                        } else {
-                            ": not converged, factoring"
-                        }
-                    );
-                }
-                cost.solve_columns += report.solve_columns;
-                if report.converged {
-                    cost.krylov_solves += 1;
-                    cost.krylov_iterations += report.iterations;
-                    let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
-                        let rep = m.gmres_multi(&k, r, ncols, CORRECTION_TOL, KRYLOV_MAX_ITER)?;
-                        cost.solve_columns += rep.solve_columns;
-                        cost.krylov_iterations += rep.iterations;
-                        Ok(())
-                    };
-                    let t = Instant::now();
-                    refine_extended(&k, false, &b, rhs, ncols, cost, &mut correct)?;
-                    cost.solve_seconds += t.elapsed().as_secs_f64();
+                let what = if forced {
+                    "forced tangent"
+                } else {
+                    "converged tangent"
+                };
+                if krylov_refined(m, &k, false, rhs, ncols, cost, what)? {
                     return Ok(());
                 }
-                rhs.copy_from_slice(&b);
             }
             if self.exact.is_none() {
                 self.exact = Some(LinearSolver::new(c.assembler.pattern.clone())?);
@@ -408,16 +460,7 @@ impl<'a> Engine<'a> {
             if !forced {
                 self.exact_holds = Some(c.index);
             }
-            let b = rhs.to_vec();
-            let s = &*s;
-            let t = Instant::now();
-            s.solve_multi_in_place(rhs, ncols)?;
-            let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
-                cost.solve_columns += ncols;
-                s.solve_multi_in_place(r, ncols)
-            };
-            refine_extended(&k, false, &b, rhs, ncols, cost, &mut correct)?;
-            cost.solve_seconds += t.elapsed().as_secs_f64();
+            factored_refined(s, &k, false, rhs, ncols, cost)?;
         } else {
             let last = c.last_factor.expect("checked above");
             let b = rhs.to_vec();
@@ -432,8 +475,8 @@ impl<'a> Engine<'a> {
                 })?;
                 cost.solve_columns += ncols * self.settings.refine_steps;
             }
+            cost.solve_columns += ncols;
         }
-        self.results.cost.solve_columns += ncols;
         Ok(())
     }
 }
