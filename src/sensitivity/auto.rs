@@ -58,6 +58,18 @@ pub const SAFETY: f64 = 2.0;
 /// estimate, and the factor leaves it room.
 pub const NOISE_AGREEMENT: f64 = 2.0;
 
+/// The error bar of a derivative: [`SAFETY`] times the sum of its difference from the shadow
+/// run's and the round-off (or noise) both runs expect; infinite where that is not a number
+/// (a probe or rerun that failed).
+pub(super) fn bar(gap: f64, noise: f64) -> f64 {
+    let bar = SAFETY * (gap + noise);
+    if bar.is_nan() {
+        f64::INFINITY
+    } else {
+        bar
+    }
+}
+
 /// A step taken, its derivatives' error bars `[r][p]`.
 type Chosen = (Step, Vec<f64>, Vec<Vec<f64>>);
 
@@ -196,12 +208,7 @@ impl Engine<'_> {
                 (0..np)
                     .map(|k| {
                         let gap = (step.dresp[r][k] - shadow.dresp[r][k]).abs();
-                        let bar = SAFETY * (gap + step.noise[r][k] + shadow.noise[r][k]);
-                        if bar.is_nan() {
-                            f64::INFINITY
-                        } else {
-                            bar
-                        }
+                        bar(gap, step.noise[r][k] + shadow.noise[r][k])
                     })
                     .collect()
             })

@@ -261,8 +261,10 @@ pub(super) fn fdm_sweep(
 /// chosen one is the ladder's last) and the noise both steps' reruns actually carry: the
 /// relative residual Newton reached in each run at that increment, times
 /// the response's size over the history, over the step (not the tolerance, which the last
-/// quadratic Newton step usually beats by orders). Costs a rerun (two, central) per step of
-/// the ladder and parameter.
+/// quadratic Newton step usually beats by orders). A step whose reruns are not in the nominal
+/// run's states at an increment (contact states, Gauss points' branches) differences across a
+/// switch there, and gives way to the steps whose reruns are. Costs a rerun (two, central) per
+/// step of the ladder and parameter.
 pub fn fdm_auto(
     model: &Model,
     params: &[Parameter],
@@ -285,8 +287,11 @@ pub fn fdm_auto(
         base.times.len(),
     );
     let mut reached = vec![vec![[None, None]; np]; nb];
+    let mut held = vec![vec![[None, None]; np]; nb];
     for (&(b, k, sign), r) in jobs.iter().zip(&runs) {
-        reached[b][k][usize::from(sign < 0.0)] = r.as_ref().ok().map(|r| r.reached.clone());
+        let side = usize::from(sign < 0.0);
+        reached[b][k][side] = r.as_ref().ok().map(|r| r.reached.clone());
+        held[b][k][side] = r.as_ref().ok().map(|r| r.states.clone());
     }
     let sweep = assemble(
         model,
@@ -315,6 +320,13 @@ pub fn fdm_auto(
             |side: usize| -> f64 { (reached[b][k][side].as_ref()).map_or(f64::INFINITY, |v| v[i]) };
         let other = if central { rho(1) } else { base.reached[i] };
         (rho(0) + other) / if central { 2.0 * db } else { db }
+    };
+    // whether step b's reruns of parameter k are in the nominal run's states at increment i
+    // (a rerun that failed says nothing)
+    let holds = |b: usize, i: usize, k: usize| -> bool {
+        (0..if central { 2 } else { 1 }).all(|side| {
+            (held[b][k][side].as_ref()).is_none_or(|s: &Vec<u64>| s.get(i) == base.states.get(i))
+        })
     };
     let mut out = SensitivityResults {
         method: Some(if central {
@@ -386,6 +398,23 @@ pub fn fdm_auto(
             else {
                 continue; // every step failed: NaN, with the failures said
             };
+            // a step whose reruns leave the nominal run's states at this increment (stick
+            // where it slips, plastic where it is elastic) differences across a switch: their
+            // secant can agree with its neighbour's, a false plateau (Jenkins where the slide
+            // reverses: the reruns at 0.1 and 0.01 of mu agree to 1e-4 on 1e-5 and 1e-4
+            // where the derivative is 1). The rule then keeps to the steps that hold them:
+            // their plateau, else the largest of them
+            let holds: Vec<bool> = (0..nb).map(|b| holds(b, i, k)).collect();
+            let j = if holds[j] || !holds.contains(&true) {
+                j
+            } else {
+                (0..nb - 1)
+                    .filter(|&b| holds[b] && holds[b + 1])
+                    .map(|b| (b, disagreement(b)))
+                    .filter(|(_, x)| x.is_finite())
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+                    .map_or_else(|| holds.iter().position(|h| *h).unwrap_or(j), |(b, _)| b)
+            };
             let shadow = if j + 1 < nb {
                 j + 1
             } else {
@@ -399,8 +428,8 @@ pub fn fdm_auto(
                 inc.roundoff[r][k] = probes[j].increments[i].roundoff[r][k];
                 let gap = (v - d(shadow, i, r, k)).abs();
                 // the chosen error is at most the gap plus the shadow's, whose noise is signed
-                let bar = auto::SAFETY * (gap + (noise(j, i, k) + noise(shadow, i, k)) * size_r);
-                inc.error_bars[r][k] = if bar.is_nan() { f64::INFINITY } else { bar };
+                inc.error_bars[r][k] =
+                    auto::bar(gap, (noise(j, i, k) + noise(shadow, i, k)) * size_r);
             }
         }
         out.increments.push(inc);
@@ -435,6 +464,38 @@ pub struct FdmBase {
     /// `[i]`: the relative residual `|R_free| / F_ref` Newton reached at `times[i]`.
     #[serde(default)]
     pub reached: Vec<f64>,
+    /// `[i]`: the signature of the states at `times[i]` (the contact states and the Gauss
+    /// points' branches, hashed).
+    #[serde(default)]
+    pub states: Vec<u64>,
+}
+
+/// A signature of a run's states at each of `times`: its hitting nodes' contact states (open,
+/// closed, stick, slip) and its Gauss points' branches (elastic, plastic), hashed (FNV-1a; 0
+/// at a time the run did not take). Two runs with equal signatures at a time are on the same
+/// branches of every non-smooth law there, up to a hash collision.
+fn states_at(res: &Results, times: &[f64]) -> Vec<u64> {
+    times
+        .iter()
+        .map(|t| {
+            let Some(k) = res.increment_at(*t) else {
+                return 0;
+            };
+            let mut h = 0xcbf2_9ce4_8422_2325_u64;
+            let mut eat = |b: u8| {
+                h ^= u64::from(b);
+                h = h.wrapping_mul(0x0100_0000_01b3);
+            };
+            for c in res.contact.get(k).map_or(&[][..], |e| &e.choice[..]) {
+                eat(c.state as u8);
+            }
+            eat(0xff);
+            for b in res.branches.get(k).map_or(&[][..], |v| &v[..]) {
+                eat(*b as u8);
+            }
+            h
+        })
+        .collect()
 }
 
 fn fdm_nominal(
@@ -448,6 +509,7 @@ fn fdm_nominal(
     let times: Vec<f64> = nominal.times[1..].to_vec();
     let values = responses_at(model, &nominal, &times)?;
     let reached = reached_at(&nominal, &times);
+    let states = states_at(&nominal, &times);
     Ok((
         nominal,
         FdmBase {
@@ -455,6 +517,7 @@ fn fdm_nominal(
             values,
             primal_seconds,
             reached,
+            states,
         },
     ))
 }
@@ -503,6 +566,7 @@ fn run_reruns(
                 Ok(Rerun {
                     values: responses_at(model, &r, times)?,
                     reached: reached_at(&r, times),
+                    states: states_at(&r, times),
                     fields: if fields {
                         fields_at_times(&m, &r, times)?
                     } else {
@@ -859,4 +923,7 @@ pub struct Rerun {
     /// `[i]`: the relative residual Newton reached at the nominal run's `times[i]`.
     #[serde(default)]
     reached: Vec<f64>,
+    /// `[i]`: the signature of its states at the nominal run's `times[i]` ([`states_at`]).
+    #[serde(default)]
+    states: Vec<u64>,
 }

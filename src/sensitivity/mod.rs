@@ -286,13 +286,24 @@ pub struct IncrementSensitivity {
     /// size of the cancelling terms for SDM, the Newton tolerance for FDM's reruns): the
     /// value is round-off dominated and a larger beta should be used.
     pub roundoff: Vec<Vec<bool>>,
-    /// `--beta auto` (SDM, SDM central): the relative step chosen per parameter.
+    /// `--beta auto`: the relative step chosen per parameter.
     pub betas: Vec<f64>,
-    /// `--beta auto`, `[r][p]` like `derivatives`: the error bar of each derivative.
+    /// `--beta auto`, `[r][p]` like `derivatives`: the error bar of each derivative
+    /// ([`IncrementSensitivity::bar_bounds`]).
     pub error_bars: Vec<Vec<f64>>,
     /// `dz/db` for every parameter (only when requested).
     #[serde(skip)]
     pub state_derivative: Option<Vec<Vec<f64>>>,
+}
+
+impl IncrementSensitivity {
+    /// `--beta auto`: whether derivative `[r][p]`'s error bar bounds an `error`. An infinite
+    /// bar (a probe or rerun that failed) bounds nothing worth saying, and no bar bounds
+    /// nothing.
+    pub fn bar_bounds(&self, r: usize, p: usize, error: f64) -> bool {
+        (self.error_bars.get(r).and_then(|row| row.get(p)))
+            .is_some_and(|b| b.is_finite() && *b >= error)
+    }
 }
 
 /// Work done by a sensitivity computation.

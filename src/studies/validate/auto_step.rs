@@ -45,11 +45,7 @@ pub fn auto_rows(
                     }
                     compared += 1;
                     let e = (a.derivatives[r][k] - d.derivatives[r][k]).abs();
-                    if a.error_bars
-                        .get(r)
-                        .and_then(|row| row.get(k))
-                        .is_some_and(|b| b.is_finite() && *b >= e)
-                    {
+                    if a.bar_bounds(r, k, e) {
                         bounded += 1;
                     }
                 }
@@ -85,7 +81,7 @@ pub(super) fn write_auto(s: &mut String, rows: &[SceneRow<'_>]) {
     let _ = writeln!(s, "\n### Choosing the step: `--beta auto`\n");
     let _ = writeln!(
         s,
-        "`--beta auto` chooses each parameter's step at every increment from a ladder of SDM probes at the fixed state (1e-1 to 1e-10 forward, 1e-1 to 1e-7 central: the largest pair of neighbouring probes that agree to the round-off they expect, where their differences stop shrinking, else the pair that agrees best; a response whose probe is within its round-off of zero, a derivative that is zero, is left out of the choice) and gives every derivative an error bar: twice the sum of the difference from a shadow run at a tenth of each step and the round-off SDM expects in both runs (the chosen error is at most that difference plus the shadow's error). FDM and FDM central apply the same rule to reruns at every step of their ladders (1e-2 to 1e-8 forward, 1e-1 to 1e-6 central), the bar from the next step down and the noise of the Newton residual both reruns reached (left out on the scenes whose FDM sweep is reduced; `validate --full` runs them). The target: a finite bar bounds the true error (against DDM) for at least 95 % of the derivatives (unflagged increments, responses sensitive to the parameter), and the largest error is within a factor 10 of the sweep's best fixed beta.\n"
+        "`--beta auto` chooses each parameter's step at every increment from a ladder of SDM probes at the fixed state (1e-1 to 1e-10 forward, 1e-1 to 1e-7 central: the largest pair of neighbouring probes that agree to the round-off they expect, where their differences stop shrinking, else the pair that agrees best; a response whose probe is within its round-off of zero, a derivative that is zero, is left out of the choice) and gives every derivative an error bar: twice the sum of the difference from a shadow run at a tenth of each step and the round-off SDM expects in both runs (the chosen error is at most that difference plus the shadow's error). FDM and FDM central apply the same rule to reruns at every step of their ladders (1e-2 to 1e-8 forward, 1e-1 to 1e-6 central), keeping to the steps whose reruns are in the nominal run's contact states and Gauss point branches at the increment (where the nominal state lies within a step of a switch, reruns on either side cross it and their secants can agree), the bar from the next step down and the noise of the Newton residual both reruns reached (left out on the scenes whose FDM sweep is reduced; `validate --full` runs them). The target: a finite bar bounds the true error (against DDM) for at least 95 % of the derivatives (unflagged increments, responses sensitive to the parameter), and the largest error is within a factor 10 of the sweep's best fixed beta.\n"
     );
     let _ = writeln!(
         s,
