@@ -216,7 +216,9 @@ pub(super) fn refine_extended(
 /// [`KRYLOV_TOL`], refined with double-double residuals ([`refine_extended`], each correction
 /// by GMRES to [`CORRECTION_TOL`]), the work added to `cost`. `Ok(false)`, `rhs` as it came,
 /// where GMRES fails or does not converge: a factorization of `k` may work, and the caller
-/// makes one ([`factored_refined`]). `what` names the tangent in `FRICSENS_TRACE`'s output.
+/// makes one ([`factored_refined`]). An error of the refinement leaves `rhs` part refined:
+/// a caller that goes on to factor restores it. `what` names the tangent in
+/// `FRICSENS_TRACE`'s output.
 /// DDM's solve and the adjoint's transposed one.
 pub(super) fn krylov_refined(
     m: &LinearSolver,
@@ -257,7 +259,6 @@ pub(super) fn krylov_refined(
         rhs.copy_from_slice(&b);
         return Ok(false);
     };
-    cost.krylov_solves += 1;
     cost.krylov_iterations += report.iterations;
     let mut correct = |r: &mut [f64], cost: &mut SensitivityCost| {
         let rep = gmres(r, CORRECTION_TOL)?;
@@ -267,7 +268,10 @@ pub(super) fn krylov_refined(
     };
     let refined = refine_extended(k, transpose, &b, rhs, ncols, cost, &mut correct);
     cost.solve_seconds += start.elapsed().as_secs_f64();
-    refined.map(|()| true)
+    refined.map(|()| {
+        cost.krylov_solves += 1;
+        true
+    })
 }
 
 /// Solves `k x = b` (`k^T x = b` where `transpose`) in place with `s`, a factorization of `k`,

@@ -261,9 +261,9 @@ pub(super) fn fdm_sweep(
 /// chosen one is the ladder's last) and the noise both steps' reruns actually carry: the
 /// relative residual Newton reached in each run at that increment, times
 /// the response's size over the history, over the step (not the tolerance, which the last
-/// quadratic Newton step usually beats by orders). A step whose reruns are not in the nominal
-/// run's states at an increment (contact states, Gauss points' branches) differences across a
-/// switch there, and gives way to the steps whose reruns are. Costs a rerun (two, central) per
+/// quadratic Newton step usually beats by orders). A chosen step whose reruns are not in the
+/// nominal run's states at an increment (contact states, Gauss points' branches) differences
+/// across a switch there, and gives way to the steps whose reruns are. Costs a rerun (two, central) per
 /// step of the ladder and parameter.
 pub fn fdm_auto(
     model: &Model,
@@ -322,11 +322,10 @@ pub fn fdm_auto(
         (rho(0) + other) / if central { 2.0 * db } else { db }
     };
     // whether step b's reruns of parameter k are in the nominal run's states at increment i
-    // (a rerun that failed says nothing)
+    // (a rerun that failed is not: its difference is not a number)
     let holds = |b: usize, i: usize, k: usize| -> bool {
-        (0..if central { 2 } else { 1 }).all(|side| {
-            (held[b][k][side].as_ref()).is_none_or(|s: &Vec<u64>| s.get(i) == base.states.get(i))
-        })
+        (0..if central { 2 } else { 1 })
+            .all(|side| (held[b][k][side].as_ref()).is_some_and(|s| s.get(i) == base.states.get(i)))
     };
     let mut out = SensitivityResults {
         method: Some(if central {
@@ -403,17 +402,19 @@ pub fn fdm_auto(
             // secant can agree with its neighbour's, a false plateau (Jenkins where the slide
             // reverses: the reruns at 0.1 and 0.01 of mu agree to 1e-4 on 1e-5 and 1e-4
             // where the derivative is 1). The rule then keeps to the steps that hold them:
-            // their plateau, else the largest of them
-            let holds: Vec<bool> = (0..nb).map(|b| holds(b, i, k)).collect();
-            let j = if holds[j] || !holds.contains(&true) {
+            // their plateau, else the largest of them. (Only where the chosen step's reruns
+            // leave them: a chosen step that holds them keeps its value, on the nominal
+            // branches, whatever its shadow's; the bar then measures the switch.)
+            let holding: Vec<bool> = (0..nb).map(|b| holds(b, i, k)).collect();
+            let j = if holding[j] || !holding.contains(&true) {
                 j
             } else {
                 (0..nb - 1)
-                    .filter(|&b| holds[b] && holds[b + 1])
+                    .filter(|&b| holding[b] && holding[b + 1])
                     .map(|b| (b, disagreement(b)))
                     .filter(|(_, x)| x.is_finite())
                     .min_by(|a, b| a.1.total_cmp(&b.1))
-                    .map_or_else(|| holds.iter().position(|h| *h).unwrap_or(j), |(b, _)| b)
+                    .map_or_else(|| holding.iter().position(|h| *h).unwrap_or(j), |(b, _)| b)
             };
             let shadow = if j + 1 < nb {
                 j + 1
@@ -472,8 +473,11 @@ pub struct FdmBase {
 
 /// A signature of a run's states at each of `times`: its hitting nodes' contact states (open,
 /// closed, stick, slip) and its Gauss points' branches (elastic, plastic), hashed (FNV-1a; 0
-/// at a time the run did not take). Two runs with equal signatures at a time are on the same
-/// branches of every non-smooth law there, up to a hash collision.
+/// at a time the run did not take, which no run's states give but by a collision). Two runs
+/// with equal signatures at a time have every node in the same contact state and every
+/// Gauss point on the same branch there, up to a hash collision; the contact faces and the
+/// slip directions are not compared. Needs the run's states kept (`RunOptions::keep_states`,
+/// the default).
 fn states_at(res: &Results, times: &[f64]) -> Vec<u64> {
     times
         .iter()
