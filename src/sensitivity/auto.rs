@@ -21,15 +21,15 @@
 //! times larger, and so is the difference, if the round-off takes the size expected. The
 //! bar is [`SAFETY`] times the sum of that difference and the round-off both runs expect
 //! (machine precision times the forces that cancel in each unbalance, through the solve, and
-//! in the response's own difference, over the step): the chosen error is at most the difference plus the shadow's
-//! error, and the shadow's round-off, ten times the chosen one's, is signed: it can cancel
-//! the truncation the difference should show (the J2 bar's stress for E, forward: a
-//! truncation of 7.5 times the step against a shadow at 1e-8 deep in round-off, a bar of
-//! 2.6e-11 under an error of 6.5e-11 before the shadow's round-off was counted). The
+//! in the response's own difference, over the step): the chosen error is at most the
+//! difference plus the shadow's error, and the shadow's round-off, ten times the chosen
+//! one's, is signed: it can cancel the truncation the difference should show (the J2 bar's stress
+//! for E, forward: a truncation of 7.5 times the step against a shadow at 1e-8 deep in round-off, a
+//! bar of 2.6e-11 under an error of 6.5e-11 before the shadow's round-off was counted). The
 //! shadow's truncation is not in the sum: a tenth of the chosen one's (forward), it is what
-//! [`SAFETY`] covers, so the bar is an estimate, not a proof. The bar includes what the
-//! history carries in from earlier increments, as both runs carry their own. A bar that is
-//! not a number is infinite.
+//! [`SAFETY`] covers, so the bar is an estimate, not a proof. The bar includes what the history
+//! carries in from earlier increments, as both runs carry their own. A bar that is not a number is
+//! infinite.
 //!
 //! Measured against DDM (`tests/methods/beta_auto.rs`): the bars bound at least 95 % of the
 //! derivatives on most scenes, not on all: an error that does not change between the step

@@ -263,8 +263,8 @@ pub(super) fn fdm_sweep(
 /// the response's size over the history, over the step (not the tolerance, which the last
 /// quadratic Newton step usually beats by orders). A chosen step whose reruns are not in the
 /// nominal run's states at an increment (contact states, Gauss points' branches) differences
-/// across a switch there, and gives way to the steps whose reruns are. Costs a rerun (two, central) per
-/// step of the ladder and parameter.
+/// across a switch there, and gives way to the steps whose reruns are. Costs a rerun (two,
+/// central) per step of the ladder and parameter.
 pub fn fdm_auto(
     model: &Model,
     params: &[Parameter],
@@ -466,8 +466,9 @@ pub struct FdmBase {
     #[serde(default)]
     pub reached: Vec<f64>,
     /// `[i]`: the signature of the states at `times[i]` (the contact states and the Gauss
-    /// points' branches, hashed).
-    #[serde(default)]
+    /// points' branches, hashed). Read by `--beta auto` alone, which is not sharded: not
+    /// written into a share's partial result.
+    #[serde(skip)]
     pub states: Vec<u64>,
 }
 
@@ -927,7 +928,8 @@ pub struct Rerun {
     /// `[i]`: the relative residual Newton reached at the nominal run's `times[i]`.
     #[serde(default)]
     reached: Vec<f64>,
-    /// `[i]`: the signature of its states at the nominal run's `times[i]` ([`states_at`]).
-    #[serde(default)]
+    /// `[i]`: the signature of its states at the nominal run's `times[i]` ([`states_at`]);
+    /// not kept in a share's partial result (`--beta auto` alone reads it).
+    #[serde(skip)]
     states: Vec<u64>,
 }
