@@ -57,8 +57,10 @@ pub struct Frozen<'a> {
     pub contact: &'a [ContactChoice],
     /// Per hitting node (flat over pairs), for the nodes whose contact is not frozen: the
     /// target face to keep while the node projects onto it within
-    /// [`crate::contact::geometry::SEGMENT_KEEP`] (the faces of the last converged state:
-    /// hysteresis of the face choice, see there).
+    /// [`crate::contact::geometry::SEGMENT_KEEP`], or at a shared boundary point against a
+    /// face better aligned by less than [`crate::contact::geometry::ALIGN_KEEP`] (the faces of
+    /// the last Newton iterate, the last converged state's at an increment's first: hysteresis
+    /// of the face choice, see there).
     pub keep_faces: Option<&'a [ContactChoice]>,
     /// Per hitting node (flat over pairs), for the nodes whose contact is not frozen: a node
     /// the free decision puts in slip sticks instead (the primal solver's remedy for a slip

@@ -208,8 +208,10 @@ fn face_anchor<T: Scalar>(
 }
 
 /// Which candidate face is closest to `x` (a branch decision, on real parts), and the
-/// convected coordinates of the closest point on it; face `keep` (of the last converged state)
-/// is kept while `x` projects onto it within [`super::geometry::SEGMENT_KEEP`].
+/// convected coordinates of the closest point on it; face `keep` (the last Newton iterate's)
+/// is kept while `x` projects onto it within [`super::geometry::SEGMENT_KEEP`], and at a
+/// shared boundary point against a face better aligned by less than
+/// [`super::geometry::ALIGN_KEEP`].
 fn closest_face<S: Scalar>(
     lifted: &Lifted<S>,
     z: &[S],

@@ -653,13 +653,14 @@ fn slide(
     quads: &[[V3; 4]],
     path: impl Fn(f64) -> V3,
     n: usize,
+    hinted: bool,
 ) -> Vec<(usize, Projection<f64>, V3)> {
     let mut hint = None;
     (0..=n)
         .map(|i| {
             let x = path(i as f64 / n as f64);
             let (seg, p) = closest_on_quads(&x, quads, hint).unwrap();
-            hint = Some(seg);
+            hint = Some(seg).filter(|_| hinted);
             (seg, p, x)
         })
         .collect()
@@ -680,7 +681,7 @@ fn sliding_over_a_flat_strip_is_continuous() {
         })
         .collect();
     for height in [0.25, -0.1] {
-        let samples = slide(&quads, |s| V3::new(0.3 + 4.4 * s, 0.5, height), 2000);
+        let samples = slide(&quads, |s| V3::new(0.3 + 4.4 * s, 0.5, height), 2000, true);
         let mut visited = std::collections::BTreeSet::new();
         for (seg, p, x) in &samples {
             visited.insert(*seg);
@@ -730,28 +731,37 @@ fn sliding_over_a_curved_strip_is_continuous() {
             V3::new(radius * psi.sin(), 0.5, radius * psi.cos())
         };
         let ds = radius * 0.9 / n as f64;
-        let samples = slide(&quads, path, n);
-        let mut visited = std::collections::BTreeSet::new();
-        let mut boundary = 0;
-        for (k, (seg, p, x)) in samples.iter().enumerate() {
-            visited.insert(*seg);
-            boundary += usize::from(!p.inside);
-            let dist = (x - p.point).norm();
-            let oracle = polyline_distance((x.x, x.z), &poly);
-            assert!((dist - oracle).abs() < 1e-12, "distance {dist} vs {oracle}");
-            assert!(sign * p.gap > 0.0 && p.gap.abs() <= dist + 1e-14);
-            assert!((p.point.y - 0.5).abs() < 1e-13);
-            if k > 0 {
-                let prev = &samples[k - 1].1;
-                assert!((p.gap - prev.gap).abs() <= 2.0 * ds, "gap jump at {k}");
-                assert!(
-                    (p.point - prev.point).norm() <= 2.0 * ds,
-                    "point jump at {k}"
-                );
+        // without a hint the gap is continuous; with the last face as the hint it keeps
+        // that face until the next is better aligned by ALIGN_KEEP, and the gap jumps there by
+        // at most that fraction of the distance
+        for hinted in [false, true] {
+            let samples = slide(&quads, path, n, hinted);
+            let mut visited = std::collections::BTreeSet::new();
+            let mut boundary = 0;
+            for (k, (seg, p, x)) in samples.iter().enumerate() {
+                visited.insert(*seg);
+                boundary += usize::from(!p.inside);
+                let dist = (x - p.point).norm();
+                let oracle = polyline_distance((x.x, x.z), &poly);
+                assert!((dist - oracle).abs() < 1e-12, "distance {dist} vs {oracle}");
+                assert!(sign * p.gap > 0.0 && p.gap.abs() <= dist + 1e-14);
+                assert!((p.point.y - 0.5).abs() < 1e-13);
+                if k > 0 {
+                    let prev = &samples[k - 1].1;
+                    let band = if hinted { ALIGN_KEEP * dist } else { 0.0 };
+                    assert!(
+                        (p.gap - prev.gap).abs() <= 2.0 * ds + band,
+                        "gap jump at {k}"
+                    );
+                    assert!(
+                        (p.point - prev.point).norm() <= 2.0 * ds,
+                        "point jump at {k}"
+                    );
+                }
             }
+            assert_eq!(visited.len(), 5);
+            assert!(boundary > 0, "the path crosses the edge wedges");
         }
-        assert_eq!(visited.len(), 5);
-        assert!(boundary > 0, "the path crosses the edge wedges");
     }
 }
 
@@ -783,6 +793,50 @@ fn convex_ridge_picks_best_aligned_normal_then_hint() {
     assert_eq!(closest_on_quads(&x, &quads, Some(1)).unwrap().0, 1);
     assert_eq!(closest_on_quads(&x, &quads, Some(0)).unwrap().0, 0);
     assert_eq!(closest_on_quads(&x, &quads, None).unwrap().0, 0);
+}
+
+#[test]
+fn hint_keeps_its_face_against_a_slightly_better_aligned_one() {
+    // the roof of the test above; over the ridge at x = s along the ridge's perpendicular,
+    // height 1/2: |gap| / distance is (1/2 -/+ s/5) / (|n| |d|) for the faces a and b
+    let quads = [
+        [
+            V3::new(-1.0, 0.0, -0.2),
+            V3::new(0.0, 0.0, 0.0),
+            V3::new(0.0, 1.0, 0.0),
+            V3::new(-1.0, 1.0, -0.2),
+        ],
+        [
+            V3::new(0.0, 0.0, 0.0),
+            V3::new(1.0, 0.0, -0.2),
+            V3::new(1.0, 1.0, -0.2),
+            V3::new(0.0, 1.0, 0.0),
+        ],
+    ];
+    let align = |s: f64, sign: f64| {
+        let d = V3::new(s, 0.0, 0.5);
+        (d.dot(&V3::new(sign * 0.2, 0.0, 1.0).normalize()) / d.norm()).abs()
+    };
+    // b better aligned by less than ALIGN_KEEP: the hint decides either way
+    let s = 0.005;
+    let gain = align(s, 1.0) - align(s, -1.0);
+    assert!(gain > 0.0 && gain < ALIGN_KEEP, "{gain}");
+    let x = V3::new(s, 0.5, 0.5);
+    assert_eq!(closest_on_quads(&x, &quads, Some(0)).unwrap().0, 0);
+    assert_eq!(closest_on_quads(&x, &quads, Some(1)).unwrap().0, 1);
+    // without a hint the better aligned
+    assert_eq!(closest_on_quads(&x, &quads, None).unwrap().0, 1);
+    // the kept face's projection is the boundary point with its own normal: the gap it
+    // reports differs from b's by less than ALIGN_KEEP of the distance
+    let (_, pa) = closest_on_quads(&x, &quads, Some(0)).unwrap();
+    let (_, pb) = closest_on_quads(&x, &quads, Some(1)).unwrap();
+    let dist = (x - pa.point).norm();
+    assert!((pa.gap.abs() - pb.gap.abs()).abs() <= ALIGN_KEEP * dist);
+    // beyond the band the better aligned wins against the hint
+    let s = 0.05;
+    assert!(align(s, 1.0) - align(s, -1.0) > ALIGN_KEEP);
+    let x = V3::new(s, 0.5, 0.5);
+    assert_eq!(closest_on_quads(&x, &quads, Some(0)).unwrap().0, 1);
 }
 
 #[test]

@@ -333,7 +333,7 @@ impl Solver<'_> {
             record.residuals.push(r_free);
             record.reference_force = f_ref;
             if self.trace {
-                trace_iteration(t, &st, r_free, eval);
+                trace_iteration(t, &st, r_free, eval, &self.constrained);
             }
             if !r_free.is_finite() {
                 return Err(AttemptFailure::Diverged("non-finite residual"));
@@ -583,9 +583,17 @@ impl Solver<'_> {
 }
 
 /// The trace line of an evaluation: time, iteration, step length, residual, the number of
-/// plastic Gauss points, and the closed hitting nodes with their states, normal forces and
-/// faces.
-fn trace_iteration(t: f64, st: &AttemptState, r_free: f64, eval: &Evaluation<f64>) {
+/// plastic Gauss points, the closed hitting nodes with their states, normal forces and faces
+/// (`s` projected along smoothed normals, `u` not), and the four largest free residual
+/// entries (unknown: value; `constrained` marks the others), which name the unknowns a
+/// cycling Newton leaves out of balance.
+fn trace_iteration(
+    t: f64,
+    st: &AttemptState,
+    r_free: f64,
+    eval: &Evaluation<f64>,
+    constrained: &[bool],
+) {
     let (k, alpha) = (st.k, st.alpha);
     let active: Vec<String> = eval
         .contact
@@ -594,13 +602,28 @@ fn trace_iteration(t: f64, st: &AttemptState, r_free: f64, eval: &Evaluation<f64
         .zip(&eval.contact.normal_force)
         .enumerate()
         .filter(|(_, (c, _))| c.state != crate::contact::ContactState::Open)
-        .map(|(i, (c, f))| format!("{i}:{:?}:{f:.3e}:f{}", c.state, c.face))
+        .map(|(i, (c, f))| {
+            format!(
+                "{i}:{:?}:{f:.3e}:f{}{}",
+                c.state,
+                c.face,
+                if c.smoothed { "s" } else { "u" }
+            )
+        })
         .collect();
     let plastic = (eval.branches.iter())
         .filter(|b| **b == Branch::Plastic)
         .count();
+    let r = &eval.residual;
+    let mut free: Vec<usize> = (0..r.len()).filter(|&d| !constrained[d]).collect();
+    free.sort_by(|&a, &b| r[b].abs().total_cmp(&r[a].abs()));
+    let largest: Vec<String> = (free.iter().take(4))
+        .map(|&d| format!("{d}:{:.3e}", r[d]))
+        .collect();
     eprintln!(
-        "  t = {t:.4e} k = {k} alpha = {alpha:.3} r = {r_free:.3e} plastic {plastic} closed {}",
-        active.join(" ")
+        "  t = {t:.4e} k = {k} alpha = {alpha:.3} r = {r_free:.3e} plastic {plastic} closed {} \
+         largest {}",
+        active.join(" "),
+        largest.join(" ")
     );
 }
