@@ -765,22 +765,27 @@ fn sliding_over_a_curved_strip_is_continuous() {
     }
 }
 
+/// Two-quad roof with the ridge along y at x = 0, the faces falling by 0.2 over a width of 1.
+fn roof() -> [[V3; 4]; 2] {
+    [
+        [
+            V3::new(-1.0, 0.0, -0.2),
+            V3::new(0.0, 0.0, 0.0),
+            V3::new(0.0, 1.0, 0.0),
+            V3::new(-1.0, 1.0, -0.2),
+        ],
+        [
+            V3::new(0.0, 0.0, 0.0),
+            V3::new(1.0, 0.0, -0.2),
+            V3::new(1.0, 1.0, -0.2),
+            V3::new(0.0, 1.0, 0.0),
+        ],
+    ]
+}
+
 #[test]
 fn convex_ridge_picks_best_aligned_normal_then_hint() {
-    // two-quad roof with the ridge along y at x = 0
-    let a = [
-        V3::new(-1.0, 0.0, -0.2),
-        V3::new(0.0, 0.0, 0.0),
-        V3::new(0.0, 1.0, 0.0),
-        V3::new(-1.0, 1.0, -0.2),
-    ];
-    let b = [
-        V3::new(0.0, 0.0, 0.0),
-        V3::new(1.0, 0.0, -0.2),
-        V3::new(1.0, 1.0, -0.2),
-        V3::new(0.0, 1.0, 0.0),
-    ];
-    let quads = [a, b];
+    let quads = roof();
     // over the ridge, slightly towards b: boundary point on the ridge, b's normal
     let x = V3::new(0.02, 0.5, 0.5);
     let (seg, p) = closest_on_quads(&x, &quads, Some(0)).unwrap();
@@ -797,22 +802,9 @@ fn convex_ridge_picks_best_aligned_normal_then_hint() {
 
 #[test]
 fn hint_keeps_its_face_against_a_slightly_better_aligned_one() {
-    // the roof of the test above; over the ridge at x = s along the ridge's perpendicular,
+    // over the ridge of roof() at x = s along the ridge's perpendicular,
     // height 1/2: |gap| / distance is (1/2 -/+ s/5) / (|n| |d|) for the faces a and b
-    let quads = [
-        [
-            V3::new(-1.0, 0.0, -0.2),
-            V3::new(0.0, 0.0, 0.0),
-            V3::new(0.0, 1.0, 0.0),
-            V3::new(-1.0, 1.0, -0.2),
-        ],
-        [
-            V3::new(0.0, 0.0, 0.0),
-            V3::new(1.0, 0.0, -0.2),
-            V3::new(1.0, 1.0, -0.2),
-            V3::new(0.0, 1.0, 0.0),
-        ],
-    ];
+    let quads = roof();
     let align = |s: f64, sign: f64| {
         let d = V3::new(s, 0.0, 0.5);
         (d.dot(&V3::new(sign * 0.2, 0.0, 1.0).normalize()) / d.norm()).abs()
