@@ -729,6 +729,7 @@ pub(crate) fn evaluate<S: Scalar>(
             out.traction[flat] = ko.force - normal_part;
             out.distance[flat] = (ko.normal_distance, ko.slip_ratio);
             out.gap[flat] = ko.projection.gap.value();
+            out.cancelling[flat] = ko.cancelling;
             let h_new = &mut hist_new[h0..h0 + nh];
             if pair.augmented() {
                 // the estimate is updated by the solver's augmentation, not within Newton

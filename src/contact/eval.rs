@@ -36,6 +36,10 @@ pub struct ContactEval<S: Scalar> {
     pub distance: Vec<(f64, f64)>,
     /// Gap per hitting node (real part; negative = penetration).
     pub gap: Vec<f64>,
+    /// The size of the forces that cancel in each hitting node's friction force (the
+    /// tangential penalty times the positions whose difference is its elastic slip; zero
+    /// without friction, or open): machine precision times it is that force's round-off.
+    pub cancelling: Vec<f64>,
 }
 
 impl<S: Scalar> ContactEval<S> {
@@ -68,6 +72,7 @@ impl<S: Scalar> ContactEval<S> {
             traction: vec![Vector3::zeros(); n_hitting],
             distance: vec![(f64::INFINITY, f64::INFINITY); n_hitting],
             gap: vec![f64::INFINITY; n_hitting],
+            cancelling: vec![0.0; n_hitting],
         }
     }
 }

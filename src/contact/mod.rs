@@ -628,6 +628,12 @@ pub struct KernelOut<S: Scalar> {
     pub normal_distance: f64,
     /// `|t_trial| / limit - 1` when closed with friction.
     pub slip_ratio: f64,
+    /// The size of the forces that cancel in the friction force: the tangential penalty times
+    /// the positions whose difference is the elastic slip in stick, that over `1 + slip_ratio`
+    /// in slip (the trial force's round-off turns the slip force's direction by its size over
+    /// `|t_trial|`); zero without friction, or open. Machine precision times it is the friction
+    /// force's round-off.
+    pub cancelling: f64,
 }
 
 /// Kernel failures (recoverable by cutback).
@@ -733,10 +739,12 @@ pub fn node_kernel<S: Scalar>(
     let mut new_anchor = proj.point;
     let mut new_separation = n * g;
     let mut slip_ratio = f64::INFINITY;
+    let mut cancelling = 0.0;
     if let (true, Some(law), Some(anchor)) = (active, par.friction, anchor) {
         let (dx, scale) = anchor.separation(x_ref, u);
         let g_t = dx - n * n.dot(&dx);
         let t_trial = g_t * (-par.eps_t);
+        cancelling = scale * par.eps_t.value();
         // Round-off of the trial force: a trial within it of the slip surface is taken as stick
         // (the elastic predictor), so the branch does not flip on noise.
         let margin = 8.0 * f64::EPSILON * scale * par.eps_t.value();
@@ -761,6 +769,9 @@ pub fn node_kernel<S: Scalar>(
                 state = ContactState::Slip;
                 new_separation = -upd.traction / par.eps_t;
                 new_anchor = x - new_separation;
+                // the slip force is the limit along the trial's direction, which the
+                // trial's round-off turns by its size over |t_trial| = (1 + ratio) limit
+                cancelling /= 1.0 + slip_ratio.max(0.0);
             }
         }
     }
@@ -775,5 +786,6 @@ pub fn node_kernel<S: Scalar>(
         projection: proj,
         normal_distance,
         slip_ratio,
+        cancelling,
     })
 }

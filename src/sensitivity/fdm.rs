@@ -416,6 +416,15 @@ pub fn fdm_auto(
                     .min_by(|a, b| a.1.total_cmp(&b.1))
                     .map_or_else(|| holding.iter().position(|h| *h).unwrap_or(j), |(b, _)| b)
             };
+            // the better of the pair, where the smaller step holds the states too
+            let last_roundoff = (0..nr)
+                .filter_map(|r| Some(noise(nb - 1, i, k) * size[r] / scales[r]?))
+                .fold(0.0, f64::max);
+            let order = if central { 2 } else { 1 };
+            let j = match auto::better_of_pair(disagreement, j, nb - 1, order, last_roundoff) {
+                n if holding[n] || !holding.contains(&true) => n,
+                _ => j,
+            };
             let shadow = if j + 1 < nb {
                 j + 1
             } else {
@@ -447,11 +456,16 @@ pub fn fdm_auto(
 }
 
 /// FDM's `--beta auto` ladder (forward): relative steps a decade apart, from where truncation
-/// dominates to where the reruns' Newton noise does.
-pub const FDM_FORWARD_LADDER: [f64; 7] = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8];
+/// dominates to where the reruns' Newton noise does. It starts at 1e-1, as SDM's does: where a
+/// parameter enters linearly, the largest step has the least noise (the J2 bar's yield stress:
+/// 2.6e-14 at 1e-1, 6.0e-13 at 1e-2, the ladder's top before).
+pub const FDM_FORWARD_LADDER: [f64; 8] = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8];
 
-/// FDM central's `--beta auto` ladder.
-pub const FDM_CENTRAL_LADDER: [f64; 6] = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6];
+/// FDM central's `--beta auto` ladder. It goes down to 1e-8: where the nominal state lies
+/// within a step of a stick/slip switch, only steps below it are free of the switch, and the
+/// step taken needs a neighbour below it that agrees (Jenkins where it starts to slip back:
+/// 3.0e-6 at 1e-6, 1.3e-8 at 1e-7, 8.7e-9 at 1e-8).
+pub const FDM_CENTRAL_LADDER: [f64; 8] = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8];
 
 /// The nominal run of an FDM sweep and what every rerun is compared with.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -128,18 +128,19 @@ fn error_bars_on_the_j2_cycle() {
     meets_the_target(&[("uniaxial-j2", vec!["H", "E", "sigma_y"], &SDM_BOTH)]);
 }
 
-/// A known shortfall of the target (run with `--ignored`): SDM and SDM central on the Klarbring
-/// oscillator bound 142 of 150 each (from the slip-to-stick increment, t = 3.1, on, forward SDM
-/// at its auto step and central reruns at 1e-5 and 1e-6 agree on a d(plane-force-x)/d mu 3.6e-6
-/// off DDM's, and DDM is confirmed by an independent model and by equilibrium; the bias grows
-/// with the stick penalty, 1e-7 at 1e4 and 7.6e-4 at 1e8: README,
-/// *Choosing the step*; the chosen step and its shadow agree there, so the bar misses it).
-/// The bias is the stick force's round-off, correlated over about 5e-5 of mu: k_t (x - a) of
-/// positions near 0.353 is quantized in steps of 5.55e-11, and between the steps the computed
-/// force drifts linearly with mu (3.47e-6 per unit mu), which every difference shorter than
-/// the sawtooth's period measures.
+/// The Klarbring oscillator by SDM and SDM central, whose stick penalty (1e6) makes the
+/// round-off of the unbalance the stick force's: the perturbed design's anchor `a + db da` is
+/// rounded to the ulp of the position `a` (near 0.353), so `k_t (x - a)` is quantized in steps
+/// of 5.55e-11, against 2e-16 of the reference force. Counting the reference force only, the
+/// bars bounded 142 of 150 each: from the slip-to-stick increment (t = 3.1) on, the chosen step
+/// and its shadow agreed on a d(plane-force-x)/d mu 3.6e-6 off DDM's (between two quanta the
+/// computed force drifts linearly with mu, 3.47e-6 per unit mu, which every difference shorter
+/// than the sawtooth's period of about 5e-5 of mu measures). The round-off now counts each
+/// frictional node's penalty times its positions (`ContactEval::cancelling`); that round-off
+/// exceeds the derivative at the smallest steps, so a response is left out as zero only where
+/// no two probes above their round-off agree (`PLATEAU`): without that, d(plane-force-x)/d mu
+/// was left out and 1e-1 chosen, an error of 18 at t = 3.9.
 #[test]
-#[ignore = "a finding: below the 95 % target, see the doc comment"]
 fn error_bars_on_the_klarbring_oscillator() {
     meets_the_target(&[("klarbring-2dof", vec!["mu"], &SDM_BOTH)]);
 }
@@ -168,10 +169,11 @@ fn the_chosen_steps_reach_the_sweeps_best_error_within_a_factor_10() {
     // the second target, on scenes whose parameters range from exact differences
     // (linear in the parameter) to truncation-dominated ones; the sweep is SDM at every step
     // of the ladder, the best over it against the auto run's largest error. (Measured: equal
-    // on all of these but the strip's E, 0.4 of the best forward and 4.5 times it central.)
+    // on all of these but the strip's E, 0.4 of the best forward and 4.5 times it central, and
+    // the Klarbring oscillator, 0.03 of it forward and 0.09 central: no fixed step is best at
+    // every increment there.)
     // Not met, and left out: the strip's mu forward (2.9e-7 against 3.3e-10: a round-off
-    // estimate above the truncation stops the descent at 1e-4) and the Klarbring oscillator
-    // central (3.6e-6 against 8.4e-9), in the report's table.
+    // estimate above the truncation stops the descent at 1e-4), in the report's table.
     use fricsens::sensitivity::{run_inline_sweep, CENTRAL_LADDER, FORWARD_LADDER};
     for (scene, names) in [
         ("jenkins", vec!["mu"]),
@@ -179,6 +181,7 @@ fn the_chosen_steps_reach_the_sweeps_best_error_within_a_factor_10() {
         ("strip-pullout", vec!["E"]),
         ("uniaxial-j2", vec!["sigma_y"]),
         ("cantilever", vec!["E"]),
+        ("klarbring-2dof", vec!["mu"]),
     ] {
         let model = Scene::load(scene).unwrap().build().unwrap();
         let params = common::params(&model, &names);
@@ -279,11 +282,34 @@ fn auto_against(
 /// steps whose reruns are in the nominal run's states at the increment. The auto step's
 /// largest error against the best fixed step of the ladder (reruns), and the bars bounding
 /// 95 %: before, Jenkins' largest error was 1.0 (94 of 98 bounded) and Klarbring's 0.435
-/// absolute (147 of 150).
+/// absolute (147 of 150). Jenkins at increment 16 holds its states only below 1e-6 (3.0e-6
+/// there, 1.3e-8 at 1e-7): while the ladder ended at 1e-6 that was its largest error, against
+/// the report's sweep's best 1.5e-8 (at 1e-7); the ladder now goes down to 1e-8.
 #[test]
 fn fdm_steps_below_a_stick_slip_switch() {
     use fricsens::sensitivity::FDM_CENTRAL_LADDER;
     for scene in ["jenkins", "klarbring-2dof"] {
         fdm_auto_against_its_ladder(scene, "mu", &[(Method::FdmCentral, &FDM_CENTRAL_LADDER)]);
     }
+}
+
+/// The factor 10 for FDM where the report's sweep found it missed: the J2 bar's yield stress
+/// forward (linear in it: 2.6e-14 at 1e-1, 6.0e-13 at 1e-2, the top of the ladder before it
+/// began at 1e-1) and the stacked leaves' E central (1.0e-8 at 1e-4 where the pair 1e-4 / 1e-5
+/// agreed best by 1e-4's truncation, against 6.1e-10 at 1e-5: `better_of_pair` now takes the
+/// smaller step of such a pair). Each against the best fixed step of its ladder (reruns), the
+/// bars bounding 95 %.
+#[test]
+fn fdm_steps_reach_the_ladders_best_within_a_factor_10() {
+    use fricsens::sensitivity::{FDM_CENTRAL_LADDER, FDM_FORWARD_LADDER};
+    fdm_auto_against_its_ladder(
+        "uniaxial-j2",
+        "sigma_y",
+        &[(Method::Fdm, &FDM_FORWARD_LADDER)],
+    );
+    fdm_auto_against_its_ladder(
+        "stacked-leaves",
+        "E",
+        &[(Method::FdmCentral, &FDM_CENTRAL_LADDER)],
+    );
 }
