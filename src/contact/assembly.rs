@@ -569,6 +569,7 @@ pub(crate) fn evaluate<S: Scalar>(
                 hist_new[h0..h0 + nh].copy_from_slice(&hist_old[h0..h0 + nh]);
                 out.normal_force[flat] = S::zero();
                 out.traction[flat] = Vector3::zeros();
+                out.cancelling[flat] = 0.0;
                 continue;
             }
             par.area = lifted.area[p][i];

@@ -629,9 +629,9 @@ pub struct KernelOut<S: Scalar> {
     /// `|t_trial| / limit - 1` when closed with friction.
     pub slip_ratio: f64,
     /// The size of the forces that cancel in the friction force: the tangential penalty times
-    /// the positions whose difference is the elastic slip in stick, that over `1 + slip_ratio`
-    /// in slip (the trial force's round-off turns the slip force's direction by its size over
-    /// `|t_trial|`); zero without friction, or open. Machine precision times it is the friction
+    /// the positions whose difference is the elastic slip in stick, that times `|t| /
+    /// |t_trial|` in slip (the trial force's round-off turns the slip force's direction by its
+    /// size over `|t_trial|`); zero without friction, or open. Machine precision times it is the friction
     /// force's round-off.
     pub cancelling: f64,
 }
@@ -769,9 +769,14 @@ pub fn node_kernel<S: Scalar>(
                 state = ContactState::Slip;
                 new_separation = -upd.traction / par.eps_t;
                 new_anchor = x - new_separation;
-                // the slip force is the limit along the trial's direction, which the
-                // trial's round-off turns by its size over |t_trial| = (1 + ratio) limit
-                cancelling /= 1.0 + slip_ratio.max(0.0);
+                // the slip force is its size along the trial's direction, which the trial's
+                // round-off turns by its size over |t_trial| (Coulomb: over 1 + slip ratio)
+                let trial = t_trial.map(|c| c.value()).norm();
+                cancelling *= if trial > 0.0 {
+                    upd.traction.map(|c| c.value()).norm() / trial
+                } else {
+                    0.0
+                };
             }
         }
     }

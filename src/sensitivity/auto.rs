@@ -5,12 +5,14 @@
 //! steps a decade apart: [`FORWARD_LADDER`], [`CENTRAL_LADDER`]), all from the same incoming
 //! history derivative: the probes cost residual evaluations at the fixed state and solves with
 //! the factor at hand, no reruns. Along the ladder a difference first converges, its
-//! truncation falling with the step, then diverges as round-off grows; the step taken is the
-//! larger of the two adjacent probes that agree best, the plateau between the two regimes
-//! (the rule of Stepleman & Winarsky, *Adaptive numerical differentiation*, Math. Comp. 33,
-//! 1979: the sequence of differences is followed while successive differences shrink), or,
-//! where neighbours already agree to the round-off they expect ([`NOISE_AGREEMENT`]), the
-//! largest such pair: truncation is below round-off there, and a larger step has less. The
+//! truncation falling with the step, then diverges as round-off grows. Where neighbours agree
+//! to the round-off they expect ([`NOISE_AGREEMENT`]) and their differences stop shrinking, the
+//! step taken is the larger of the largest such pair: truncation is below round-off there, and
+//! a larger step has less. Else it is one of the two adjacent probes that agree best, the
+//! plateau between the two regimes (the rule of Stepleman & Winarsky, *Adaptive numerical
+//! differentiation*, Math. Comp. 33, 1979: the sequence of differences is followed while
+//! successive differences shrink): the larger, as they take it, or the smaller where the
+//! pair's difference is the larger's truncation (`better_of_pair`). The
 //! disagreement is measured over the responses sensitive to the parameter, each relative to
 //! its largest probe, so that one parameter gets one step for all its responses.
 //!
@@ -92,8 +94,9 @@ pub(super) fn bar(gap: f64, noise: f64) -> f64 {
 /// differs by at least as much as pair `j` (it agrees best), differs by about 11 times it; the
 /// ladder's last step has no pair below, and its expected round-off stands in. The smaller step
 /// is taken where the sum of the two is below the larger's error (FDM central on the stacked
-/// leaves' E: 1e-8 at 1e-4, where 1e-5 has 5e-10; on Jenkins where it starts to slip back,
-/// 3.0e-6 at 1e-6, where 1e-7, the last step, has 1.3e-8).
+/// leaves' E: 1.0e-8 at 1e-4, where 1e-5 has 6.1e-10). A pair above whose difference is not a
+/// number (a probe that failed, or for FDM a rerun across a switch) proves nothing: the
+/// larger step is kept.
 pub(super) fn better_of_pair(
     difference: impl Fn(usize) -> f64,
     j: usize,
@@ -111,7 +114,7 @@ pub(super) fn better_of_pair(
         last_roundoff
     };
     let rate = 10f64.powi(order);
-    let truncation = here > 0.0 && above >= rate / 3.0 * here;
+    let truncation = here > 0.0 && above.is_finite() && above >= rate / 3.0 * here;
     if truncation && here / rate + roundoff < here {
         j + 1
     } else {
@@ -344,6 +347,41 @@ mod tests {
         let (values, errors) = model(1, 1e-12, 1e-14, 6);
         let j = choose(&values, 1, f64::INFINITY);
         assert_eq!(j, 0, "errors {errors:?}");
+    }
+
+    #[test]
+    fn the_larger_step_where_round_off_dominates_a_pair_within_the_ladder() {
+        // central, truncation 1e-8 h^2 and noise 1e-13 / h: the best pair is 1e-2 / 1e-3
+        // (differences 1.10e-10, 1.09e-10, 1.1e-9, ... down from 1e-1 / 1e-2), whose
+        // difference is 1e-3's round-off: 1e-2 has the smaller error (9e-12 against 1e-10),
+        // and the pair above shows no truncation to move for
+        let (values, errors) = model(2, 1e-8, 1e-13, 6);
+        let j = choose(&values, 2, f64::INFINITY);
+        assert_eq!(j, 1, "errors {errors:?}");
+        assert!(errors[1] < errors[2]);
+    }
+
+    #[test]
+    fn a_pair_above_that_failed_proves_no_truncation() {
+        // the truncation case of the test above with the pair above made not a number: the
+        // larger step is kept
+        let (values, _) = model(2, 1.0, 1e-14, 8);
+        let difference = |i: usize| {
+            if i == 2 {
+                f64::INFINITY
+            } else {
+                (values[i] - values[i + 1]).abs()
+            }
+        };
+        assert_eq!(
+            better_of_pair(difference, 3, values.len() - 1, 2, f64::INFINITY),
+            3
+        );
+        let finite = |i: usize| (values[i] - values[i + 1]).abs();
+        assert_eq!(
+            better_of_pair(finite, 3, values.len() - 1, 2, f64::INFINITY),
+            4
+        );
     }
 
     #[test]

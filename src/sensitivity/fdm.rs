@@ -254,9 +254,10 @@ pub(super) fn fdm_sweep(
 
 /// `--beta auto` for FDM and FDM central (the rule of SDM's `auto`, on reruns): the reruns at every
 /// step of a ladder a decade apart ([`FDM_FORWARD_LADDER`], [`FDM_CENTRAL_LADDER`]); at every
-/// increment and for each parameter the step taken is the larger of the two neighbouring
-/// steps whose differences agree best over the responses sensitive to it (Stepleman &
-/// Winarsky's plateau), and the error bar is twice the sum of the difference
+/// increment and for each parameter the step taken is one of the two neighbouring steps whose
+/// differences agree best over the responses sensitive to it (Stepleman & Winarsky's plateau;
+/// the larger, or the smaller where the pair's difference is the larger's truncation:
+/// [`auto`]'s `better_of_pair`), and the error bar is twice the sum of the difference
 /// from the next step down (a tenth of the chosen one, already run; the step above where the
 /// chosen one is the ladder's last) and the noise both steps' reruns actually carry: the
 /// relative residual Newton reached in each run at that increment, times
@@ -421,7 +422,15 @@ pub fn fdm_auto(
                 .filter_map(|r| Some(noise(nb - 1, i, k) * size[r] / scales[r]?))
                 .fold(0.0, f64::max);
             let order = if central { 2 } else { 1 };
-            let j = match auto::better_of_pair(disagreement, j, nb - 1, order, last_roundoff) {
+            // (a pair whose reruns leave the states is no evidence of truncation)
+            let evidence = |b: usize| {
+                if holding[b] && holding[b + 1] || !holding.contains(&true) {
+                    disagreement(b)
+                } else {
+                    f64::INFINITY
+                }
+            };
+            let j = match auto::better_of_pair(evidence, j, nb - 1, order, last_roundoff) {
                 n if holding[n] || !holding.contains(&true) => n,
                 _ => j,
             };
