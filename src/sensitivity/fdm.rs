@@ -257,7 +257,7 @@ pub(super) fn fdm_sweep(
 /// increment and for each parameter the step taken is one of the two neighbouring steps whose
 /// differences agree best over the responses sensitive to it (Stepleman & Winarsky's plateau;
 /// the larger, or the smaller where the pair's difference is the larger's truncation:
-/// [`auto`]'s `better_of_pair`), and the error bar is twice the sum of the difference
+/// the `auto` module's `better_of_pair`), and the error bar is twice the sum of the difference
 /// from the next step down (a tenth of the chosen one, already run; the step above where the
 /// chosen one is the ladder's last) and the noise both steps' reruns actually carry: the
 /// relative residual Newton reached in each run at that increment, times
