@@ -16,9 +16,18 @@
 //! disagreement is measured over the responses sensitive to the parameter, each relative to
 //! its largest probe, so that one parameter gets one step for all its responses.
 //!
+//! **The history's step.** The history derivative the increment carries on is chosen by the
+//! same rule on its own differences (`HistoryProbes`), and taken from a smaller step than the
+//! responses' where it asks for one: the responses at an increment do not show a truncation
+//! only the history carries (the strip's stick anchors for mu). Where the history agrees at a
+//! larger step than the responses, the responses' step is kept for both: the history's norm
+//! weighs its entries by their size, not by what they do to later responses, and taking it
+//! there cost the leaf spring's length its bars (82 of 102 bounded instead of 101).
+//!
 //! **Error bar.** A shadow SDM run goes along with the chosen one at a tenth of each chosen
-//! step, with its own history derivative. Where truncation dominates, the shadow's error is
-//! a tenth (forward) or a hundredth (central) of the chosen one's, so their difference is at
+//! step (the responses' and the history's), with its own history derivative. Where
+//! truncation dominates, the shadow's error is a tenth (forward) or a hundredth (central) of
+//! the chosen one's, so their difference is at
 //! least 0.9 of the chosen error; where round-off dominates, the shadow's is expected ten
 //! times larger, and so is the difference, if the round-off takes the size expected. The
 //! bar is [`SAFETY`] times the sum of that difference and the round-off both runs expect
@@ -122,6 +131,158 @@ pub(super) fn better_of_pair(
     }
 }
 
+/// The step along a ladder of `rungs + 1` probes by the rule of the module docs, from the
+/// relative `disagreement(j)` of probes `j` and `j + 1` (infinite where one failed), the
+/// round-off `noise(j)` they expect, the method's `order` and the last probe's expected
+/// round-off: the largest pair that agrees to its round-off where the differences stop
+/// shrinking, else the better of the pair that agrees best; `None` where no pair ran.
+fn choose_step(
+    disagreement: impl Fn(usize) -> f64,
+    noise: impl Fn(usize) -> f64,
+    rungs: usize,
+    order: i32,
+    last_roundoff: f64,
+) -> Option<usize> {
+    let pairs: Vec<(usize, f64)> = (0..rungs)
+        .map(|j| (j, disagreement(j)))
+        .filter(|(_, d)| d.is_finite())
+        .collect();
+    // the largest pair that agrees to the round-off it expects: truncation is below
+    // round-off there already, and the larger step has the less round-off (on a plateau of
+    // agreement at the round-off floor the smallest disagreement falls anywhere, often at a
+    // step with a thousand times the round-off); else the better of the pair that agrees best
+    (pairs.iter().enumerate())
+        .find(|(i, (j, d))| {
+            // and the differences stop shrinking there (Stepleman & Winarsky): an
+            // overestimated round-off does not stop the descent early
+            let next = pairs.get(i + 1).map_or(f64::INFINITY, |p| p.1);
+            *d <= NOISE_AGREEMENT * noise(*j) && next >= *d
+        })
+        .map(|(_, p)| p.0)
+        .or_else(|| {
+            let best = pairs.iter().min_by(|a, b| a.1.total_cmp(&b.1))?.0;
+            Some(better_of_pair(
+                disagreement,
+                best,
+                rungs,
+                order,
+                last_roundoff,
+            ))
+        })
+}
+
+/// One parameter's history derivative along the ladder, the outgoing `dh_n/db` of each probe,
+/// whose differences choose the history's step.
+///
+/// The responses at an increment do not show a truncation that only the history carries on:
+/// on the strip pull-out, forward SDM for mu, the responses' probes agree exactly from 1e-1
+/// on through the stick increments, while the anchors' derivatives differ a decade per decade
+/// of step (7.1e-5 of their size between 1e-1 and 1e-2) down to their round-off at 1e-6, and
+/// the truncation taken at 1e-1 reached the pull-out's displacement later as an error of
+/// 2.9e-7 (the sweep's best, at 1e-6: 3.3e-10). The history's round-off is machine precision
+/// times the history itself (each perturbed entry is rounded to its own ulp) over the step,
+/// plus the unbalance's relative round-off carried through the solve; measured there, the
+/// first is where the differences stop falling. Without the second the strip's E took its
+/// history from 1e-6 where the responses' 1e-1 to 1e-3 was better (an error of 4.1e-10
+/// against 1.2e-13).
+struct HistoryProbes<'p> {
+    probes: &'p [Option<Step>],
+    /// The parameter's entries of `dhist`, the parameter, and the absolute step of each
+    /// probe.
+    range: std::ops::Range<usize>,
+    k: usize,
+    steps: Vec<f64>,
+    /// `|h_n|`, and the largest probe's `|dh_n/db|` (`None`: the history is insensitive to
+    /// the parameter, left out as an insensitive response is).
+    size: f64,
+    scale: Option<f64>,
+}
+
+impl<'p> HistoryProbes<'p> {
+    fn new(
+        c: &Converged<'_>,
+        probes: &'p [Option<Step>],
+        k: usize,
+        step: impl Fn(usize) -> f64,
+    ) -> Self {
+        let nh = c.hist_prev.len();
+        let size = norm(&c.eval.hist_new);
+        let mut h = HistoryProbes {
+            probes,
+            range: k * nh..(k + 1) * nh,
+            k,
+            steps: (0..probes.len()).map(step).collect(),
+            size,
+            scale: None,
+        };
+        // sensitive where two neighbouring probes above their round-off agree (a plateau,
+        // as for the responses)
+        let probe = |j: usize| -> Option<f64> {
+            let p = probes.get(j)?.as_ref()?;
+            let v = norm(&p.dhist[h.range.clone()]);
+            v.is_finite().then_some(v)
+        };
+        let (mut largest, mut plateau) = (0.0f64, false);
+        for j in 0..probes.len() {
+            let Some(v) = probe(j) else { continue };
+            largest = largest.max(v);
+            let Some(w) = probe(j + 1) else { continue };
+            let d = diff_norm(
+                &probes[j].as_ref().expect("ran").dhist[h.range.clone()],
+                &probes[j + 1].as_ref().expect("ran").dhist[h.range.clone()],
+            );
+            plateau |= v > NOISE_AGREEMENT * h.noise_abs(j)
+                && w > NOISE_AGREEMENT * h.noise_abs(j + 1)
+                && d <= PLATEAU * v.max(w);
+        }
+        h.scale = (plateau && largest > 0.0).then_some(largest);
+        h
+    }
+
+    /// The round-off of probe `j`'s history derivative (absolute): the history's own rounding
+    /// over the step, and the unbalance's round-off carried through the solve.
+    fn noise_abs(&self, j: usize) -> f64 {
+        let Some(p) = self.probes[j].as_ref() else {
+            return f64::INFINITY;
+        };
+        let carried = p.unbalance_noise.get(self.k).copied().unwrap_or(0.0)
+            * norm(&p.dhist[self.range.clone()]);
+        f64::EPSILON * self.size / self.steps[j] + carried
+    }
+
+    /// Relative to the largest probe: the round-off of probe `j` (0 where left out).
+    fn noise(&self, j: usize) -> f64 {
+        self.scale.map_or(0.0, |s| self.noise_abs(j) / s)
+    }
+
+    /// Relative to the largest probe: the difference of probes `j` and `j + 1` (0 where
+    /// left out, infinite where a probe failed).
+    fn disagreement(&self, j: usize) -> f64 {
+        let Some(s) = self.scale else { return 0.0 };
+        let (Some(a), Some(b)) = (&self.probes[j], &self.probes[j + 1]) else {
+            return f64::INFINITY;
+        };
+        let d = diff_norm(&a.dhist[self.range.clone()], &b.dhist[self.range.clone()]) / s;
+        if d.is_nan() {
+            f64::INFINITY
+        } else {
+            d
+        }
+    }
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+fn diff_norm(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
 /// A step taken, its derivatives' error bars `[r][p]`.
 type Chosen = (Step, Vec<f64>, Vec<Vec<f64>>);
 
@@ -158,7 +319,8 @@ impl Engine<'_> {
             return Err(failure.expect("a probe failed"));
         }
         let values = response_values(c);
-        let chosen: Vec<usize> = (0..np)
+        // each parameter's step for the responses, and for the history it carries on
+        let chosen: Vec<(usize, usize)> = (0..np)
             .map(|k| {
                 let b = self.params[k].value.abs().max(1.0);
                 // each sensitive response's largest probe (a response insensitive to the
@@ -193,6 +355,8 @@ impl Engine<'_> {
                         (s > 0.0 && !zero && b * s >= 1e-9 * values[r].abs()).then_some(s)
                     })
                     .collect();
+                let history =
+                    HistoryProbes::new(c, &probes, k, |j| self.params[k].step(ladder[j]).abs());
                 // between two neighbouring probes that both ran; a value that is not finite
                 // disagrees with everything
                 let disagreement = |j: usize| {
@@ -220,66 +384,67 @@ impl Engine<'_> {
                         .filter_map(|(r, s)| Some((a.noise[r][k] + b.noise[r][k]) / (*s)?))
                         .fold(0.0, f64::max)
                 };
-                let pairs: Vec<(usize, f64)> = (0..ladder.len() - 1)
-                    .map(|j| (j, disagreement(j)))
-                    .filter(|(_, d)| d.is_finite())
-                    .collect();
-                // the largest pair that agrees to the round-off it expects: truncation is
-                // below round-off there already, and the larger step has the less round-off
-                // (on a plateau of agreement at the round-off floor the smallest disagreement
-                // falls anywhere, often at a step with a thousand times the round-off);
-                // else the better of the pair that agrees best
                 let order = if central { 2 } else { 1 };
-                (pairs.iter().enumerate())
-                    .find(|(i, (j, d))| {
-                        // and the differences stop shrinking there (Stepleman & Winarsky):
-                        // an overestimated round-off does not stop the descent early
-                        let next = pairs.get(i + 1).map_or(f64::INFINITY, |p| p.1);
-                        *d <= NOISE_AGREEMENT * noise(*j) && next >= *d
-                    })
-                    .map(|(_, p)| p.0)
-                    .or_else(|| {
-                        let best = pairs.iter().min_by(|a, b| a.1.total_cmp(&b.1))?.0;
-                        let last = ladder.len() - 1;
-                        let last_roundoff = probes[last].as_ref().map_or(f64::INFINITY, |p| {
-                            (scales.iter().enumerate())
-                                .filter_map(|(r, s)| Some(p.noise[r][k] / (*s)?))
-                                .fold(0.0, f64::max)
-                        });
-                        Some(better_of_pair(
-                            disagreement,
-                            best,
-                            last,
-                            order,
-                            last_roundoff,
-                        ))
-                    })
+                let last = ladder.len() - 1;
+                let last_roundoff = probes[last].as_ref().map_or(f64::INFINITY, |p| {
+                    (scales.iter().enumerate())
+                        .filter_map(|(r, s)| Some(p.noise[r][k] / (*s)?))
+                        .fold(0.0, f64::max)
+                });
+                let responses = choose_step(disagreement, noise, last, order, last_roundoff)
                     // no two neighbours agree: the largest probe that ran
-                    .unwrap_or_else(|| probes.iter().position(Option::is_some).unwrap_or(0))
+                    .unwrap_or_else(|| probes.iter().position(Option::is_some).unwrap_or(0));
+                // the history's own step, by the same rule on its own differences
+                let history = match history.scale {
+                    Some(_) => choose_step(
+                        |j| history.disagreement(j),
+                        |j| history.noise(j) + history.noise(j + 1),
+                        last,
+                        order,
+                        history.noise(last),
+                    )
+                    .unwrap_or(responses),
+                    None => responses,
+                };
+                (responses, history.max(responses))
             })
             .collect();
-        let betas: Vec<f64> = chosen.iter().map(|j| ladder[*j]).collect();
+        let betas: Vec<f64> = chosen.iter().map(|j| ladder[j.0]).collect();
         let mut step = Step {
             dresp: vec![vec![0.0; np]; nr],
             dhist: vec![0.0; nh * np],
             dz: Vec::with_capacity(np),
             roundoff: vec![vec![false; np]; nr],
             noise: vec![vec![0.0; np]; nr],
+            unbalance_noise: vec![0.0; np],
         };
-        for (k, &j) in chosen.iter().enumerate() {
+        for (k, &(j, jh)) in chosen.iter().enumerate() {
             let p = probes[j].as_ref().expect("a probe that ran");
             for r in 0..nr {
                 step.dresp[r][k] = p.dresp[r][k];
                 step.roundoff[r][k] = p.roundoff[r][k];
                 step.noise[r][k] = p.noise[r][k];
             }
-            step.dhist[k * nh..(k + 1) * nh].copy_from_slice(&p.dhist[k * nh..(k + 1) * nh]);
+            let h = probes[jh].as_ref().expect("a probe that ran");
+            step.dhist[k * nh..(k + 1) * nh].copy_from_slice(&h.dhist[k * nh..(k + 1) * nh]);
             step.dz.push(p.dz[k].clone());
         }
-        // the shadow run, on its own history derivative
-        let shadow_betas: Vec<f64> = betas.iter().map(|b| b / SHADOW_RATIO).collect();
+        // the shadow run, on its own history derivative, at a tenth of each step: the
+        // responses', and the history's where it differs
+        let tenth = |j: usize| ladder[j] / SHADOW_RATIO;
+        let shadow_betas: Vec<f64> = chosen.iter().map(|j| tenth(j.0)).collect();
+        let history_betas: Vec<f64> = chosen.iter().map(|j| tenth(j.1)).collect();
         std::mem::swap(&mut self.dhist, &mut self.shadow_dhist);
-        let shadow = self.sdm(c, central, &shadow_betas);
+        let shadow = self.sdm(c, central, &shadow_betas).and_then(|mut shadow| {
+            if history_betas != shadow_betas {
+                let h = self.sdm(c, central, &history_betas)?;
+                for k in (0..np).filter(|&k| chosen[k].0 != chosen[k].1) {
+                    shadow.dhist[k * nh..(k + 1) * nh]
+                        .copy_from_slice(&h.dhist[k * nh..(k + 1) * nh]);
+                }
+            }
+            Ok(shadow)
+        });
         std::mem::swap(&mut self.dhist, &mut self.shadow_dhist);
         let shadow = shadow?;
         self.shadow_dhist = shadow.dhist;
@@ -382,6 +547,30 @@ mod tests {
             better_of_pair(finite, 3, values.len() - 1, 2, f64::INFINITY),
             4
         );
+    }
+
+    #[test]
+    fn the_step_where_the_differences_reach_their_round_off() {
+        // forward, truncation h and round-off 1e-14 / h, each probe expecting its round-off
+        // (the history's rule, `HistoryProbes`): the differences fall a decade a step down to
+        // the pair 1e-7 / 1e-8, within its expected round-off, and 1e-7 is the step of the
+        // smallest error (2e-7)
+        let (values, errors) = model(1, 1.0, 1e-14, 10);
+        let h = |j: usize| 10f64.powi(-(j as i32) - 1);
+        let last = values.len() - 1;
+        let j = choose_step(
+            |j| (values[j] - values[j + 1]).abs(),
+            |j| 1e-14 / h(j) + 1e-14 / h(j + 1),
+            last,
+            1,
+            1e-14 / h(last),
+        )
+        .unwrap();
+        let best = (0..values.len())
+            .min_by(|a, b| errors[*a].total_cmp(&errors[*b]))
+            .unwrap();
+        assert_eq!(j, best, "errors {errors:?}");
+        assert_eq!(j, 6);
     }
 
     #[test]

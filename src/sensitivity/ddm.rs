@@ -145,6 +145,7 @@ impl Engine<'_> {
             dz: dz_all,
             roundoff: Vec::new(),
             noise: Vec::new(),
+            unbalance_noise: Vec::new(),
         })
     }
 }

@@ -27,6 +27,9 @@ pub(super) struct Step {
     /// the forces that cancel in the unbalance (carried through the solve) and in the
     /// response's own difference, over the step (empty for DDM).
     pub(super) noise: Vec<Vec<f64>>,
+    /// SDM, per parameter: the relative round-off of the unbalance, carried into `dz` and
+    /// the history update through the solve (empty for DDM).
+    pub(super) unbalance_noise: Vec<f64>,
 }
 
 /// DDM's pseudo-loads at one increment, with what the update after the solve reuses.

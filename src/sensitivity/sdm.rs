@@ -462,6 +462,7 @@ impl Engine<'_> {
             dz: dz_all,
             roundoff,
             noise,
+            unbalance_noise,
         })
     }
 }

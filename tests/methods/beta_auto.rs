@@ -172,13 +172,16 @@ fn the_chosen_steps_reach_the_sweeps_best_error_within_a_factor_10() {
     // on all of these but the strip's E, 0.4 of the best forward and 4.5 times it central, and
     // the Klarbring oscillator, 0.03 of it forward and 0.09 central: no fixed step is best at
     // every increment there.)
-    // Not met, and left out: the strip's mu forward (2.9e-7 against 3.3e-10: a round-off
-    // estimate above the truncation stops the descent at 1e-4), in the report's table.
+    // The strip's mu forward missed it while the step was the responses' alone: through the
+    // stick increments they agree exactly from 1e-1 on, while the anchors' derivatives carry a
+    // truncation a decade per decade of step, which reached the pull-out's displacement later
+    // (2.9e-7 against the best 3.3e-10); the history now has its own step where it asks for a
+    // smaller one (`HistoryProbes`: 4.0e-10).
     use fricsens::sensitivity::{run_inline_sweep, CENTRAL_LADDER, FORWARD_LADDER};
     for (scene, names) in [
         ("jenkins", vec!["mu"]),
         ("stacked-leaves", vec!["E", "mu"]),
-        ("strip-pullout", vec!["E"]),
+        ("strip-pullout", vec!["E", "mu"]),
         ("uniaxial-j2", vec!["sigma_y"]),
         ("cantilever", vec!["E"]),
         ("klarbring-2dof", vec!["mu"]),
