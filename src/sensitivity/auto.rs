@@ -184,17 +184,19 @@ fn choose_step(
 /// plus the unbalance's relative round-off carried through the solve; measured there, the
 /// first is where the differences stop falling. Without the second the strip's E took its
 /// history from 1e-6 where the responses' 1e-1 to 1e-3 was better (an error of 4.1e-10
-/// against 1.2e-13).
+/// against 1.2e-13, both measured by the CLI against DDM).
 struct HistoryProbes<'p> {
     probes: &'p [Option<Step>],
-    /// The parameter's entries of `dhist`, the parameter, and the absolute step of each
-    /// probe.
+    /// The parameter's entries of `dhist`.
     range: std::ops::Range<usize>,
+    /// The parameter.
     k: usize,
+    /// The absolute step of each probe.
     steps: Vec<f64>,
-    /// `|h_n|`, and the largest probe's `|dh_n/db|` (`None`: the history is insensitive to
-    /// the parameter, left out as an insensitive response is).
+    /// `|h_n|`.
     size: f64,
+    /// The largest probe's `|dh_n/db|`; `None` where no two neighbouring probes above their
+    /// round-off agree (no plateau): the history is then left out of the choice.
     scale: Option<f64>,
 }
 
@@ -250,7 +252,8 @@ impl<'p> HistoryProbes<'p> {
         f64::EPSILON * self.size / self.steps[j] + carried
     }
 
-    /// Relative to the largest probe: the round-off of probe `j` (0 where left out).
+    /// Relative to the largest probe: the round-off of probe `j` (0 where left out, infinite
+    /// where the probe failed).
     fn noise(&self, j: usize) -> f64 {
         self.scale.map_or(0.0, |s| self.noise_abs(j) / s)
     }
@@ -394,8 +397,9 @@ impl Engine<'_> {
                 let responses = choose_step(disagreement, noise, last, order, last_roundoff)
                     // no two neighbours agree: the largest probe that ran
                     .unwrap_or_else(|| probes.iter().position(Option::is_some).unwrap_or(0));
-                // the history's own step, by the same rule on its own differences
-                let history = match history.scale {
+                // the history's own step, by the same rule on its own differences, where it
+                // is the smaller
+                let own = match history.scale {
                     Some(_) => choose_step(
                         |j| history.disagreement(j),
                         |j| history.noise(j) + history.noise(j + 1),
@@ -406,10 +410,10 @@ impl Engine<'_> {
                     .unwrap_or(responses),
                     None => responses,
                 };
-                (responses, history.max(responses))
+                (responses, own.max(responses))
             })
             .collect();
-        let betas: Vec<f64> = chosen.iter().map(|j| ladder[j.0]).collect();
+        let betas: Vec<f64> = chosen.iter().map(|&(jr, _)| ladder[jr]).collect();
         let mut step = Step {
             dresp: vec![vec![0.0; np]; nr],
             dhist: vec![0.0; nh * np],
@@ -418,13 +422,14 @@ impl Engine<'_> {
             noise: vec![vec![0.0; np]; nr],
             unbalance_noise: vec![0.0; np],
         };
-        for (k, &(j, jh)) in chosen.iter().enumerate() {
-            let p = probes[j].as_ref().expect("a probe that ran");
+        for (k, &(jr, jh)) in chosen.iter().enumerate() {
+            let p = probes[jr].as_ref().expect("a probe that ran");
             for r in 0..nr {
                 step.dresp[r][k] = p.dresp[r][k];
                 step.roundoff[r][k] = p.roundoff[r][k];
                 step.noise[r][k] = p.noise[r][k];
             }
+            step.unbalance_noise[k] = p.unbalance_noise[k];
             let h = probes[jh].as_ref().expect("a probe that ran");
             step.dhist[k * nh..(k + 1) * nh].copy_from_slice(&h.dhist[k * nh..(k + 1) * nh]);
             step.dz.push(p.dz[k].clone());
@@ -432,18 +437,21 @@ impl Engine<'_> {
         // the shadow run, on its own history derivative, at a tenth of each step: the
         // responses', and the history's where it differs
         let tenth = |j: usize| ladder[j] / SHADOW_RATIO;
-        let shadow_betas: Vec<f64> = chosen.iter().map(|j| tenth(j.0)).collect();
-        let history_betas: Vec<f64> = chosen.iter().map(|j| tenth(j.1)).collect();
+        let shadow_betas: Vec<f64> = chosen.iter().map(|&(jr, _)| tenth(jr)).collect();
+        let history_betas: Vec<f64> = chosen.iter().map(|&(_, jh)| tenth(jh)).collect();
         std::mem::swap(&mut self.dhist, &mut self.shadow_dhist);
-        let shadow = self.sdm(c, central, &shadow_betas).and_then(|mut shadow| {
+        let shadow = self.sdm(c, central, &shadow_betas).map(|mut shadow| {
+            // (where that evaluation fails, the shadow keeps the history of the responses'
+            // tenth: a bar, not the analysis, depends on it)
             if history_betas != shadow_betas {
-                let h = self.sdm(c, central, &history_betas)?;
-                for k in (0..np).filter(|&k| chosen[k].0 != chosen[k].1) {
-                    shadow.dhist[k * nh..(k + 1) * nh]
-                        .copy_from_slice(&h.dhist[k * nh..(k + 1) * nh]);
+                if let Ok(h) = self.sdm(c, central, &history_betas) {
+                    for k in (0..np).filter(|&k| chosen[k].0 != chosen[k].1) {
+                        shadow.dhist[k * nh..(k + 1) * nh]
+                            .copy_from_slice(&h.dhist[k * nh..(k + 1) * nh]);
+                    }
                 }
             }
-            Ok(shadow)
+            shadow
         });
         std::mem::swap(&mut self.dhist, &mut self.shadow_dhist);
         let shadow = shadow?;
@@ -552,9 +560,9 @@ mod tests {
     #[test]
     fn the_step_where_the_differences_reach_their_round_off() {
         // forward, truncation h and round-off 1e-14 / h, each probe expecting its round-off
-        // (the history's rule, `HistoryProbes`): the differences fall a decade a step down to
-        // the pair 1e-7 / 1e-8, within its expected round-off, and 1e-7 is the step of the
-        // smallest error (2e-7)
+        // (the history's rule, `HistoryProbes`): the differences fall to 7.9e-7 at the pair
+        // 1e-6 / 1e-7 and rise to 1.2e-6 at 1e-7 / 1e-8, the first pair within its expected
+        // round-off (1.1e-6), and 1e-7 is the step of the smallest error (2e-7)
         let (values, errors) = model(1, 1.0, 1e-14, 10);
         let h = |j: usize| 10f64.powi(-(j as i32) - 1);
         let last = values.len() - 1;

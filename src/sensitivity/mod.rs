@@ -286,7 +286,8 @@ pub struct IncrementSensitivity {
     /// size of the cancelling terms for SDM, the Newton tolerance for FDM's reruns): the
     /// value is round-off dominated and a larger beta should be used.
     pub roundoff: Vec<Vec<bool>>,
-    /// `--beta auto`: the relative step chosen per parameter.
+    /// `--beta auto`: the relative step chosen per parameter for the responses (SDM's history
+    /// derivative may come from a smaller one, not recorded here).
     pub betas: Vec<f64>,
     /// `--beta auto`, `[r][p]` like `derivatives`: the error bar of each derivative
     /// ([`IncrementSensitivity::bar_bounds`]).
