@@ -189,10 +189,13 @@ struct HistoryProbes<'p> {
     probes: &'p [Option<Step>],
     /// The parameter's entries of `dhist`.
     range: std::ops::Range<usize>,
-    /// The parameter.
-    k: usize,
     /// The absolute step of each probe.
     steps: Vec<f64>,
+    /// Each probe's `|dh_n/db|` (`None` where it failed).
+    norms: Vec<Option<f64>>,
+    /// Each probe's round-off carried through the solve: the unbalance's relative round-off
+    /// times `|dh_n/db|`.
+    carried: Vec<f64>,
     /// `|h_n|`.
     size: f64,
     /// The largest probe's `|dh_n/db|`; `None` where no two neighbouring probes above their
@@ -208,69 +211,78 @@ impl<'p> HistoryProbes<'p> {
         step: impl Fn(usize) -> f64,
     ) -> Self {
         let nh = c.hist_prev.len();
-        let size = norm(&c.eval.hist_new);
+        let range = k * nh..(k + 1) * nh;
+        let norms: Vec<Option<f64>> = (probes.iter())
+            .map(|p| p.as_ref().map(|p| norm(&p.dhist[range.clone()])))
+            .collect();
+        let carried = (probes.iter().zip(&norms))
+            .map(|(p, n)| {
+                let unbalance = p.as_ref().and_then(|p| p.unbalance_noise.get(k).copied());
+                unbalance.unwrap_or(0.0) * n.unwrap_or(0.0)
+            })
+            .collect();
         let mut h = HistoryProbes {
             probes,
-            range: k * nh..(k + 1) * nh,
-            k,
+            range,
             steps: (0..probes.len()).map(step).collect(),
-            size,
+            norms,
+            carried,
+            size: norm(&c.eval.hist_new),
             scale: None,
         };
         // sensitive where two neighbouring probes above their round-off agree (a plateau,
         // as for the responses)
-        let probe = |j: usize| -> Option<f64> {
-            let p = probes.get(j)?.as_ref()?;
-            let v = norm(&p.dhist[h.range.clone()]);
-            v.is_finite().then_some(v)
-        };
+        let finite = |j: usize| h.norms.get(j).copied().flatten().filter(|v| v.is_finite());
         let (mut largest, mut plateau) = (0.0f64, false);
         for j in 0..probes.len() {
-            let Some(v) = probe(j) else { continue };
+            let Some(v) = finite(j) else { continue };
             largest = largest.max(v);
-            let Some(w) = probe(j + 1) else { continue };
-            let d = diff_norm(
-                &probes[j].as_ref().expect("ran").dhist[h.range.clone()],
-                &probes[j + 1].as_ref().expect("ran").dhist[h.range.clone()],
-            );
+            let Some(w) = finite(j + 1) else { continue };
             plateau |= v > NOISE_AGREEMENT * h.noise_abs(j)
                 && w > NOISE_AGREEMENT * h.noise_abs(j + 1)
-                && d <= PLATEAU * v.max(w);
+                && h.difference(j) <= PLATEAU * v.max(w);
         }
         h.scale = (plateau && largest > 0.0).then_some(largest);
         h
     }
 
-    /// The round-off of probe `j`'s history derivative (absolute): the history's own rounding
-    /// over the step, and the unbalance's round-off carried through the solve.
+    /// The history's own step on the ladder of `rungs + 1` probes ([`choose_step`]); `None`
+    /// where it is left out.
+    fn step(&self, rungs: usize, order: i32) -> Option<usize> {
+        let scale = self.scale?;
+        let noise = |j: usize| self.noise_abs(j) / scale;
+        choose_step(
+            |j| {
+                let d = self.difference(j) / scale;
+                if d.is_nan() {
+                    f64::INFINITY
+                } else {
+                    d
+                }
+            },
+            |j| noise(j) + noise(j + 1),
+            rungs,
+            order,
+            noise(rungs),
+        )
+    }
+
+    /// The round-off of probe `j`'s history derivative (absolute, infinite where the probe
+    /// failed): the history's own rounding over the step, and the unbalance's round-off
+    /// carried through the solve.
     fn noise_abs(&self, j: usize) -> f64 {
-        let Some(p) = self.probes[j].as_ref() else {
-            return f64::INFINITY;
-        };
-        let carried = p.unbalance_noise.get(self.k).copied().unwrap_or(0.0)
-            * norm(&p.dhist[self.range.clone()]);
-        f64::EPSILON * self.size / self.steps[j] + carried
+        match self.norms[j] {
+            Some(_) => f64::EPSILON * self.size / self.steps[j] + self.carried[j],
+            None => f64::INFINITY,
+        }
     }
 
-    /// Relative to the largest probe: the round-off of probe `j` (0 where left out, infinite
-    /// where the probe failed).
-    fn noise(&self, j: usize) -> f64 {
-        self.scale.map_or(0.0, |s| self.noise_abs(j) / s)
-    }
-
-    /// Relative to the largest probe: the difference of probes `j` and `j + 1` (0 where
-    /// left out, infinite where a probe failed).
-    fn disagreement(&self, j: usize) -> f64 {
-        let Some(s) = self.scale else { return 0.0 };
+    /// `|dh_n/db|` of probe `j` less that of probe `j + 1` (infinite where one failed).
+    fn difference(&self, j: usize) -> f64 {
         let (Some(a), Some(b)) = (&self.probes[j], &self.probes[j + 1]) else {
             return f64::INFINITY;
         };
-        let d = diff_norm(&a.dhist[self.range.clone()], &b.dhist[self.range.clone()]) / s;
-        if d.is_nan() {
-            f64::INFINITY
-        } else {
-            d
-        }
+        diff_norm(&a.dhist[self.range.clone()], &b.dhist[self.range.clone()])
     }
 }
 
@@ -399,17 +411,7 @@ impl Engine<'_> {
                     .unwrap_or_else(|| probes.iter().position(Option::is_some).unwrap_or(0));
                 // the history's own step, by the same rule on its own differences, where it
                 // is the smaller
-                let own = match history.scale {
-                    Some(_) => choose_step(
-                        |j| history.disagreement(j),
-                        |j| history.noise(j) + history.noise(j + 1),
-                        last,
-                        order,
-                        history.noise(last),
-                    )
-                    .unwrap_or(responses),
-                    None => responses,
-                };
+                let own = history.step(last, order).unwrap_or(responses);
                 (responses, own.max(responses))
             })
             .collect();
