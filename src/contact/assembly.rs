@@ -1168,37 +1168,121 @@ pub(crate) fn initial_history<S: Scalar>(
     Ok(h)
 }
 
-/// Augmented-Lagrangian update after a converged pass: for every augmented pair whose largest
-/// penetration exceeds its tolerance, the multiplier estimates of `hist` become the converged
-/// normal forces. Returns whether anything changed (then the increment is solved again).
+/// What the augmented-Lagrangian passes of one increment remember between them: each
+/// augmented pair's last Uzawa update `p_n - lambda_bar` (over its hitting nodes) and the
+/// relaxation factor it was applied with, for Aitken's acceleration ([`augment`]).
+#[derive(Debug, Default)]
+pub(crate) struct Augmentation {
+    last: Vec<Option<(Vec<f64>, f64)>>,
+}
+
+/// Largest relaxation factor of the accelerated Uzawa update. Plain Uzawa contracts the
+/// multipliers' error by about `rho = K / (K + eps_N A)` per pass (`K` the bodies' stiffness
+/// at the node); on a uniform linear contraction (`rho` times the identity) Aitken's factor is
+/// `1 / (1 - rho)` from the second update on, which makes that update exact. Over coupled nodes
+/// the contraction is not uniform and one factor only approximates it. The bound admits `rho` up to 0.9 and keeps an estimate made across an
+/// active-set change from overshooting by more than a decade. Measured on the thirteen
+/// augmented-Lagrangian scenes of the fuzzer's slow tail: 5,687 Newton iterations at 10,
+/// 5,491 at 30 (and seed 537 over the time limit), 5,894 without the relaxation.
+const AITKEN_MAX: f64 = 10.0;
+
+/// Aitken's relaxation factor for the fixed-point update `r` that follows `previous`, applied
+/// with `omega_previous` (Kuettler and Wall 2008): `-omega_{k-1} r_{k-1}.(r_k - r_{k-1}) /
+/// |r_k - r_{k-1}|^2`, kept within `[1, AITKEN_MAX]` (1 where the updates did not change).
+fn aitken(previous: &[f64], update: &[f64], omega_previous: f64) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (r, r0) in update.iter().zip(previous) {
+        num += r0 * (r - r0);
+        den += (r - r0) * (r - r0);
+    }
+    if den > 0.0 {
+        (-omega_previous * num / den).clamp(1.0, AITKEN_MAX)
+    } else {
+        1.0
+    }
+}
+
+/// The largest violation of an augmented pair's constraint at a converged pass: a hitting
+/// node carrying a normal force is pressed into the target, or held off it, by `|g|`
+/// (`None` for the other normal laws). Its tolerance is the pair's.
+pub(crate) fn augmented_violation(
+    pair: &ContactPair,
+    normal_force: &[f64],
+    gap: &[f64],
+) -> Option<(f64, f64)> {
+    let super::NormalLaw::Augmented { tolerance, .. } = pair.normal else {
+        return None;
+    };
+    let worst = normal_force
+        .iter()
+        .zip(gap)
+        .filter(|(f, _)| **f > 0.0)
+        .fold(0.0f64, |m, (_, g)| m.max(g.abs()));
+    Some((worst, tolerance))
+}
+
+/// Augmented-Lagrangian update after a converged pass, for every augmented pair whose
+/// constraint is violated by more than its tolerance ([`augmented_violation`]: a node pressed
+/// into the target deeper than it, or held off it at a wider gap by a positive force, as a
+/// multiplier estimate carried from a loaded increment into an unloading one does): the
+/// multiplier estimates of `hist` move towards the converged normal forces. A pair's first
+/// move is Uzawa's (`lambda_bar <- p_n`); later ones are relaxed, `lambda_bar <- <lambda_bar +
+/// omega (p_n - lambda_bar)>` with Aitken's `omega` ([`aitken`]). The converged state is any
+/// pass's that meets the tolerance: the relaxation changes which state within the tolerance is
+/// reached and how many passes that takes (and, through the solver's pass limit, whether the
+/// attempt gets there).
+/// Returns whether anything changed (then the increment is solved again).
 pub(crate) fn augment(
     model: &Model,
     layout: &ContactLayout,
     eval: &ContactEval<f64>,
     hist: &mut [f64],
+    memory: &mut Augmentation,
+    trace: bool,
 ) -> bool {
+    memory.last.resize(model.contacts.len(), None);
     let mut changed = false;
     for (p, pair) in model.contacts.iter().enumerate() {
-        let super::NormalLaw::Augmented { tolerance, .. } = pair.normal else {
-            continue;
-        };
         let first = layout.flat[p];
         let n = pair.hitting.len();
-        let worst = (0..n).fold(0.0f64, |m, i| {
-            if eval.normal_force[first + i] > 0.0 {
-                m.max(-eval.gap[first + i])
-            } else {
-                m
-            }
-        });
+        let nodes = first..first + n;
+        let Some((worst, tolerance)) = augmented_violation(
+            pair,
+            &eval.normal_force[nodes.clone()],
+            &eval.gap[nodes.clone()],
+        ) else {
+            continue;
+        };
         if worst <= tolerance {
             continue;
         }
         let nh = pair.history_len();
-        for i in 0..n {
-            let h0 = layout.history[p] + nh * i;
-            pair.set_lambda_bar(&mut hist[h0..h0 + nh], eval.normal_force[first + i]);
+        let start = |i: usize| layout.history[p] + nh * i;
+        let update: Vec<f64> = eval.normal_force[nodes]
+            .iter()
+            .enumerate()
+            .map(|(i, p_n)| {
+                p_n - pair
+                    .lambda_bar(&hist[start(i)..start(i) + nh])
+                    .unwrap_or(0.0)
+            })
+            .collect();
+        let omega = match &memory.last[p] {
+            Some((previous, omega)) => aitken(previous, &update, *omega),
+            None => 1.0,
+        };
+        for (i, r) in update.iter().enumerate() {
+            let h = &mut hist[start(i)..start(i) + nh];
+            let bar = pair.lambda_bar(h).unwrap_or(0.0);
+            pair.set_lambda_bar(h, (bar + omega * r).max(0.0));
         }
+        if trace {
+            eprintln!(
+                "    augmentation: pair {p}: constraint violated by {worst:.3e} (tolerance \
+                 {tolerance:.3e}), relaxation {omega:.3}"
+            );
+        }
+        memory.last[p] = Some((update, omega));
         changed = true;
     }
     changed
@@ -1208,6 +1292,39 @@ pub(crate) fn augment(
 mod tests {
     use super::*;
     use crate::element::face::FaceFamily;
+
+    /// On a uniform linear contraction `x <- x* + rho (x - x*)`, the relaxed iteration `x <- x + omega r` with Aitken's factor from its second update on
+    /// reaches the fixed point in that update: `omega = 1 / (1 - rho)` to round-off.
+    #[test]
+    fn aitken_makes_a_linear_contraction_exact() {
+        let fixed = [3.0, -1.0, 0.5];
+        for rho in [0.3, 0.5, 0.8] {
+            let update = |x: &[f64]| -> Vec<f64> {
+                x.iter()
+                    .zip(&fixed)
+                    .map(|(x, f)| (rho - 1.0) * (x - f))
+                    .collect()
+            };
+            let mut x = vec![0.0; 3];
+            let r0 = update(&x);
+            for (x, r) in x.iter_mut().zip(&r0) {
+                *x += r;
+            }
+            let r1 = update(&x);
+            let omega = aitken(&r0, &r1, 1.0);
+            assert!((omega - 1.0 / (1.0 - rho)).abs() < 1e-12, "{rho}: {omega}");
+            for (x, r) in x.iter_mut().zip(&r1) {
+                *x += omega * r;
+            }
+            for (x, f) in x.iter().zip(&fixed) {
+                assert!((x - f).abs() < 1e-12, "{rho}: {x} against {f}");
+            }
+        }
+        // an update that did not change, and an overshooting estimate: within the bounds
+        assert_eq!(aitken(&[1.0], &[1.0], 1.0), 1.0);
+        assert_eq!(aitken(&[1.0], &[0.99], 1.0), AITKEN_MAX);
+        assert_eq!(aitken(&[1.0], &[-1.0], 1.0), 1.0);
+    }
 
     /// Two faces of a block's top (z = 1) and one of its side (x = 2), meeting at a right
     /// angle along x = 2: the side is a group of its own, the top's nodal normals at the rim

@@ -16,8 +16,9 @@
 //! * or a penalty force `p_n = eps_N A <-g>` (`A` the node's tributary area, so a uniform
 //!   penetration carries a uniform pressure; the multiplier stays zero);
 //! * or an augmented Lagrangian (Uzawa): `p_n = <lambda_bar - eps_N A g>`, the estimate
-//!   `lambda_bar` carried per node and set to `p_n` after each converged pass, the increment
-//!   solved again until the penetration is below a tolerance.
+//!   `lambda_bar` carried per node and moved towards `p_n` after each converged pass, the
+//!   increment solved again until no node carrying a normal force is off the target, either
+//!   way, by more than a tolerance.
 //!
 //! The trade (measured on the patch test, `tests/oracles/contact_laws.rs`): Lagrange multipliers are
 //! exact (no penetration) in one pass, but add an unknown per hitting node and make the system
@@ -75,12 +76,14 @@ pub enum NormalLaw {
         stiffness: f64,
     },
     /// Augmented Lagrangian (Uzawa): `p_n = <lambda_bar - stiffness A g>` with the multiplier
-    /// estimate `lambda_bar` carried per node; after each converged increment `lambda_bar <- p_n`
-    /// and the increment is solved again until the penetration is below `tolerance` (a length).
+    /// estimate `lambda_bar` carried per node; after each converged pass `lambda_bar` moves
+    /// towards `p_n` (`contact::assembly::augment`) and the increment is solved again until no node
+    /// carrying a normal force is off the target, pressed in or held off, by more than
+    /// `tolerance` (a length).
     Augmented {
         /// Penalty stiffness `eps_N` (pressure per unit penetration).
         stiffness: f64,
-        /// Largest penetration accepted (a length).
+        /// Largest `|g|` accepted at a node carrying a normal force (a length).
         tolerance: f64,
     },
 }

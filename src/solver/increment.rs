@@ -279,9 +279,10 @@ impl Solver<'_> {
         }
     }
 
-    /// Augmented Lagrangian (Uzawa): lambda_bar <- p_n and solve again from the
-    /// converged state until the penetration is within tolerance. `attempt` is the first
-    /// pass's outcome; returns the last one's.
+    /// Augmented Lagrangian (Uzawa, Aitken-accelerated: [`crate::contact::assembly::augment`]):
+    /// move lambda_bar towards p_n and solve again from the converged state until the
+    /// constraint is met within tolerance; where the first pass and [`MAX_AUGMENTATIONS`] more
+    /// do not get there, the attempt fails. `attempt` is the first pass's outcome; returns the last one's.
     fn augment(
         &mut self,
         run: &mut Run,
@@ -289,15 +290,20 @@ impl Solver<'_> {
         mut attempt: Result<bool, AttemptFailure>,
     ) -> Result<bool, AttemptFailure> {
         let mut augmentations = 0;
+        let mut memory = crate::contact::assembly::Augmentation::default();
         while let Ok(factored) = attempt {
-            if augmentations >= MAX_AUGMENTATIONS
-                || !crate::contact::assembly::augment(
-                    self.model,
-                    &self.assembler.contact,
-                    &run.eval.contact,
-                    &mut trial.hist,
-                )
-            {
+            if !crate::contact::assembly::augment(
+                self.model,
+                &self.assembler.contact,
+                &run.eval.contact,
+                &mut trial.hist,
+                &mut memory,
+                self.trace,
+            ) {
+                break;
+            }
+            if augmentations >= MAX_AUGMENTATIONS {
+                attempt = Err(AttemptFailure::Diverged("augmentation limit"));
                 break;
             }
             augmentations += 1;

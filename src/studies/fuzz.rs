@@ -22,7 +22,8 @@
 //!   slip limit, to [`COULOMB_TOL`]), no tensile normal force, no friction force on an open
 //!   node;
 //! * no penetration of a Lagrange-multiplier pair beyond round-off ([`PENETRATION_TOL`] of the
-//!   smallest element).
+//!   smallest element); an augmented-Lagrangian pair's constraint within its own tolerance: no
+//!   node carrying a normal force pressed in, or held off, by more than it.
 //!
 //! A run that fails either to complete or a check is a failure with a class
 //! ([`FailureClass`]); `fricsens fuzz` runs thousands of seeds, writes the table of the
@@ -649,6 +650,9 @@ pub const COULOMB_TOL: f64 = 1e-6;
 /// Penetration of a Lagrange pair allowed, as a fraction of the smallest element size: the
 /// constraint `g = 0` holds to Newton's tolerance.
 pub const PENETRATION_TOL: f64 = 1e-6;
+/// An augmented-Lagrangian pair's largest `|g|` at a loaded node over its tolerance that is
+/// accepted: the check reads the evaluation the solver accepted, at 1 at most.
+pub const CONSTRAINT_TOL: f64 = 1.0;
 
 /// The physics checks of one converged increment.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -664,6 +668,9 @@ pub struct IncrementCheck {
     pub tension: f64,
     /// Largest penetration of a Lagrange pair over the smallest element size.
     pub penetration: f64,
+    /// Largest violation of an augmented-Lagrangian pair's constraint over its tolerance (0
+    /// without such pairs).
+    pub constraint: f64,
 }
 
 impl IncrementCheck {
@@ -673,6 +680,7 @@ impl IncrementCheck {
             && self.coulomb <= COULOMB_TOL
             && self.tension <= COULOMB_TOL
             && self.penetration <= PENETRATION_TOL
+            && self.constraint <= CONSTRAINT_TOL
     }
 
     /// The worse of two checks, check by check.
@@ -681,6 +689,7 @@ impl IncrementCheck {
         self.coulomb = self.coulomb.max(o.coulomb);
         self.tension = self.tension.max(o.tension);
         self.penetration = self.penetration.max(o.penetration);
+        self.constraint = self.constraint.max(o.constraint);
     }
 }
 
@@ -761,6 +770,14 @@ pub(crate) fn check_increment(
     let force_scale = scale.max(f64::MIN_POSITIVE);
     let mut flat = 0;
     for (p, pair) in model.contacts.iter().enumerate() {
+        let nodes = flat..flat + pair.hitting.len();
+        if let Some((worst, tolerance)) = crate::contact::assembly::augmented_violation(
+            pair,
+            &ce.normal_force[nodes.clone()],
+            &ce.gap[nodes],
+        ) {
+            out.constraint = out.constraint.max(worst / tolerance);
+        }
         for k in 0..pair.hitting.len() {
             let i = flat + k;
             let state = ce.choice[i].state;
@@ -821,7 +838,8 @@ pub enum FailureClass {
     Equilibrium,
     /// A converged increment failed a physics check: the Coulomb inequality or tension.
     Coulomb,
-    /// A converged increment failed a physics check: penetration of a Lagrange pair.
+    /// A converged increment failed a physics check: penetration of a Lagrange pair, or an
+    /// augmented-Lagrangian pair's constraint beyond its tolerance.
     Penetration,
     /// Another analysis error.
     Other(String),
@@ -836,7 +854,7 @@ impl std::fmt::Display for FailureClass {
             FailureClass::TimeLimit => write!(f, "time limit"),
             FailureClass::Equilibrium => write!(f, "wrong answer: equilibrium"),
             FailureClass::Coulomb => write!(f, "wrong answer: Coulomb inequality"),
-            FailureClass::Penetration => write!(f, "wrong answer: penetration"),
+            FailureClass::Penetration => write!(f, "wrong answer: contact constraint"),
             FailureClass::Other(why) => write!(f, "{why}"),
         }
     }
@@ -971,7 +989,7 @@ pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcom
             if let Some((inc, check)) = checker.first_failure {
                 out.failure = Some(if check.equilibrium > EQUILIBRIUM_TOL {
                     FailureClass::Equilibrium
-                } else if check.penetration > PENETRATION_TOL {
+                } else if check.penetration > PENETRATION_TOL || check.constraint > CONSTRAINT_TOL {
                     FailureClass::Penetration
                 } else {
                     FailureClass::Coulomb
@@ -1214,7 +1232,7 @@ pub fn report_section(after: &Summary, before: Option<&Summary>, notes: &str) ->
     let _ = writeln!(s, "## Robustness\n");
     let _ = writeln!(
         s,
-        "`fricsens fuzz` generates random valid contact scenes a user could write (`fricsens::studies::fuzz::generate`: rigid cylinders, spheres, rounded punches and planes, or a second deformable block, pressed into graded blocks in plane strain or 3D; St Venant-Kirchhoff, Neo-Hookean and J2 bodies, E over six decades, nu up to 0.49, mu in [0, 1.5]; every normal and friction law; press, slide, unload and reload paths with random increment counts) and runs each with default settings. After every converged increment it checks global equilibrium (reactions, loads and rigid-target forces add up to zero, to 1e-6 of the largest force), the Coulomb inequality at every closed node (to 1e-6 of its slip limit), tension, and penetration of Lagrange pairs (1e-6 of the smallest element). A scene passes when its whole path completes with every check holding.\n"
+        "`fricsens fuzz` generates random valid contact scenes a user could write (`fricsens::studies::fuzz::generate`: rigid cylinders, spheres, rounded punches and planes, or a second deformable block, pressed into graded blocks in plane strain or 3D; St Venant-Kirchhoff, Neo-Hookean and J2 bodies, E over six decades, nu up to 0.49, mu in [0, 1.5]; every normal and friction law; press, slide, unload and reload paths with random increment counts) and runs each with default settings. After every converged increment it checks global equilibrium (reactions, loads and rigid-target forces add up to zero, to 1e-6 of the largest force), the Coulomb inequality at every closed node (to 1e-6 of its slip limit), tension, penetration of Lagrange pairs (1e-6 of the smallest element), and the constraint of augmented-Lagrangian pairs (no node carrying a normal force pressed in, or held off, by more than the pair's tolerance). A scene passes when its whole path completes with every check holding.\n"
     );
     let _ = writeln!(s, "| | before | after |\n|---|---|---|");
     let b = |f: &dyn Fn(&Summary) -> String| before.map(f).unwrap_or_else(|| "-".into());

@@ -1,6 +1,7 @@
 //! The three normal laws on the contact patch test: Lagrange multipliers (exact, indefinite
 //! system), penalty (cheap, interpenetrates by p_n / eps_N), augmented Lagrangian (penalty
-//! stiffness, multiplier estimates updated until the penetration is within tolerance).
+//! stiffness, multiplier estimates updated until no loaded node is off the target, either way,
+//! by more than a tolerance).
 
 use crate::common::solve_scene;
 
@@ -241,4 +242,46 @@ fn the_active_set_predictor_changes_the_path_not_the_solution() {
         let compared = assert_same_responses(&model, &on, &off);
         assert_eq!(compared, model.responses.len() * (on.times.len() - 1));
     }
+}
+
+/// The augmented Lagrangian on unloading: the patch test's pressure taken from 10 down to 5 in
+/// one increment. The multiplier estimates carried from the loaded increment (10) alone would
+/// hold the upper block off the lower one at a gap of `(10 - 5) / eps_N = 5e-5`, with the
+/// pressure of 5 still transmitted across it; the passes go on until no loaded node is off the
+/// target by more than the tolerance either way, and the pressure is the applied one.
+#[test]
+fn the_augmented_lagrangian_closes_the_gap_its_estimates_open_on_unloading() {
+    let eps = 1e5;
+    let tol = 1e-9;
+    let mut scene = contact_patch(None);
+    scene.contacts[0].normal = NormalLaw::Augmented {
+        stiffness: eps,
+        tolerance: tol,
+    };
+    scene.loads[0].amplitude = vec![(0.0, 0.0), (1.0, 1.0), (2.0, 0.5)];
+    scene.steps.push(fricsens::scene::StepSpec {
+        end: 2.0,
+        increments: 1,
+    });
+    let (model, res) = solve_scene(scene);
+    let last = res.states.len() - 1;
+    let record = res.records.last().unwrap();
+    assert_eq!(record.time, 2.0);
+    let c = &res.contact[last];
+    let mut loaded = 0;
+    for (f, g) in c.normal_force.iter().zip(&c.gap) {
+        if *f > 0.0 {
+            loaded += 1;
+            assert!(g.abs() <= tol, "a loaded node off the target by {g:e}");
+        }
+    }
+    assert!(loaded > 0);
+    for r in 0..model.responses.len() {
+        let p = res.response_value(&model, r, last);
+        assert!((p - 5.0).abs() < 1e-8 * 5.0, "pressure {p}");
+    }
+    assert!(
+        record.augmentations >= 1,
+        "the unloading increment was accepted without a pass"
+    );
 }

@@ -2,7 +2,8 @@
 //! (`fricsens fuzz`) once found failing with default settings, kept as TOML, and the issue's
 //! curved punch with its variants. Each must complete its whole path with every physics check
 //! holding (global equilibrium, the Coulomb inequality, no tension, no penetration of a Lagrange
-//! pair), but those still listed in `OPEN`. And a few dozen fresh seeds, beyond the ones the
+//! pair, an augmented-Lagrangian pair's constraint within its tolerance), but those still listed
+//! in `OPEN`. And a few dozen fresh seeds, beyond the ones the
 //! solver was tuned on, run as the fuzzer runs them.
 
 use fricsens::scene::Scene;
