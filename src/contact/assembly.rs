@@ -1179,9 +1179,10 @@ pub(crate) struct Augmentation {
 /// Largest relaxation factor of the accelerated Uzawa update. Plain Uzawa contracts the
 /// multipliers' error by about `rho = K / (K + eps_N A)` per pass (`K` the bodies' stiffness
 /// at the node); on a uniform linear contraction (`rho` times the identity) Aitken's factor is
-/// `1 / (1 - rho)` from the second update on, which makes that update exact. Over coupled nodes
-/// the contraction is not uniform and one factor only approximates it. The bound admits `rho` up to 0.9 and keeps an estimate made across an
-/// active-set change from overshooting by more than a decade. Measured on the thirteen
+/// `1 / (1 - rho)` from the second update on, which makes that update exact. Over coupled
+/// nodes the contraction is not uniform and one factor only approximates it. The bound admits
+/// `rho` up to 0.9 and keeps an estimate made across an active-set change from overshooting by
+/// more than a decade. Measured on the thirteen
 /// augmented-Lagrangian scenes of the fuzzer's slow tail: 5,687 Newton iterations at 10,
 /// 5,491 at 30 (and seed 537 over the time limit), 5,894 without the relaxation.
 const AITKEN_MAX: f64 = 10.0;
@@ -1230,8 +1231,7 @@ pub(crate) fn augmented_violation(
 /// omega (p_n - lambda_bar)>` with Aitken's `omega` ([`aitken`]). The converged state is any
 /// pass's that meets the tolerance: the relaxation changes which state within the tolerance is
 /// reached and how many passes that takes (and, through the solver's pass limit, whether the
-/// attempt gets there).
-/// Returns whether anything changed (then the increment is solved again).
+/// attempt gets there). Returns whether anything changed (then the increment is solved again).
 pub(crate) fn augment(
     model: &Model,
     layout: &ContactLayout,
@@ -1254,27 +1254,24 @@ pub(crate) fn augment(
             continue;
         };
         if worst <= tolerance {
+            // met: a later pass (for another pair) starts this pair's relaxation afresh
+            memory.last[p] = None;
             continue;
         }
         let nh = pair.history_len();
-        let start = |i: usize| layout.history[p] + nh * i;
-        let update: Vec<f64> = eval.normal_force[nodes]
-            .iter()
-            .enumerate()
-            .map(|(i, p_n)| {
-                p_n - pair
-                    .lambda_bar(&hist[start(i)..start(i) + nh])
-                    .unwrap_or(0.0)
-            })
+        let node_history = |i: usize| layout.history[p] + nh * i..layout.history[p] + nh * (i + 1);
+        let bars: Vec<f64> = (0..n)
+            .map(|i| pair.lambda_bar(&hist[node_history(i)]).unwrap_or(0.0))
+            .collect();
+        let update: Vec<f64> = (eval.normal_force[nodes].iter().zip(&bars))
+            .map(|(p_n, bar)| p_n - bar)
             .collect();
         let omega = match &memory.last[p] {
             Some((previous, omega)) => aitken(previous, &update, *omega),
             None => 1.0,
         };
-        for (i, r) in update.iter().enumerate() {
-            let h = &mut hist[start(i)..start(i) + nh];
-            let bar = pair.lambda_bar(h).unwrap_or(0.0);
-            pair.set_lambda_bar(h, (bar + omega * r).max(0.0));
+        for (i, (bar, r)) in bars.iter().zip(&update).enumerate() {
+            pair.set_lambda_bar(&mut hist[node_history(i)], (bar + omega * r).max(0.0));
         }
         if trace {
             eprintln!(
@@ -1293,8 +1290,9 @@ mod tests {
     use super::*;
     use crate::element::face::FaceFamily;
 
-    /// On a uniform linear contraction `x <- x* + rho (x - x*)`, the relaxed iteration `x <- x + omega r` with Aitken's factor from its second update on
-    /// reaches the fixed point in that update: `omega = 1 / (1 - rho)` to round-off.
+    /// On a uniform linear contraction `x <- x* + rho (x - x*)`, the relaxed iteration `x <- x +
+    /// omega r` with Aitken's factor from its second update on reaches the fixed point in that
+    /// update: `omega = 1 / (1 - rho)` to round-off.
     #[test]
     fn aitken_makes_a_linear_contraction_exact() {
         let fixed = [3.0, -1.0, 0.5];

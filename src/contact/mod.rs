@@ -77,8 +77,8 @@ pub enum NormalLaw {
     },
     /// Augmented Lagrangian (Uzawa): `p_n = <lambda_bar - stiffness A g>` with the multiplier
     /// estimate `lambda_bar` carried per node; after each converged pass `lambda_bar` moves
-    /// towards `p_n` (`contact::assembly::augment`) and the increment is solved again until no node
-    /// carrying a normal force is off the target, pressed in or held off, by more than
+    /// towards `p_n` (`contact::assembly::augment`) and the increment is solved again until no
+    /// node carrying a normal force is off the target, pressed in or held off, by more than
     /// `tolerance` (a length).
     Augmented {
         /// Penalty stiffness `eps_N` (pressure per unit penetration).

@@ -282,7 +282,8 @@ impl Solver<'_> {
     /// Augmented Lagrangian (Uzawa, Aitken-accelerated: [`crate::contact::assembly::augment`]):
     /// move lambda_bar towards p_n and solve again from the converged state until the
     /// constraint is met within tolerance; where the first pass and [`MAX_AUGMENTATIONS`] more
-    /// do not get there, the attempt fails. `attempt` is the first pass's outcome; returns the last one's.
+    /// do not get there, the attempt fails. `attempt` is the first pass's outcome; returns the
+    /// last one's.
     fn augment(
         &mut self,
         run: &mut Run,

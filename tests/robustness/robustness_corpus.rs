@@ -3,8 +3,8 @@
 //! curved punch with its variants. Each must complete its whole path with every physics check
 //! holding (global equilibrium, the Coulomb inequality, no tension, no penetration of a Lagrange
 //! pair, an augmented-Lagrangian pair's constraint within its tolerance), but those still listed
-//! in `OPEN`. And a few dozen fresh seeds, beyond the ones the
-//! solver was tuned on, run as the fuzzer runs them.
+//! in `OPEN`. And a few dozen fresh seeds, beyond the ones the solver was tuned on, run as the
+//! fuzzer runs them.
 
 use fricsens::scene::Scene;
 use fricsens::studies::fuzz::{generate, run_case, CaseOutcome, FailureClass};
