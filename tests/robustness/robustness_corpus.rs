@@ -41,17 +41,33 @@ fn scenes(open: bool) -> Vec<PathBuf> {
     files
 }
 
+/// Run `f` in a rayon pool of its own (two threads, the machine's cores). A test that runs
+/// whole scenes as the items of a parallel loop must not do so on the global pool: each item
+/// holds a worker for its whole run, and the workers take the loop's remaining items before
+/// any job another test injects from its own thread, so a test running beside it (its
+/// assembly and factorization on the global pool) waits for the whole loop — once, in CI,
+/// past its 120 s time limit at its first increment (0.3 s alone).
+fn in_own_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a rayon pool of two threads")
+        .install(f)
+}
+
 /// Run every file with default settings (in parallel), as `fricsens fuzz --scene` does.
 fn run_all(files: &[PathBuf]) -> Vec<(String, CaseOutcome)> {
-    files
-        .par_iter()
-        .with_max_len(1)
-        .map(|f| {
-            let scene = Scene::from_file(f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
-            let name = f.file_name().unwrap().to_string_lossy().to_string();
-            (name, run_case(0, &scene, Some(600.0)))
-        })
-        .collect()
+    in_own_pool(|| {
+        files
+            .par_iter()
+            .with_max_len(1)
+            .map(|f| {
+                let scene = Scene::from_file(f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+                let name = f.file_name().unwrap().to_string_lossy().to_string();
+                (name, run_case(0, &scene, Some(600.0)))
+            })
+            .collect()
+    })
 }
 
 /// Every once-failing scene that is not listed open now completes with every check holding.
@@ -153,16 +169,18 @@ fn open_corpus_scenes() {
 
 /// Fresh seeds (the campaign tuned on seeds 0-999): every one either completes with every
 /// check holding or stops with a typed divergence error; none builds wrong, none answers wrong
-/// (equilibrium, Coulomb, penetration), and at least 31 of 32 complete (the campaign's
-/// completion rate is 99.0 %).
+/// (equilibrium, Coulomb, the contact constraint), and at least 31 of 32 complete (the last
+/// campaign completed 98.8 % of seeds 0-999 and 99.4 % of the held-out seeds 1000-1999).
 #[test]
 fn fresh_generated_scenes_complete_and_never_answer_wrongly() {
     let seeds: Vec<u64> = (100_000..100_032).collect();
-    let outcomes: Vec<CaseOutcome> = seeds
-        .par_iter()
-        .with_max_len(1)
-        .map(|&s| run_case(s, &generate(s), Some(600.0)))
-        .collect();
+    let outcomes: Vec<CaseOutcome> = in_own_pool(|| {
+        seeds
+            .par_iter()
+            .with_max_len(1)
+            .map(|&s| run_case(s, &generate(s), Some(600.0)))
+            .collect()
+    });
     for o in &outcomes {
         assert!(
             !matches!(
