@@ -812,13 +812,14 @@ fn sensitivity(
     }
     if settings.method == Method::Adjoint {
         out!(
-            "  where it went: evaluations {:.3} s ({} local-derivative and design evaluations), factorizations {:.3} s, solves {:.3} s, recomputation {:.3} s, the rest {:.3} s",
+            "  where it went: evaluations {:.3} s ({} local-derivative and design evaluations), factorizations {:.3} s, solves {:.3} s, recomputation {:.3} s, the rest {:.3} s; {:.3} s of these at the same time as others (factorizations beside the recordings, design derivatives beside the solves)",
             c.evaluation_seconds,
             c.partial_evaluations,
             c.factor_seconds,
             c.solve_seconds,
             c.recompute_seconds,
-            c.rest_seconds() - c.recompute_seconds
+            c.rest_seconds() - c.recompute_seconds,
+            c.overlap_seconds
         );
         out!(
             "  adjoint: kept {:.1} MiB of forward states ({} checkpoint(s)); recomputed {} increment(s) in {:.3} s ({:.2} of the primal)",

@@ -251,14 +251,36 @@ impl SparseMatrix {
         check_len(n, r.len())?;
         let cp = self.pattern.symbolic.col_ptr();
         let ri = self.pattern.symbolic.row_idx();
+        // a column's terms go to LANES double-double sums in turn, added exactly at the end:
+        // one sum is two chains of dependent additions, LANES sums overlap theirs
+        const LANES: usize = 4;
         for (j, rj) in r.iter_mut().enumerate() {
-            let (mut hi, mut lo) = (b[j], 0.0);
-            for k in cp[j]..cp[j + 1] {
-                let (s, err) = sub_product(hi, self.values[k], x[ri[k]]);
-                hi = s;
-                lo += err;
+            let (mut hi, mut lo) = ([0.0; LANES], [0.0; LANES]);
+            hi[0] = b[j];
+            let col = cp[j]..cp[j + 1];
+            let (vals, rows) = (&self.values[col.clone()], &ri[col]);
+            let mut quads = vals.chunks_exact(LANES).zip(rows.chunks_exact(LANES));
+            for (v, i) in quads.by_ref() {
+                for l in 0..LANES {
+                    let (s, err) = sub_product(hi[l], v[l], x[i[l]]);
+                    hi[l] = s;
+                    lo[l] += err;
+                }
             }
-            *rj = hi + lo;
+            let tail = vals.len() - vals.len() % LANES;
+            for (v, i) in vals[tail..].iter().zip(&rows[tail..]) {
+                let (s, err) = sub_product(hi[0], *v, x[*i]);
+                hi[0] = s;
+                lo[0] += err;
+            }
+            // the lanes' leading parts added exactly, their errors to the trailing parts
+            let (mut sum, mut low) = (hi[0], lo[0]);
+            for (h, l) in hi[1..].iter().zip(&lo[1..]) {
+                let (s, err) = sub_product(sum, -1.0, *h);
+                sum = s;
+                low += err + l;
+            }
+            *rj = sum + low;
         }
         Ok(())
     }

@@ -1030,3 +1030,67 @@ proptest! {
         prop_assert!(res < 1e-10, "residual {}", res);
     }
 }
+
+/// The double-double residuals `b - A x` and `b - A^T x` against exact integer arithmetic:
+/// entries and unknowns are positive integers times powers of two whose products are exact in
+/// `f64` and whose sums are exact in `i128`, and `b` is the sum rounded to `f64`, so that the
+/// residual is that rounding error alone, a few units against terms of 2^51 and more. Every
+/// term and every rounding error is then a multiple of the unit, 2^-15, below 2^53 units, so
+/// the double-double sums are exact and the residual must be the exact one (rounded once, to
+/// itself); the `f64` product misses it. Columns of 11 entries take the transposed
+/// residual's four interleaved sums and its tail.
+#[test]
+fn double_double_residuals_match_exact_integer_arithmetic() {
+    let n = 11;
+    let all: Vec<usize> = (0..n).collect();
+    let pat = Arc::new(SparsePattern::new(n, &[all.as_slice()], &[]).unwrap());
+    let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+    // an integer in [2^(bits - 1), 2^bits)
+    let mut int = |bits: u32| -> i64 {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        ((seed >> (65 - bits)) | (1 << (bits - 1))) as i64
+    };
+    // a = ia 2^-10, x = ix 2^-5: ia ix in [2^51, 2^53), exact products, in units of 2^-15
+    let ia: Vec<i64> = (0..n * n).map(|_| int(26)).collect();
+    let ix: Vec<i64> = (0..n).map(|_| int(27)).collect();
+    let mut a = SparseMatrix::new(pat);
+    let local: Vec<f64> = ia.iter().map(|&v| v as f64 / 1024.0).collect();
+    a.add_block(0, &local).unwrap();
+    let x: Vec<f64> = ix.iter().map(|&v| v as f64 / 32.0).collect();
+    let unit = 2f64.powi(-15);
+    for transpose in [false, true] {
+        // row i of A (of A^T): local[i n + j] (local[j n + i])
+        let entry = |i: usize, j: usize| {
+            if transpose {
+                ia[j * n + i]
+            } else {
+                ia[i * n + j]
+            }
+        };
+        let sums: Vec<i128> = (0..n)
+            .map(|i| (0..n).map(|j| entry(i, j) as i128 * ix[j] as i128).sum())
+            .collect();
+        let b: Vec<f64> = sums.iter().map(|&s| s as f64 * unit).collect();
+        let exact: Vec<f64> = (sums.iter().zip(&b))
+            .map(|(&s, &bi)| ((bi / unit) as i128 - s) as f64 * unit)
+            .collect();
+        let mut r = vec![0.0; n];
+        let mut ax = vec![0.0; n];
+        if transpose {
+            a.residual_extended_transpose(&x, &b, &mut r).unwrap();
+            a.mul_vec_transpose(&x, &mut ax).unwrap();
+        } else {
+            a.residual_extended(&x, &b, &mut r).unwrap();
+            a.mul_vec(&x, &mut ax).unwrap();
+        }
+        assert_eq!(r, exact, "transpose {transpose}");
+        let plain_misses = (0..n).filter(|&i| b[i] - ax[i] != exact[i]).count();
+        let nonzero = exact.iter().filter(|r| **r != 0.0).count();
+        assert!(
+            plain_misses > n / 2 && nonzero > n / 2,
+            "the test needs residuals that plain f64 misses: {plain_misses} missed, {nonzero} nonzero"
+        );
+    }
+}

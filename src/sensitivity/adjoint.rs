@@ -706,12 +706,25 @@ impl AdState {
 /// derivative parts of that output.
 type Rows = Vec<(usize, [f64; W])>;
 
+/// A parameter's partial derivatives at an increment, evaluated before its multipliers are
+/// known: what every column reads of them but `-lambda . R_b` (its response's own part and
+/// `mu . H_b`), and `R_b`.
+struct DesignPartial {
+    /// The parameter.
+    p: usize,
+    /// Per column.
+    known: Vec<f64>,
+    residual: Vec<f64>,
+}
+
 /// One increment's transposed solve: the tangent at its converged state (the prescribed
-/// unknowns' rows and columns made identity), and Newton's last factorization if kept
-/// ([`KeepFactors`]).
+/// unknowns' rows and columns made identity), Newton's last factorization if kept
+/// ([`KeepFactors`]), and whether the sweep's solver holds the tangent's own factorization
+/// already (made beside the increment's recordings).
 struct Transposed<'x> {
     k: &'x SparseMatrix,
     factor: Option<&'x mut KeptFactor>,
+    factored: bool,
 }
 
 /// The transposed solves' options ([`Settings`]): the tangent, the refinement steps of
@@ -1034,8 +1047,37 @@ impl<'a> Sweep<'a> {
                     *gi = a + b;
                 }
             }
+            // the prescribed unknowns' identity rows, in place (`k` is rewritten at the next
+            // increment): the right-hand sides have read the tangent
+            for (d, fixed) in s.constrained.iter().enumerate() {
+                if *fixed {
+                    k.set_identity_row_col(d)?;
+                }
+            }
             let reverse = self.reverse(cols.len());
-            let (recorded, mut state) = if reverse {
+            let mut factored = false;
+            let (recorded, mut state) = if reverse && self.factors_anew() {
+                // the tangent factored beside the recordings: neither reads the other, and
+                // the factorization is serial below `PAR_FACTOR_MIN_N` unknowns while the
+                // recordings keep every thread busy
+                let ls = self.linear_solver(&mut solver)?;
+                let before = cost.evaluation_seconds;
+                let t = Instant::now();
+                let (rec, fac) = rayon::join(
+                    || self.record(cost, s, m, &mut tape_room, &mut ev_rev),
+                    || {
+                        let t = Instant::now();
+                        ls.factor(&k).map(|()| t.elapsed().as_secs_f64())
+                    },
+                );
+                let wall = t.elapsed().as_secs_f64();
+                let fac = fac?;
+                cost.factor_seconds += fac;
+                cost.factorizations += 1;
+                cost.overlap_seconds += (cost.evaluation_seconds - before + fac - wall).max(0.0);
+                factored = true;
+                (Some(rec?), None)
+            } else if reverse {
                 (
                     Some(self.record(cost, s, m, &mut tape_room, &mut ev_rev)?),
                     None,
@@ -1058,18 +1100,36 @@ impl<'a> Sweep<'a> {
                     }
                 }
             }
-            // the prescribed unknowns' identity rows, in place: `k` is rewritten at the next
-            // increment
-            for (d, fixed) in s.constrained.iter().enumerate() {
-                if *fixed {
-                    k.set_identity_row_col(d)?;
-                }
-            }
             let transposed = Transposed {
                 k: &k,
                 factor: factor.as_mut(),
+                factored,
             };
-            self.solve_transposed(cost, transposed, &mut rhs, cols.len(), &mut solver)?;
+            // the design's partial derivatives need no multiplier of this increment: they are
+            // evaluated beside the solve (serial triangular solves)
+            // what each column reads at this increment: its response, if it reads here, and
+            // the history multipliers carried back to here
+            let reading: Vec<(Option<&Response>, &[f64])> = (cols.iter())
+                .map(|&j| ((at(j) == m).then(|| &model.responses[j % nr]), &mu[j][..]))
+                .collect();
+            let design = || {
+                let t = Instant::now();
+                let partials = self.design_partials(s, &frozen, &reading, &mut ev_d);
+                partials.map(|p| (p, t.elapsed().as_secs_f64()))
+            };
+            let t = Instant::now();
+            let solve_before = cost.solve_seconds + cost.factor_seconds;
+            let (solved, partials) = rayon::join(
+                || self.solve_transposed(cost, transposed, &mut rhs, cols.len(), &mut solver),
+                design,
+            );
+            let wall = t.elapsed().as_secs_f64();
+            solved?;
+            let (partials, design_seconds) = partials?;
+            let solve_seconds = cost.solve_seconds + cost.factor_seconds - solve_before;
+            cost.evaluation_seconds += design_seconds;
+            cost.partial_evaluations += partials.len();
+            cost.overlap_seconds += (solve_seconds + design_seconds - wall).max(0.0);
             for (c, cot) in cots.iter_mut().enumerate() {
                 for (r, l) in cot[out.res()].iter_mut().zip(&rhs[c * n..(c + 1) * n]) {
                     *r -= l;
@@ -1087,41 +1147,23 @@ impl<'a> Sweep<'a> {
             }
             // d/db [F + mu . H - lambda . R], prescribed unknowns moving with the design
             self.field_passes(cost, s, &cols, &cots, &mut dfdb, &mut ev_ad)?;
-            let hd: Vec<Dual64> = s.hist_prev.iter().map(|v| Dual64::from_re(*v)).collect();
-            for (p, par) in (self.params.iter().enumerate()).filter(|(p, _)| !self.field[*p]) {
-                let t = Instant::now();
-                let (lifted, zd) = self.seeded(s, par);
-                let skip = self.unreached(&Reach::seeded(&lifted), &zd);
-                let fr = Frozen {
-                    skip: Some(&skip),
-                    ..frozen
-                };
-                self.asm
-                    .evaluate(model, &lifted, &zd, &hd, s.time, Some(&fr), None, &mut ev_d)?;
-                cost.evaluation_seconds += t.elapsed().as_secs_f64();
-                cost.partial_evaluations += 1;
+            for d in &partials {
                 for (c, &j) in cols.iter().enumerate() {
-                    let mut v = 0.0;
-                    if at(j) == m {
-                        v += model.responses[j % nr]
-                            .value(&ev_d.response_input(&zd, &self.asm))
-                            .eps;
-                    }
-                    v += (mu[j].iter().zip(&ev_d.hist_new))
-                        .map(|(a, b)| a * b.eps)
-                        .sum::<f64>();
+                    let mut v = d.known[c];
                     // -lambda . R_b (F's own reaction part is in its value above)
                     let lam = &rhs[c * n..(c + 1) * n];
-                    v -= (lam.iter().zip(&ev_d.residual))
-                        .map(|(a, b)| a * b.eps)
+                    v -= (lam.iter().zip(&d.residual))
+                        .map(|(a, b)| a * b)
                         .sum::<f64>();
-                    dfdb[j][p] += v;
+                    dfdb[j][d.p] += v;
                 }
             }
             for (c, &j) in cols.iter().enumerate() {
                 mu[j].copy_from_slice(&mu_prev[c * nh..(c + 1) * nh]);
             }
         }
+        // the recordings' memory, kept from one increment to the next, freed
+        tape::free_kept();
         // mu_0 . dh_0/db
         for (j, row) in dfdb.iter_mut().enumerate() {
             for (d, dh) in row.iter_mut().zip(dh0) {
@@ -1131,6 +1173,45 @@ impl<'a> Sweep<'a> {
             }
         }
         Ok(dfdb)
+    }
+
+    /// Every non-field parameter's partial derivatives at stored increment `s`, before the
+    /// increment's multipliers are known ([`DesignPartial`]): one dual evaluation each, over
+    /// what the parameter reaches, on the converged branches (`frozen`). `reading[c]`:
+    /// column `c`'s response where it reads this increment, and its history multipliers.
+    fn design_partials(
+        &self,
+        s: &Stored,
+        frozen: &Frozen<'_>,
+        reading: &[(Option<&Response>, &[f64])],
+        ev: &mut Evaluation<Dual64>,
+    ) -> Result<Vec<DesignPartial>, AnalysisError> {
+        let hd: Vec<Dual64> = s.hist_prev.iter().map(|v| Dual64::from_re(*v)).collect();
+        let mut partials = Vec::new();
+        for (p, par) in (self.params.iter().enumerate()).filter(|(p, _)| !self.field[*p]) {
+            let (lifted, zd) = self.seeded(s, par);
+            let skip = self.unreached(&Reach::seeded(&lifted), &zd);
+            let fr = Frozen {
+                skip: Some(&skip),
+                ..*frozen
+            };
+            (self.asm).evaluate(self.model, &lifted, &zd, &hd, s.time, Some(&fr), None, ev)?;
+            let known = (reading.iter())
+                .map(|(response, mu)| {
+                    let mut v = 0.0;
+                    if let Some(r) = response {
+                        v += r.value(&ev.response_input(&zd, &self.asm)).eps;
+                    }
+                    v += (mu.iter().zip(&ev.hist_new))
+                        .map(|(a, b)| a * b.eps)
+                        .sum::<f64>();
+                    v
+                })
+                .collect();
+            let residual = ev.residual.iter().map(|r| r.eps).collect();
+            partials.push(DesignPartial { p, known, residual });
+        }
+        Ok(partials)
     }
 
     /// The design seeded along parameter `par`, and the state with the prescribed unknowns
@@ -1188,10 +1269,7 @@ impl<'a> Sweep<'a> {
         solver: &mut Option<LinearSolver>,
     ) -> Result<(), AnalysisError> {
         let kd = t.k;
-        if solver.is_none() {
-            *solver = Some(LinearSolver::new(self.asm.pattern.clone())?);
-        }
-        let ls = solver.as_mut().expect("just made");
+        let ls = self.linear_solver(solver)?;
         let SweepTangent {
             choice,
             refine_steps,
@@ -1235,13 +1313,33 @@ impl<'a> Sweep<'a> {
             // no solve with the kept factor: factor anew
             rhs.copy_from_slice(&b);
         }
-        let start = Instant::now();
-        ls.factor(kd)?;
-        cost.factor_seconds += start.elapsed().as_secs_f64();
-        cost.factorizations += 1;
+        if !t.factored {
+            let start = Instant::now();
+            ls.factor(kd)?;
+            cost.factor_seconds += start.elapsed().as_secs_f64();
+            cost.factorizations += 1;
+        }
         // refined to the solution rounded to working precision, as DDM's solves are
         factored_refined(ls, kd, true, rhs, ncols, cost)?;
         Ok(())
+    }
+
+    /// The sweep's solver (on the tangent's pattern), made at its first use.
+    fn linear_solver<'s>(
+        &self,
+        solver: &'s mut Option<LinearSolver>,
+    ) -> Result<&'s mut LinearSolver, AnalysisError> {
+        if solver.is_none() {
+            *solver = Some(LinearSolver::new(self.asm.pattern.clone())?);
+        }
+        Ok(solver.as_mut().expect("just made"))
+    }
+
+    /// Whether the converged tangent is factored at every increment whatever Newton kept
+    /// ([`TangentChoice::Exact`] without GMRES): then the factorization can be made before
+    /// the right-hand sides are complete.
+    fn factors_anew(&self) -> bool {
+        self.tangent.choice == TangentChoice::Exact && !self.tangent.krylov
     }
 
     /// One colour's local Jacobians: every member's inputs seeded `W` at a time (input `l`

@@ -341,6 +341,10 @@ pub struct SensitivityCost {
     pub factor_seconds: f64,
     /// Of the wall time: triangular solves (refinement steps included).
     pub solve_seconds: f64,
+    /// Of the wall time, counted twice above: work done at the same time as other work (the
+    /// adjoint's factorizations beside its recordings, its design derivatives beside its
+    /// solves: in `evaluation_seconds` and in `factor_seconds` or `solve_seconds`).
+    pub overlap_seconds: f64,
     /// The floor of one parameter (`Settings::probe_floor`), not part of the wall time: at
     /// every increment, one f64 residual evaluation over all elements at the converged state
     /// and one single-column solve with Newton's last factorization (none at an increment
@@ -370,6 +374,7 @@ impl SensitivityCost {
     /// masks, copies, kink detection, forced tangents' copies, the first symbolic analysis).
     pub fn rest_seconds(&self) -> f64 {
         self.wall_seconds - self.evaluation_seconds - self.factor_seconds - self.solve_seconds
+            + self.overlap_seconds
     }
 }
 
