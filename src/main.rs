@@ -95,8 +95,8 @@ enum Command {
         /// The adjoint with --tangent exact: the transposed solves by GMRES preconditioned
         /// with Newton's last factorization of each increment, which the forward run then
         /// keeps (DDM's default solve, transposed), instead of a factorization per increment.
-        /// Slower on the leaf spring (0.57 s against 0.485 s for one response) and 2.6 times
-        /// the memory; it pays where a factorization costs many solves.
+        /// Slower on the leaf spring (the sweep 0.187 s against 0.144 s for one response) and
+        /// 2.6 times the memory; it pays where a factorization costs many solves.
         #[arg(long)]
         adjoint_krylov: bool,
         /// SDM and SDM central: split SDM's error against DDM at every increment into the

@@ -259,16 +259,16 @@ impl SparseMatrix {
             hi[0] = b[j];
             let col = cp[j]..cp[j + 1];
             let (vals, rows) = (&self.values[col.clone()], &ri[col]);
-            let mut quads = vals.chunks_exact(LANES).zip(rows.chunks_exact(LANES));
-            for (v, i) in quads.by_ref() {
+            let (quads, rows_quads) = (vals.chunks_exact(LANES), rows.chunks_exact(LANES));
+            let (tail, rows_tail) = (quads.remainder(), rows_quads.remainder());
+            for (v, i) in quads.zip(rows_quads) {
                 for l in 0..LANES {
                     let (s, err) = sub_product(hi[l], v[l], x[i[l]]);
                     hi[l] = s;
                     lo[l] += err;
                 }
             }
-            let tail = vals.len() - vals.len() % LANES;
-            for (v, i) in vals[tail..].iter().zip(&rows[tail..]) {
+            for (v, i) in tail.iter().zip(rows_tail) {
                 let (s, err) = sub_product(hi[0], *v, x[*i]);
                 hi[0] = s;
                 lo[0] += err;

@@ -146,6 +146,16 @@ pub fn free_kept() {
     drop(kept);
 }
 
+/// Calls [`free_kept`] when dropped: a sweep holds one, so that the kept tapes are freed on
+/// its errors too.
+pub struct FreeKept;
+
+impl Drop for FreeKept {
+    fn drop(&mut self) {
+        free_kept();
+    }
+}
+
 /// The number of entries on this thread's tape.
 pub fn len() -> usize {
     with_tape(|t| t.len())

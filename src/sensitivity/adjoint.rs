@@ -714,7 +714,9 @@ struct DesignPartial {
     p: usize,
     /// Per column.
     known: Vec<f64>,
-    residual: Vec<f64>,
+    /// `R_b`'s nonzero entries, `(row, value)`: a nodal shape parameter reaches a few
+    /// elements, and a field of them is as many parameters as the mesh has nodes.
+    residual: Vec<(usize, f64)>,
 }
 
 /// One increment's transposed solve: the tangent at its converged state (the prescribed
@@ -957,6 +959,9 @@ impl<'a> Sweep<'a> {
         // the stored increment of column j
         let at = |j: usize| sel[j / nr];
         let mut dfdb = vec![vec![0.0; np]; ncol];
+        // the recordings' memory, kept from one increment to the next, freed however the
+        // sweep ends
+        let _kept = tape::FreeKept;
         // mu per column (history multipliers carried back)
         let mut mu = vec![vec![0.0; nh]; ncol];
         let mut k = SparseMatrix::new(self.asm.pattern.clone());
@@ -1106,8 +1111,8 @@ impl<'a> Sweep<'a> {
                 factored,
             };
             // the design's partial derivatives need no multiplier of this increment: they are
-            // evaluated beside the solve (serial triangular solves)
-            // what each column reads at this increment: its response, if it reads here, and
+            // evaluated beside the solve (and beside its factorization where it makes one).
+            // What each column reads at this increment: its response, if it reads here, and
             // the history multipliers carried back to here
             let reading: Vec<(Option<&Response>, &[f64])> = (cols.iter())
                 .map(|&j| ((at(j) == m).then(|| &model.responses[j % nr]), &mu[j][..]))
@@ -1152,9 +1157,7 @@ impl<'a> Sweep<'a> {
                     let mut v = d.known[c];
                     // -lambda . R_b (F's own reaction part is in its value above)
                     let lam = &rhs[c * n..(c + 1) * n];
-                    v -= (lam.iter().zip(&d.residual))
-                        .map(|(a, b)| a * b)
-                        .sum::<f64>();
+                    v -= (d.residual.iter()).map(|(i, b)| lam[*i] * b).sum::<f64>();
                     dfdb[j][d.p] += v;
                 }
             }
@@ -1162,8 +1165,6 @@ impl<'a> Sweep<'a> {
                 mu[j].copy_from_slice(&mu_prev[c * nh..(c + 1) * nh]);
             }
         }
-        // the recordings' memory, kept from one increment to the next, freed
-        tape::free_kept();
         // mu_0 . dh_0/db
         for (j, row) in dfdb.iter_mut().enumerate() {
             for (d, dh) in row.iter_mut().zip(dh0) {
@@ -1208,7 +1209,10 @@ impl<'a> Sweep<'a> {
                     v
                 })
                 .collect();
-            let residual = ev.residual.iter().map(|r| r.eps).collect();
+            let residual = (ev.residual.iter().enumerate())
+                .filter(|(_, r)| r.eps != 0.0)
+                .map(|(i, r)| (i, r.eps))
+                .collect();
             partials.push(DesignPartial { p, known, residual });
         }
         Ok(partials)
@@ -1250,7 +1254,8 @@ impl<'a> Sweep<'a> {
 
     /// `K^T X = RHS` with the tangent `k` at the converged state (prescribed unknowns as
     /// identity rows) — the transposes of what DDM solves with each tangent option:
-    /// [`TangentChoice::Exact`] factored anew, or by block GMRES preconditioned with
+    /// [`TangentChoice::Exact`] factored anew (already, beside the recordings, where
+    /// [`Transposed::factored`]), or by block GMRES preconditioned with
     /// Newton's last factor kept by the forward run ([`Settings::adjoint_krylov`]; factored
     /// where GMRES or its refinement fails: DDM stops at a failed refinement), and refined
     /// with double-double residuals either way; [`TangentChoice::Last`] with Newton's last

@@ -214,9 +214,10 @@ pub struct Settings {
     /// The adjoint with [`TangentChoice::Exact`]: the transposed solves by block GMRES
     /// preconditioned with Newton's last factorization of each increment, which the forward
     /// run then keeps (DDM's default solve, transposed), instead of a factorization per
-    /// increment. Off by default: on the leaf spring it was slower than factoring (one
-    /// response 0.57 s against 0.485 s, median of 7) and kept 2.6 times the memory (123
-    /// MiB against 47); it pays where a factorization costs many solves.
+    /// increment. Off by default: on the leaf spring it is slower than factoring (one
+    /// response, the sweep 0.187 s against 0.144 s, median of 5 in turns; the factorizations
+    /// run beside the recordings, GMRES cannot) and keeps 2.6 times the memory (123 MiB
+    /// against 47); it pays where a factorization costs many solves.
     pub adjoint_krylov: bool,
     /// SDM and SDM central, shape parameters: the refined SDM, which differentiates the
     /// rigid-body part of every node's motion exactly and differences only the rest (the

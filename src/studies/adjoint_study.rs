@@ -131,7 +131,8 @@ pub struct Large {
     pub primal_seconds: f64,
     /// The adjoint's seconds beyond the primal.
     pub adjoint_seconds: f64,
-    /// Of which evaluations.
+    /// Of which evaluations (some of them beside the factorizations and solves: the two add
+    /// up to more than the sweep where they overlap).
     pub evaluation_seconds: f64,
     /// Of which solves and factorizations.
     pub solve_seconds: f64,

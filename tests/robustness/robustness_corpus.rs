@@ -41,17 +41,18 @@ fn scenes(open: bool) -> Vec<PathBuf> {
     files
 }
 
-/// Run `f` in a rayon pool of its own (two threads, the machine's cores). A test that runs
+/// Run `f` in a rayon pool of its own (a thread per core). A test that runs
 /// whole scenes as the items of a parallel loop must not do so on the global pool: each item
 /// holds a worker for its whole run, and the workers take the loop's remaining items before
 /// any job another test injects from its own thread, so a test running beside it (its
 /// assembly and factorization on the global pool) waits for the whole loop — once, in CI,
 /// past its 120 s time limit at its first increment (0.3 s alone).
 fn in_own_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
     rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
+        .num_threads(cores)
         .build()
-        .expect("a rayon pool of two threads")
+        .expect("a rayon pool")
         .install(f)
 }
 
