@@ -1231,7 +1231,9 @@ pub(crate) fn augmented_violation(
 /// omega (p_n - lambda_bar)>` with Aitken's `omega` ([`aitken`]). The converged state is any
 /// pass's that meets the tolerance: the relaxation changes which state within the tolerance is
 /// reached and how many passes that takes (and, through the solver's pass limit, whether the
-/// attempt gets there). Returns whether anything changed (then the increment is solved again).
+/// attempt gets there). `damping` scales every pair's step (1 but after a failed pass: the
+/// solver's backtracking). Returns whether anything changed (then the increment is solved
+/// again).
 pub(crate) fn augment(
     model: &Model,
     layout: &ContactLayout,
@@ -1239,6 +1241,7 @@ pub(crate) fn augment(
     hist: &mut [f64],
     memory: &mut Augmentation,
     trace: bool,
+    damping: f64,
 ) -> bool {
     memory.last.resize(model.contacts.len(), None);
     let mut changed = false;
@@ -1266,10 +1269,11 @@ pub(crate) fn augment(
         let update: Vec<f64> = (eval.normal_force[nodes].iter().zip(&bars))
             .map(|(p_n, bar)| p_n - bar)
             .collect();
-        let omega = match &memory.last[p] {
-            Some((previous, omega)) => aitken(previous, &update, *omega),
-            None => 1.0,
-        };
+        let omega = damping
+            * match &memory.last[p] {
+                Some((previous, omega)) => aitken(previous, &update, *omega),
+                None => 1.0,
+            };
         for (i, (bar, r)) in bars.iter().zip(&update).enumerate() {
             pair.set_lambda_bar(&mut hist[node_history(i)], (bar + omega * r).max(0.0));
         }

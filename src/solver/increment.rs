@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::assembly::{AssemblyFailure, Evaluation};
+use crate::contact::eval::ContactEval;
 use crate::contact::ContactChoice;
 use crate::element::{ElementFailure, Formulation};
 use crate::material::Branch;
@@ -282,8 +283,12 @@ impl Solver<'_> {
     /// Augmented Lagrangian (Uzawa, Aitken-accelerated: [`crate::contact::assembly::augment`]):
     /// move lambda_bar towards p_n and solve again from the converged state until the
     /// constraint is met within tolerance; where the first pass and [`MAX_AUGMENTATIONS`] more
-    /// do not get there, the attempt fails. `attempt` is the first pass's outcome; returns the
-    /// last one's.
+    /// do not get there, the attempt fails. A pass that fails after a converged one goes back
+    /// to that pass and moves lambda_bar by a quarter of the step it took
+    /// ([`AUGMENTATION_BACKTRACKS`] times at most, each a quarter of the last): where the
+    /// estimates change the friction bounds of nodes at the Coulomb limit, or release nodes
+    /// of an unloading pair, a full update can leave Newton cycling between stick, slip and
+    /// open. `attempt` is the first pass's outcome; returns the last one's.
     fn augment(
         &mut self,
         run: &mut Run,
@@ -292,7 +297,45 @@ impl Solver<'_> {
     ) -> Result<bool, AttemptFailure> {
         let mut augmentations = 0;
         let mut memory = crate::contact::assembly::Augmentation::default();
-        while let Ok(factored) = attempt {
+        // the last converged pass (its unknowns, the estimates it was solved with, its
+        // contact forces and gaps), kept where a pair is augmented
+        let augmented = self.model.contacts.iter().any(|p| p.augmented());
+        let mut converged: Option<(Vec<f64>, Vec<f64>, ContactEval<f64>)> = None;
+        let (mut damping, mut backtracks) = (1.0, 0);
+        loop {
+            let factored = match &attempt {
+                Ok(f) => {
+                    if augmented {
+                        converged = Some((
+                            trial.z.clone(),
+                            trial.hist.clone(),
+                            run.eval.contact.clone(),
+                        ));
+                    }
+                    *f
+                }
+                Err(AttemptFailure::TimeLimit) => break,
+                Err(why) => match &converged {
+                    Some((z, hist, contact)) if backtracks < AUGMENTATION_BACKTRACKS => {
+                        if self.trace {
+                            eprintln!(
+                                "    augmentation: the pass failed ({why}): back to the last \
+                                 converged pass, its update x {}",
+                                damping * AUGMENTATION_BACKTRACK_STEP
+                            );
+                        }
+                        trial.z.clone_from(z);
+                        trial.hist.clone_from(hist);
+                        run.eval.contact.clone_from(contact);
+                        damping *= AUGMENTATION_BACKTRACK_STEP;
+                        backtracks += 1;
+                        // Aitken's factor restarts from the shortened step
+                        memory = crate::contact::assembly::Augmentation::default();
+                        false
+                    }
+                    _ => break,
+                },
+            };
             if !crate::contact::assembly::augment(
                 self.model,
                 &self.assembler.contact,
@@ -300,7 +343,11 @@ impl Solver<'_> {
                 &mut trial.hist,
                 &mut memory,
                 self.trace,
+                damping,
             ) {
+                // after a backtrack the restored pass was converged and violated the
+                // constraint, so this is the first pass's or a converged one's end
+                attempt = attempt.or(Ok(factored));
                 break;
             }
             if augmentations >= MAX_AUGMENTATIONS {

@@ -4,6 +4,16 @@
 /// Augmented-Lagrangian passes allowed per increment.
 pub(super) const MAX_AUGMENTATIONS: usize = 50;
 
+/// Times an increment's augmented-Lagrangian passes go back to the last converged pass after
+/// one fails, each with the multiplier update shortened by [`AUGMENTATION_BACKTRACK_STEP`].
+/// Measured on the fuzzer's seeds 0-999: seeds 291 and 836 (contact cycles while their
+/// augmented pairs unload) complete, 254, 411 and 458 take 5 to 12 % fewer Newton iterations,
+/// every other scene's iterations are unchanged.
+pub(super) const AUGMENTATION_BACKTRACKS: usize = 3;
+
+/// The factor a backtrack shortens the multiplier update by ([`AUGMENTATION_BACKTRACKS`]).
+pub(super) const AUGMENTATION_BACKTRACK_STEP: f64 = 0.25;
+
 /// Residual growth over one Newton step that triggers backtracking (contact models).
 pub(super) const LINE_SEARCH_GROWTH: f64 = 4.0;
 
