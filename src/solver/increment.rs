@@ -284,11 +284,12 @@ impl Solver<'_> {
     /// move lambda_bar towards p_n and solve again from the converged state until the
     /// constraint is met within tolerance; where the first pass and [`MAX_AUGMENTATIONS`] more
     /// do not get there, the attempt fails. A pass that fails after a converged one goes back
-    /// to that pass and moves lambda_bar by a quarter of the step it took
-    /// ([`AUGMENTATION_BACKTRACKS`] times at most, each a quarter of the last): where the
-    /// estimates change the friction bounds of nodes at the Coulomb limit, or release nodes
-    /// of an unloading pair, a full update can leave Newton cycling between stick, slip and
-    /// open. `attempt` is the first pass's outcome; returns the last one's.
+    /// to that pass and moves lambda_bar by a quarter of the step it took, and the later passes
+    /// of the increment by a quarter of theirs ([`AUGMENTATION_BACKTRACKS`] times at most,
+    /// each a quarter again): where the estimates change the friction bounds of nodes at the
+    /// Coulomb limit, or release nodes of an unloading pair, a full update can leave Newton
+    /// cycling between stick, slip and open. `attempt` is the first pass's outcome; returns the
+    /// last one's.
     fn augment(
         &mut self,
         run: &mut Run,
@@ -345,8 +346,8 @@ impl Solver<'_> {
                 self.trace,
                 damping,
             ) {
-                // after a backtrack the restored pass was converged and violated the
-                // constraint, so this is the first pass's or a converged one's end
+                // no update: the last pass converged within the tolerance (a restored pass
+                // violated it, so one is always made after a backtrack)
                 attempt = attempt.or(Ok(factored));
                 break;
             }
