@@ -706,6 +706,16 @@ impl AdState {
 /// derivative parts of that output.
 type Rows = Vec<(usize, [f64; W])>;
 
+/// Factors `k` into `ls`; returns the seconds it took.
+fn factor_timed(
+    ls: &mut LinearSolver,
+    k: &SparseMatrix,
+) -> Result<f64, crate::linalg::LinalgError> {
+    let start = Instant::now();
+    ls.factor(k)?;
+    Ok(start.elapsed().as_secs_f64())
+}
+
 /// A parameter's partial derivatives at an increment, evaluated before its multipliers are
 /// known: what every column reads of them but `-lambda . R_b` (its response's own part and
 /// `mu . H_b`), and `R_b`.
@@ -1070,10 +1080,7 @@ impl<'a> Sweep<'a> {
                 let t = Instant::now();
                 let (rec, fac) = rayon::join(
                     || self.record(cost, s, m, &mut tape_room, &mut ev_rev),
-                    || {
-                        let t = Instant::now();
-                        ls.factor(&k).map(|()| t.elapsed().as_secs_f64())
-                    },
+                    || factor_timed(ls, &k),
                 );
                 let wall = t.elapsed().as_secs_f64();
                 let fac = fac?;
@@ -1319,9 +1326,7 @@ impl<'a> Sweep<'a> {
             rhs.copy_from_slice(&b);
         }
         if !t.factored {
-            let start = Instant::now();
-            ls.factor(kd)?;
-            cost.factor_seconds += start.elapsed().as_secs_f64();
+            cost.factor_seconds += factor_timed(ls, kd)?;
             cost.factorizations += 1;
         }
         // refined to the solution rounded to working precision, as DDM's solves are

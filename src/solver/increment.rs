@@ -307,11 +307,21 @@ impl Solver<'_> {
             let factored = match &attempt {
                 Ok(f) => {
                     if augmented {
-                        converged = Some((
-                            trial.z.clone(),
-                            trial.hist.clone(),
-                            run.eval.contact.clone(),
-                        ));
+                        // into the last pass's buffers once there is one
+                        match &mut converged {
+                            Some((z, hist, contact)) => {
+                                z.clone_from(&trial.z);
+                                hist.clone_from(&trial.hist);
+                                contact.clone_from(&run.eval.contact);
+                            }
+                            None => {
+                                converged = Some((
+                                    trial.z.clone(),
+                                    trial.hist.clone(),
+                                    run.eval.contact.clone(),
+                                ))
+                            }
+                        }
                     }
                     *f
                 }
