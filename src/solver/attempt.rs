@@ -112,6 +112,13 @@ impl AttemptState {
         !self.forced.is_empty()
     }
 
+    /// Whether the penetration limiter may shorten the step that led to the state about to
+    /// be evaluated: a Newton step (not the first), not shortened yet, with the decisions
+    /// free.
+    fn may_limit(&self) -> bool {
+        self.line_search && self.k >= 1 && !self.limited && self.forced.is_empty()
+    }
+
     /// Penetration limiter. A node the step found open at a positive gap and left
     /// deeper inside its target than it was outside overshot first contact (the
     /// linearised step knows nothing of the constraint it crosses). Shorten the step to
@@ -125,7 +132,7 @@ impl AttemptState {
     /// Returns whether it shortened the step in `z` (to be evaluated again); `gap` are the
     /// gaps at `z`, `floor` the solver's penetration floor.
     fn limit_penetration(&mut self, z: &mut [f64], gap: &[f64], floor: f64, trace: bool) -> bool {
-        if !(self.line_search && self.k >= 1 && !self.limited && self.forced.is_empty()) {
+        if !self.may_limit() {
             return false;
         }
         let first_touch = self
@@ -329,6 +336,15 @@ impl Solver<'_> {
             if self.deadline.is_some_and(|d| Instant::now() > d) {
                 return Err(AttemptFailure::TimeLimit);
             }
+            // the limiter reads the gaps alone: a step it shortens is shortened before the
+            // residual is evaluated (no assembly at the full step, and no element inverted
+            // by a step that is not taken)
+            if st.may_limit() {
+                let (floor, trace) = (self.penetration_floor, self.trace);
+                let gap = (self.gaps((z, hist, t), &st.keep_faces, cost))
+                    .map_err(AttemptFailure::Element)?;
+                st.limit_penetration(z, gap, floor, trace);
+            }
             let (r_free, f_ref) = self.evaluate((z, hist, t), eval, &mut st, cost)?;
             record.residuals.push(r_free);
             record.reference_force = f_ref;
@@ -340,9 +356,6 @@ impl Solver<'_> {
             }
             if st.k == 0 {
                 st.first_residual = r_free;
-            }
-            if st.limit_penetration(z, &eval.contact.gap, self.penetration_floor, self.trace) {
-                continue;
             }
             if self.converged(&st, r_free, f_ref) {
                 record.iterations = st.k + st.settle_solves;

@@ -60,6 +60,45 @@ impl Solver<'_> {
         Ok(())
     }
 
+    /// The gaps of the hitting nodes at `(z, hist_old, t)`, their contact decided freely but
+    /// for the faces `keep_faces` (as [`Solver::evaluate`]'s free evaluation decides it):
+    /// contact evaluated alone, without the elements or a tangent, into the solver's own
+    /// buffer. Its time counts as assembly; it is no residual evaluation.
+    pub(super) fn gaps(
+        &mut self,
+        (z, hist_old, t): At<'_>,
+        keep_faces: &[crate::contact::ContactChoice],
+        cost: &mut PrimalCost,
+    ) -> Result<&[f64], AssemblyFailure> {
+        let t0 = Instant::now();
+        let ne = self.model.mesh.n_elements();
+        if self.no_elements.len() != ne {
+            self.no_elements = vec![true; ne];
+        }
+        let buffer = self
+            .gap_eval
+            .get_or_insert_with(|| Box::new(Evaluation::new(&self.assembler, ne)));
+        let frozen = Frozen {
+            gauss: None,
+            contact: &[],
+            keep_faces: Some(keep_faces),
+            skip: Some(&self.no_elements),
+            ..Frozen::default()
+        };
+        self.assembler.evaluate(
+            self.model,
+            &self.lifted,
+            z,
+            hist_old,
+            t,
+            Some(&frozen),
+            None,
+            buffer,
+        )?;
+        cost.assembly_seconds += t0.elapsed().as_secs_f64();
+        Ok(&buffer.contact.gap)
+    }
+
     /// Consistent predictor for an increment of prescribed displacements: linearise about the
     /// last converged state, `K dz_f = -(R_f(z_n, t) + K_fc dz_c)`, instead of starting Newton
     /// from a state in which only the prescribed nodes have moved (which distorts the elements

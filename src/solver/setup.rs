@@ -42,6 +42,10 @@ pub struct Solver<'m> {
     /// Norm of each pressure load's nodal forces at unit pressure on the reference faces
     /// (the forces are linear in the pressure: the force criterion scales them).
     pub(super) unit_pressure_norms: Vec<f64>,
+    /// The penetration limiter's evaluation of the gaps alone ([`Solver::gaps`]), made at
+    /// its first use, and its mask leaving out every element.
+    pub(super) gap_eval: Option<Box<Evaluation<f64>>>,
+    pub(super) no_elements: Vec<bool>,
 }
 
 impl<'m> Solver<'m> {
@@ -88,6 +92,8 @@ impl<'m> Solver<'m> {
             warnings,
             force_history: (0.0, 0),
             force_floor,
+            gap_eval: None,
+            no_elements: Vec::new(),
         })
     }
 
