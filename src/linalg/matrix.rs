@@ -172,6 +172,32 @@ impl SparseMatrix {
         Ok(())
     }
 
+    /// [`SparseMatrix::set_identity_row_col`] for every unknown `i` with `fixed[i]`, in one
+    /// pass over the stored entries (no search per entry: an entry in a fixed row or column
+    /// becomes 0, or 1 on the diagonal). The same matrix as the one-at-a-time calls.
+    pub fn set_identity_rows_cols(&mut self, fixed: &[bool]) -> Result<()> {
+        let n = self.pattern.n;
+        check_len(n, fixed.len())?;
+        let cp = self.pattern.symbolic.col_ptr();
+        let ri = self.pattern.symbolic.row_idx();
+        for c in 0..n {
+            let col = cp[c]..cp[c + 1];
+            if fixed[c] {
+                for k in col {
+                    self.values[k] = if ri[k] == c { 1.0 } else { 0.0 };
+                }
+            } else {
+                for k in col {
+                    if fixed[ri[k]] {
+                        self.values[k] = 0.0;
+                    }
+                }
+            }
+        }
+        // the pattern stores every diagonal entry: a fixed one was set to 1 above
+        Ok(())
+    }
+
     /// Symmetric elimination of prescribed DOFs: `rhs -= A[:, i] * u_i` for every
     /// `(i, u_i)` in `prescribed`, then rows/columns `i` become identity rows and
     /// `rhs[i] = u_i`. The solution of the modified system satisfies the original

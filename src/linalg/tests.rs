@@ -1094,3 +1094,51 @@ fn double_double_residuals_match_exact_integer_arithmetic() {
         );
     }
 }
+
+/// The one-pass identity rows and columns of a mask give the matrix the one-at-a-time calls
+/// give, entry for entry: an entry in a fixed row or column 0, a fixed diagonal 1, every
+/// other entry untouched (its bits included).
+#[test]
+fn identity_rows_of_a_mask_match_one_at_a_time() {
+    let (n, blocks) = quad_grid(7, 5);
+    let pat = Arc::new(SparsePattern::new(n, &refs(&blocks), &[]).unwrap());
+    let mut a = SparseMatrix::new(pat);
+    for (b, block) in blocks.iter().enumerate() {
+        let m = block.len();
+        // unsymmetric values of no special form, so that a misplaced entry shows
+        let local: Vec<f64> = (0..m * m)
+            .map(|k| {
+                ((b * 31 + k * 7) as f64 * 0.37).sin() + if k % (m + 1) == 0 { 4.0 } else { 0.0 }
+            })
+            .collect();
+        a.add_block(b, &local).unwrap();
+    }
+    let fixed: Vec<bool> = (0..n).map(|i| i % 3 == 0 || i % 7 == 2).collect();
+    let mut one_by_one = a.clone();
+    for (i, f) in fixed.iter().enumerate() {
+        if *f {
+            one_by_one.set_identity_row_col(i).unwrap();
+        }
+    }
+    let mut at_once = a.clone();
+    at_once.set_identity_rows_cols(&fixed).unwrap();
+    let bits = |m: &SparseMatrix| m.values().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&at_once), bits(&one_by_one));
+    // and it is what it says on the dense matrix
+    let (d, d0) = (to_dense(&at_once), to_dense(&a));
+    for i in 0..n {
+        for j in 0..n {
+            let expected = if fixed[i] || fixed[j] {
+                if i == j {
+                    1.0
+                } else {
+                    0.0
+                }
+            } else {
+                d0[(i, j)]
+            };
+            assert_eq!(d[(i, j)].to_bits(), expected.to_bits(), "({i}, {j})");
+        }
+    }
+    assert!(at_once.set_identity_rows_cols(&fixed[1..]).is_err());
+}

@@ -1064,11 +1064,7 @@ impl<'a> Sweep<'a> {
             }
             // the prescribed unknowns' identity rows, in place (`k` is rewritten at the next
             // increment): the right-hand sides have read the tangent
-            for (d, fixed) in s.constrained.iter().enumerate() {
-                if *fixed {
-                    k.set_identity_row_col(d)?;
-                }
-            }
+            k.set_identity_rows_cols(&s.constrained)?;
             let reverse = self.reverse(cols.len());
             let mut factored = false;
             let (recorded, mut state) = if reverse && self.factors_anew() {

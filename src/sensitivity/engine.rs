@@ -93,11 +93,8 @@ pub(super) fn with_prescribed_rows(
     mut k: crate::linalg::SparseMatrix,
     constrained: &[bool],
 ) -> crate::linalg::SparseMatrix {
-    for (d, fixed) in constrained.iter().enumerate() {
-        if *fixed {
-            k.set_identity_row_col(d).expect("in range");
-        }
-    }
+    k.set_identity_rows_cols(constrained)
+        .expect("a flag per unknown");
     k
 }
 

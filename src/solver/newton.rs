@@ -162,13 +162,9 @@ impl Solver<'_> {
         rhs: &mut [f64],
         cost: &mut PrimalCost,
     ) -> Result<(), AttemptFailure> {
-        for (d, c) in self.constrained.iter().enumerate() {
-            if *c {
-                self.matrix
-                    .set_identity_row_col(d)
-                    .expect("constrained unknown in range");
-            }
-        }
+        self.matrix
+            .set_identity_rows_cols(&self.constrained)
+            .expect("a flag per unknown");
         let t1 = Instant::now();
         if self.linear.factor(&self.matrix).is_err() {
             return Err(AttemptFailure::Diverged("singular tangent"));
