@@ -784,16 +784,34 @@ fn material_point<S: Scalar, M: MaterialLaw>(
 
 /// `K += B^T C B w`, `K` row-major over the unknowns of the rows `b` (three per generalised
 /// node).
+///
+/// Each entry adds the dot product of a row of `B` with `C B_Ai w`, summed as
+/// [`nalgebra::Matrix::dot`] sums six terms (from zero, one term after the other); the rows
+/// of `B` are first laid out by strain component, contiguous over the unknowns, so that a
+/// row of `K` is summed over its columns at once (for `f64`, in vector registers).
 fn add_material_tangent<S: Scalar>(k: &mut [S], b: &[[Voigt<S>; 3]], c: &Tangent<S>, w: S) {
     let ndof = 3 * b.len();
+    // `bt[m][3 a + i]` = component `m` of row `B_Ai`
+    let mut bt = [[S::zero(); MAX_DOFS]; 6];
+    for (a, ba) in b.iter().enumerate() {
+        for (i, bai) in ba.iter().enumerate() {
+            for (m, v) in bai.iter().enumerate() {
+                bt[m][3 * a + i] = *v;
+            }
+        }
+    }
+    let bt = bt.each_ref().map(|r| &r[..ndof]);
     for (a, ba) in b.iter().enumerate() {
         for (i, bai) in ba.iter().enumerate() {
             let cb = c * bai * w; // C B_Ai w
             let row = 3 * a + i;
-            for (bb, bbb) in b.iter().enumerate() {
-                for (j, bbj) in bbb.iter().enumerate() {
-                    k[row * ndof + 3 * bb + j] += bbj.dot(&cb);
+            let k_row = &mut k[row * ndof..(row + 1) * ndof];
+            for (col, kc) in k_row.iter_mut().enumerate() {
+                let mut dot = S::zero();
+                for m in 0..6 {
+                    dot += bt[m][col] * cb[m];
                 }
+                *kc += dot;
             }
         }
     }
