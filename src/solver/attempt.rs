@@ -129,11 +129,11 @@ impl AttemptState {
     /// set then released the spurious contacts one node per iteration (26 iterations;
     /// refined meshes ran out of iterations).
     ///
-    /// Returns whether it shortened the step in `z` (to be evaluated again); `gap` are the
+    /// Shortens the step in `z` where it overshoots (before `z` is evaluated); `gap` are the
     /// gaps at `z`, `floor` the solver's penetration floor.
-    fn limit_penetration(&mut self, z: &mut [f64], gap: &[f64], floor: f64, trace: bool) -> bool {
+    fn limit_penetration(&mut self, z: &mut [f64], gap: &[f64], floor: f64, trace: bool) {
         if !self.may_limit() {
-            return false;
+            return;
         }
         let first_touch = self
             .base_gap
@@ -156,9 +156,7 @@ impl AttemptState {
                 *zi -= self.alpha * (1.0 - keep) * d;
             }
             self.alpha *= keep;
-            return true;
         }
-        false
     }
 
     /// Backtrack only from the second correction on, and only on a blow-up (residual
@@ -317,9 +315,11 @@ impl AttemptState {
 impl Solver<'_> {
     /// Newton iterations of one attempt. Returns whether a factorization was made.
     ///
-    /// An iteration is one linear solve; the residual evaluations of the line search and of
-    /// the penetration limiter between two solves are not iterations (they are counted in
-    /// [`PrimalCost::assemblies`] and recorded in [`IncrementRecord::residuals`]).
+    /// An iteration is one linear solve; the residual evaluations of the line search between
+    /// two solves are not iterations (they are counted in [`PrimalCost::assemblies`] and
+    /// recorded in [`IncrementRecord::residuals`]). The penetration limiter reads the gaps of
+    /// a contact-only evaluation ([`Solver::gaps`]: its time counts as assembly, it is no
+    /// residual evaluation) before the residual is evaluated.
     pub(super) fn attempt(
         &mut self,
         z: &mut [f64],

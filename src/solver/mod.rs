@@ -54,7 +54,8 @@ pub struct IncrementRecord {
     /// included.
     pub iterations: usize,
     /// `|R_free|` at each residual evaluation of the converged attempt (every Newton
-    /// iteration, and the line search's and penetration limiter's re-evaluations).
+    /// iteration, and the line search's re-evaluations; a step the penetration limiter
+    /// shortens is evaluated once, shortened).
     pub residuals: Vec<f64>,
     /// `|dz . R|` at each iteration.
     pub energies: Vec<f64>,

@@ -83,6 +83,8 @@ impl Solver<'_> {
             contact: &[],
             keep_faces: Some(keep_faces),
             skip: Some(&self.no_elements),
+            // the elements' outputs are not read: no history carried over for them
+            members_only: true,
             ..Frozen::default()
         };
         self.assembler.evaluate(
