@@ -28,7 +28,9 @@ const CHUNK: usize = 512;
 /// the pool, 0.6 ms on the calling thread.
 const PARALLEL_MIN: usize = 4;
 
-/// The fixed structure of the global system: unknown numbering and sparsity pattern.
+/// The fixed structure of the global system: unknown numbering and sparsity pattern. A clone
+/// shares the pattern (and so the linear solvers' symbolic analyses made on it).
+#[derive(Clone)]
 pub struct Assembler {
     /// Where each unknown lives in the global vector `z`.
     pub dofs: DofMap,

@@ -86,11 +86,13 @@ pub struct SolverStats {
     pub declined: usize,
 }
 
+/// Shared by a solver's siblings ([`LinearSolver::sibling`]).
+#[derive(Clone)]
 pub(super) enum SymbolicFactor {
     /// The symmetric-pattern LU, and faer's (built on the first declined matrix).
-    SymLu(Box<SymbolicSymLu>, Option<SymbolicLu<usize>>),
-    Lu(SymbolicLu<usize>),
-    Cholesky(SymbolicCholesky<usize>),
+    SymLu(Arc<SymbolicSymLu>, Option<Arc<SymbolicLu<usize>>>),
+    Lu(Arc<SymbolicLu<usize>>),
+    Cholesky(Arc<SymbolicCholesky<usize>>),
 }
 
 #[derive(Clone)]
@@ -144,16 +146,16 @@ impl LinearSolver {
         let a = pattern.symbolic.as_ref();
         let symbolic = match options.kind {
             FactorKind::Lu => SymbolicFactor::SymLu(
-                Box::new(
+                Arc::new(
                     SymbolicSymLu::new(a, pattern.multipliers_from, pattern.last_from)
                         .map_err(LinalgError::Faer)?,
                 ),
                 None,
             ),
-            FactorKind::LuColamd => {
-                SymbolicFactor::Lu(factorize_symbolic_lu(a, Default::default()).map_err(faer_err)?)
-            }
-            FactorKind::Llt | FactorKind::Ldlt => SymbolicFactor::Cholesky(
+            FactorKind::LuColamd => SymbolicFactor::Lu(Arc::new(
+                factorize_symbolic_lu(a, Default::default()).map_err(faer_err)?,
+            )),
+            FactorKind::Llt | FactorKind::Ldlt => SymbolicFactor::Cholesky(Arc::new(
                 factorize_symbolic_cholesky(
                     a,
                     Side::Lower,
@@ -161,7 +163,7 @@ impl LinearSolver {
                     Default::default(),
                 )
                 .map_err(faer_err)?,
-            ),
+            )),
         };
         let factor_par = options.factor_par.unwrap_or_else(|| {
             if pattern.n >= PAR_FACTOR_MIN_N && rayon::current_num_threads() > 1 {
@@ -185,6 +187,25 @@ impl LinearSolver {
         })
     }
 
+    /// A solver on this one's pattern and options that shares its symbolic analysis (none is
+    /// run: its [`LinearSolver::symbolic_count`] is 0) and holds no factorization yet: the
+    /// adjoint's sweep factors its tangents on the forward run's analysis.
+    pub fn sibling(&self) -> Self {
+        Self {
+            pattern: self.pattern.clone(),
+            options: self.options,
+            factor_par: self.factor_par,
+            symbolic: self.symbolic.clone(),
+            numeric: NumericFactor::None,
+            factor_mem: None,
+            symbolic_count: 0,
+            numeric_count: 0,
+            declined: 0,
+            solve_calls: AtomicUsize::new(0),
+            solve_columns: AtomicUsize::new(0),
+        }
+    }
+
     /// The pattern.
     pub fn pattern(&self) -> &Arc<SparsePattern> {
         &self.pattern
@@ -200,7 +221,8 @@ impl LinearSolver {
         self.factor_par
     }
 
-    /// Number of symbolic analyses run (always 1: done in the constructor).
+    /// Number of symbolic analyses run (1: done in the constructor; 0 for a
+    /// [`LinearSolver::sibling`]).
     pub fn symbolic_count(&self) -> usize {
         self.symbolic_count
     }
@@ -253,10 +275,10 @@ impl LinearSolver {
             }
             self.declined += 1;
             if colamd.is_none() {
-                *colamd = Some(
+                *colamd = Some(Arc::new(
                     factorize_symbolic_lu(self.pattern.symbolic.as_ref(), Default::default())
                         .map_err(faer_err)?,
-                );
+                ));
             }
             NumericFactor::None
         } else {

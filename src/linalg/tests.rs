@@ -1142,3 +1142,38 @@ fn identity_rows_of_a_mask_match_one_at_a_time() {
     }
     assert!(at_once.set_identity_rows_cols(&fixed[1..]).is_err());
 }
+
+/// A sibling shares its solver's symbolic analysis and factors and solves exactly as a solver
+/// with an analysis of its own does, while the first keeps its own factorization.
+#[test]
+fn a_sibling_factors_as_a_solver_of_its_own() {
+    let (n, blocks) = quad_grid(6, 6);
+    let pat = Arc::new(SparsePattern::new(n, &refs(&blocks), &[]).unwrap());
+    let matrix = |shift: f64| {
+        let mut a = SparseMatrix::new(pat.clone());
+        for b in 0..blocks.len() {
+            a.add_block(b, &q1_laplace(0.2 + shift * b as f64)).unwrap();
+        }
+        a.set_identity_row_col(0).unwrap();
+        a
+    };
+    let (a, b) = (matrix(0.0), matrix(0.01));
+    let mut first = LinearSolver::new(pat.clone()).unwrap();
+    first.factor(&a).unwrap();
+    let mut sibling = first.sibling();
+    assert_eq!(sibling.symbolic_count(), 0);
+    sibling.factor(&b).unwrap();
+    let mut own = LinearSolver::new(pat.clone()).unwrap();
+    own.factor(&b).unwrap();
+    let rhs: Vec<f64> = (0..n).map(|i| (i as f64 * 0.7).cos()).collect();
+    let solve = |s: &LinearSolver| {
+        let mut x = rhs.clone();
+        s.solve_in_place(&mut x).unwrap();
+        x.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    };
+    assert_eq!(solve(&sibling), solve(&own));
+    // the first still holds the factorization of `a`
+    let mut x = rhs.clone();
+    first.solve_in_place(&mut x).unwrap();
+    assert!(residual(&a, &x, &rhs) < 1e-13);
+}

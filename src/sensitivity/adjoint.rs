@@ -393,11 +393,12 @@ pub(super) fn run_adjoint(
     };
     let sweep = Sweep::new(
         model,
+        store.solver.assembler.clone(),
         params,
         first_plastic,
         tangent,
         settings.adjoint_reverse,
-    )?;
+    );
     let mut cost = SensitivityCost::default();
     let dfdb = sweep.run(&sel, &dh0, &mut cost, &mut store, |m| lights[m].time)?;
     out.cost = cost;
@@ -862,14 +863,15 @@ struct Sweep<'a> {
 }
 
 impl<'a> Sweep<'a> {
+    /// The sweep of `model` on the forward run's numbering and pattern `asm`.
     fn new(
         model: &'a Model,
+        asm: Assembler,
         params: &'a [Parameter],
         first_plastic: Vec<usize>,
         tangent: SweepTangent,
         reverse: Option<bool>,
-    ) -> Result<Self, AnalysisError> {
-        let asm = Assembler::new(model, &[])?;
+    ) -> Self {
         let dofs = &asm.dofs;
         let solids: Vec<usize> = (0..model.mesh.n_elements())
             .filter(|&e| !dofs.element_dofs(e).is_empty() && !dofs.gauss(e).is_empty())
@@ -923,7 +925,7 @@ impl<'a> Sweep<'a> {
                 _ => {}
             }
         }
-        Ok(Sweep {
+        Sweep {
             outputs: Outputs::new(&asm, model.contacts.len()),
             first_plastic,
             tangent,
@@ -943,7 +945,7 @@ impl<'a> Sweep<'a> {
             field,
             element_fields,
             node_fields,
-        })
+        }
     }
 
     /// `df/db` of every response at the stored increments `sel` (sorted):
@@ -980,7 +982,8 @@ impl<'a> Sweep<'a> {
         let mut ev_ad = Evaluation::<Ad>::new(&self.asm, ne);
         let mut ev_d = Evaluation::<Dual64>::new(&self.asm, ne);
         let mut ev_rev = Evaluation::<Rev>::new(&self.asm, ne);
-        let mut solver: Option<LinearSolver> = None;
+        // on the forward run's symbolic analysis
+        let mut solver: Option<LinearSolver> = Some(store.solver.linear_sibling());
         // the longest tape of a task recording solids, and the hitting nodes' tape, at the
         // last increment swept: room made at once for the next ([`Sweep::record`])
         let mut tape_room = (0, 0);

@@ -102,6 +102,12 @@ impl<'m> Solver<'m> {
         &self.warnings
     }
 
+    /// A linear solver on this solver's pattern sharing its symbolic analysis
+    /// ([`LinearSolver::sibling`]).
+    pub fn linear_sibling(&self) -> LinearSolver {
+        self.linear.sibling()
+    }
+
     /// Prescribed unknowns.
     pub fn constrained(&self) -> &[bool] {
         &self.constrained
