@@ -80,12 +80,15 @@ impl Engine<'_> {
             .normal_force
             .iter()
             .fold(0.0f64, |m, f| m.max(f.abs()));
+        // the model's size (the reference mesh's bounding box), measured once and only if a
+        // node is open
+        let mut length = None;
         for (k, (nd, sr)) in c.eval.contact.distance.iter().enumerate() {
             let closed = c.eval.contact.choice[k].state != ContactState::Open;
             let rel = if closed {
                 c.eval.contact.normal_force[k].abs() / fmax.max(f64::MIN_POSITIVE)
             } else {
-                nd.abs() / c.model.characteristic_length()
+                nd.abs() / *length.get_or_insert_with(|| c.model.characteristic_length())
             };
             if rel < tol {
                 v.push(Kink {
