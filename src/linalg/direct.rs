@@ -74,7 +74,7 @@ pub const PAR_FACTOR_MIN_N: usize = 20_000;
 /// Cost counters of a [`LinearSolver`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct SolverStats {
-    /// Symbolic factorizations (1 per solver).
+    /// Symbolic factorizations (1 per solver, 0 for a [`LinearSolver::sibling`]).
     pub symbolic: usize,
     /// Successful numeric factorizations.
     pub numeric: usize,
@@ -187,9 +187,11 @@ impl LinearSolver {
         })
     }
 
-    /// A solver on this one's pattern and options that shares its symbolic analysis (none is
-    /// run: its [`LinearSolver::symbolic_count`] is 0) and holds no factorization yet: the
-    /// adjoint's sweep factors its tangents on the forward run's analysis.
+    /// A solver on this one's pattern and options that shares its symbolic analysis (its
+    /// [`LinearSolver::symbolic_count`] is 0; faer's LU analysis after a declined matrix is
+    /// shared if this one had made it, else made by the sibling at its own first decline) and
+    /// holds no factorization yet: the adjoint's sweep factors its tangents on the forward
+    /// run's analysis.
     pub fn sibling(&self) -> Self {
         Self {
             pattern: self.pattern.clone(),

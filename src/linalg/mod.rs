@@ -16,7 +16,8 @@
 //!    AMD on the pattern, Lagrange multipliers after their neighbours, supernodes of the
 //!    Cholesky structure, [`crate::linalg::symlu`]; faer's LU: COLAMD column ordering + symbolic
 //!    LU, built only if a matrix is declined; LLT/LDLT: AMD + symbolic Cholesky).
-//!    [`LinearSolver::symbolic_count`] stays 1.
+//!    [`LinearSolver::symbolic_count`] stays 1 ([`LinearSolver::sibling`] shares the
+//!    analysis: 0).
 //!
 //! # Per Newton iteration
 //! 1. [`SparseMatrix::zero`], then [`SparseMatrix::assemble_blocks_par`] (or

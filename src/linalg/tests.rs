@@ -1172,8 +1172,17 @@ fn a_sibling_factors_as_a_solver_of_its_own() {
         x.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
     };
     assert_eq!(solve(&sibling), solve(&own));
-    // the first still holds the factorization of `a`
+    // the first still holds the factorization of `a`, and factors again beside the sibling's
     let mut x = rhs.clone();
     first.solve_in_place(&mut x).unwrap();
     assert!(residual(&a, &x, &rhs) < 1e-13);
+    first.factor(&b).unwrap();
+    assert_eq!(solve(&first), solve(&own));
+    // a factorization kept from the first is solved with by the sibling (the adjoint's
+    // `--tangent last`): the sibling's own factorization is back after it
+    let mut kept = first.keep().expect("a symmetric-pattern LU is kept");
+    first.factor(&a).unwrap();
+    let with_kept = sibling.with_kept(&mut kept, |s| Ok(solve(s))).unwrap();
+    assert_eq!(with_kept, solve(&own));
+    assert_eq!(solve(&sibling), solve(&own));
 }

@@ -983,7 +983,7 @@ impl<'a> Sweep<'a> {
         let mut ev_d = Evaluation::<Dual64>::new(&self.asm, ne);
         let mut ev_rev = Evaluation::<Rev>::new(&self.asm, ne);
         // on the forward run's symbolic analysis
-        let mut solver: Option<LinearSolver> = Some(store.solver.linear_sibling());
+        let mut solver = store.solver.linear_sibling();
         // the longest tape of a task recording solids, and the hitting nodes' tape, at the
         // last increment swept: room made at once for the next ([`Sweep::record`])
         let mut tape_room = (0, 0);
@@ -1074,7 +1074,7 @@ impl<'a> Sweep<'a> {
                 // the tangent factored beside the recordings: neither reads the other, and
                 // the factorization is serial below `PAR_FACTOR_MIN_N` unknowns while the
                 // recordings keep every thread busy
-                let ls = self.linear_solver(&mut solver)?;
+                let ls = &mut solver;
                 let before = cost.evaluation_seconds;
                 let t = Instant::now();
                 let (rec, fac) = rayon::join(
@@ -1277,10 +1277,9 @@ impl<'a> Sweep<'a> {
         t: Transposed<'_>,
         rhs: &mut [f64],
         ncols: usize,
-        solver: &mut Option<LinearSolver>,
+        ls: &mut LinearSolver,
     ) -> Result<(), AnalysisError> {
         let kd = t.k;
-        let ls = self.linear_solver(solver)?;
         let SweepTangent {
             choice,
             refine_steps,
@@ -1331,17 +1330,6 @@ impl<'a> Sweep<'a> {
         // refined to the solution rounded to working precision, as DDM's solves are
         factored_refined(ls, kd, true, rhs, ncols, cost)?;
         Ok(())
-    }
-
-    /// The sweep's solver (on the tangent's pattern), made at its first use.
-    fn linear_solver<'s>(
-        &self,
-        solver: &'s mut Option<LinearSolver>,
-    ) -> Result<&'s mut LinearSolver, AnalysisError> {
-        if solver.is_none() {
-            *solver = Some(LinearSolver::new(self.asm.pattern.clone())?);
-        }
-        Ok(solver.as_mut().expect("just made"))
     }
 
     /// Whether the converged tangent is factored at every increment whatever Newton kept

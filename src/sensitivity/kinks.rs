@@ -73,7 +73,7 @@ impl Engine<'_> {
         let mut v = Vec::new();
         let tol = self.settings.kink_tol;
         // contact: normal distance relative to the largest normal force (closed) or to the
-        // pair's characteristic length (open); slip ratio for friction
+        // model's size (open); slip ratio for friction
         let fmax = c
             .eval
             .contact
