@@ -367,10 +367,11 @@ pub fn boundary_driven(
             }
         }
     }
+    let fixed: Vec<bool> = known.iter().map(Option::is_some).collect();
+    k.set_identity_rows_cols(&fixed)
+        .map_err(|e| fail(format!("constraint: {e}")))?;
     for (i, v) in known.iter().enumerate() {
         if let Some(v) = v {
-            k.set_identity_row_col(i)
-                .map_err(|e| fail(format!("constraint: {e}")))?;
             rhs[i] = *v;
         }
     }

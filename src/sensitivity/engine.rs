@@ -455,7 +455,11 @@ impl<'a> Engine<'a> {
                 }
             }
             if self.exact.is_none() {
-                self.exact = Some(LinearSolver::new(c.assembler.pattern.clone())?);
+                // on the primal's symbolic analysis where it has one at hand
+                self.exact = Some(match c.last_factor {
+                    Some(primal) => primal.sibling(),
+                    None => LinearSolver::new(c.assembler.pattern.clone())?,
+                });
             }
             let s = self.exact.as_mut().expect("just created");
             self.exact_holds = None;
