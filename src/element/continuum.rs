@@ -227,7 +227,7 @@ pub enum ElementFailure {
         got: usize,
     },
     /// The reference Jacobian is singular or negative: a bad mesh (not recoverable).
-    #[error("reference Jacobian determinant {det:.3e} at Gauss point {gauss_point}: the element is degenerate or inverted in the mesh")]
+    #[error("reference Jacobian determinant {det:.3e} at {}: the element is degenerate or inverted in the mesh", point_words(*gauss_point, "the element centre"))]
     BadReferenceGeometry {
         /// Gauss point (`usize::MAX`: the element centre of the incompatible modes).
         gauss_point: usize,
@@ -236,7 +236,7 @@ pub enum ElementFailure {
     },
     /// det F <= 0 at a Gauss point: the element turned inside out (recoverable by cutback).
     /// `gauss_point == usize::MAX`: the element-average `det F0` of the F-bar variant.
-    #[error("det F = {det_f:.3e} at Gauss point {gauss_point}: element inverted")]
+    #[error("det F = {det_f:.3e} at {}: element inverted", point_words(*gauss_point, "the element average (F-bar)"))]
     Inverted {
         /// Gauss point, or `usize::MAX` for the F-bar average.
         gauss_point: usize,
@@ -782,6 +782,16 @@ fn material_point<S: Scalar, M: MaterialLaw>(
     Ok(resp)
 }
 
+/// `Gauss point N`, or `centre` for the `usize::MAX` of an element failure that is at no
+/// Gauss point.
+fn point_words(gauss_point: usize, centre: &str) -> String {
+    if gauss_point == usize::MAX {
+        centre.to_string()
+    } else {
+        format!("Gauss point {gauss_point}")
+    }
+}
+
 /// `K += B^T C B w`, `K` row-major over the unknowns of the rows `b` (three per generalised
 /// node).
 ///
@@ -849,6 +859,29 @@ mod tests {
             Shape::Tet4 => fact(i) * fact(j) * fact(k) / fact(i + j + k + 3),
             _ => fact(i) * fact(j) / fact(i + j + 2) * line(k),
         }
+    }
+
+    #[test]
+    fn a_failure_at_no_gauss_point_names_where_it_is() {
+        use super::ElementFailure;
+        let average = ElementFailure::Inverted {
+            gauss_point: usize::MAX,
+            det_f: -2.39,
+        };
+        assert_eq!(
+            average.to_string(),
+            "det F = -2.390e0 at the element average (F-bar): element inverted"
+        );
+        let point = ElementFailure::Inverted {
+            gauss_point: 3,
+            det_f: -2.39,
+        };
+        assert!(point.to_string().contains("at Gauss point 3:"));
+        let centre = ElementFailure::BadReferenceGeometry {
+            gauss_point: usize::MAX,
+            det: 0.0,
+        };
+        assert!(centre.to_string().contains("at the element centre:"));
     }
 
     #[test]

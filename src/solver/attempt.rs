@@ -176,7 +176,7 @@ impl AttemptState {
             && !self.forcing()
             && self.k > 1
             && r_free > LINE_SEARCH_GROWTH * self.prev_r
-            && self.alpha > 1.0 / 32.0
+            && self.alpha > SHORTEST_STEP
         {
             // step back to z_prev + (alpha / 2) dz and evaluate again
             self.alpha *= 0.5;
@@ -186,6 +186,22 @@ impl AttemptState {
             return true;
         }
         false
+    }
+
+    /// A Newton step whose end state cannot be evaluated (an element inverted, a target
+    /// segment degenerate or a smoothed normal turned away from its face) is halved, down to
+    /// [`SHORTEST_STEP`] of its length, instead of ending the attempt: the state the step
+    /// started from was evaluated, so a short enough step can be (contact models only, as
+    /// the line search). Returns whether it stepped `z` back (to be evaluated again).
+    fn shorten_on_failure(&mut self, z: &mut [f64]) -> bool {
+        if !(self.line_search && self.k >= 1 && !self.forcing() && self.alpha > SHORTEST_STEP) {
+            return false;
+        }
+        self.alpha *= 0.5;
+        for (zi, d) in z.iter_mut().zip(&self.last_dz) {
+            *zi -= self.alpha * d;
+        }
+        true
     }
 
     /// Slip reversal: a node that slipped at the last free evaluation and slips the
@@ -341,11 +357,27 @@ impl Solver<'_> {
             // by a step that is not taken)
             if st.may_limit() {
                 let (floor, trace) = (self.penetration_floor, self.trace);
-                let gap = (self.gaps((z, hist, t), &st.keep_faces, cost))
-                    .map_err(AttemptFailure::Element)?;
-                st.limit_penetration(z, gap, floor, trace);
+                match self.gaps((z, hist, t), &st.keep_faces, cost) {
+                    Ok(gap) => st.limit_penetration(z, gap, floor, trace),
+                    Err(e) if st.shorten_on_failure(z) => {
+                        if self.trace {
+                            eprintln!("    {e}: step x {:.3e}", st.alpha);
+                        }
+                        continue;
+                    }
+                    Err(e) => return Err(AttemptFailure::Element(e)),
+                }
             }
-            let (r_free, f_ref) = self.evaluate((z, hist, t), eval, &mut st, cost)?;
+            let (r_free, f_ref) = match self.evaluate((z, hist, t), eval, &mut st, cost) {
+                Ok(v) => v,
+                Err(AttemptFailure::Element(e)) if st.shorten_on_failure(z) => {
+                    if self.trace {
+                        eprintln!("    {e}: step x {:.3e}", st.alpha);
+                    }
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
             record.residuals.push(r_free);
             record.reference_force = f_ref;
             if self.trace {

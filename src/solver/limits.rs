@@ -37,6 +37,11 @@ pub(super) fn bounding_diagonal(points: &[nalgebra::Vector3<f64>]) -> f64 {
     (hi - lo).norm()
 }
 
+/// Shortest fraction of a Newton step the line search halves it to: backtracking a blow-up
+/// of the residual, and halving a step whose end state cannot be evaluated (an inverted
+/// element, a degenerate target segment) before the attempt fails.
+pub(super) const SHORTEST_STEP: f64 = 1.0 / 32.0;
+
 /// Shortest fraction of a Newton step the yield-surface crossing limiter keeps. Without a
 /// floor, points that cross near the start of the step cut it to 1e-7 and Newton stalls (the
 /// leaf spring refined 4 times ran out of time).
