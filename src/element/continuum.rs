@@ -799,7 +799,38 @@ fn point_words(gauss_point: usize, centre: &str) -> String {
 /// [`nalgebra::Matrix::dot`] sums six terms (from zero, one term after the other); the rows
 /// of `B` are first laid out by strain component, contiguous over the unknowns, so that a
 /// row of `K` is summed over its columns at once (for `f64`, in vector registers).
+///
+/// For `f64` on a processor with AVX2 the same code is compiled for it and chosen at run
+/// time: each entry is summed in the same order, four columns to a register instead of two
+/// (no fused multiply-add), so `K` is the same bit for bit.
 fn add_material_tangent<S: Scalar>(k: &mut [S], b: &[[Voigt<S>; 3]], c: &Tangent<S>, w: S) {
+    #[cfg(target_arch = "x86_64")]
+    if std::any::TypeId::of::<S>() == std::any::TypeId::of::<f64>()
+        && std::is_x86_feature_detected!("avx2")
+    {
+        // SAFETY: `S` is `f64` (the same type, so the same layout), and the processor has
+        // AVX2, the one feature the callee is compiled for.
+        unsafe {
+            let k = &mut *(k as *mut [S] as *mut [f64]);
+            let b = &*(b as *const [[Voigt<S>; 3]] as *const [[Voigt<f64>; 3]]);
+            let c = &*(c as *const Tangent<S> as *const Tangent<f64>);
+            let w = *(&w as *const S as *const f64);
+            return add_material_tangent_avx2(k, b, c, w);
+        }
+    }
+    material_tangent_sum(k, b, c, w);
+}
+
+/// [`add_material_tangent`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn add_material_tangent_avx2(k: &mut [f64], b: &[[Voigt<f64>; 3]], c: &Tangent<f64>, w: f64) {
+    material_tangent_sum(k, b, c, w);
+}
+
+/// The body of [`add_material_tangent`], inlined into each of its compilations.
+#[inline(always)]
+fn material_tangent_sum<S: Scalar>(k: &mut [S], b: &[[Voigt<S>; 3]], c: &Tangent<S>, w: S) {
     let ndof = 3 * b.len();
     // `bt[m][3 a + i]` = component `m` of row `B_Ai`
     let mut bt = [[S::zero(); MAX_DOFS]; 6];
