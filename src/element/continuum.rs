@@ -822,9 +822,18 @@ fn add_material_tangent<S: Scalar>(k: &mut [S], b: &[[Voigt<S>; 3]], c: &Tangent
 }
 
 /// [`add_material_tangent`] compiled for AVX2.
+///
+/// # Safety
+/// The processor must have AVX2 (an `unsafe fn`, not a safe one with the feature, for the
+/// crate's `rust-version`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn add_material_tangent_avx2(k: &mut [f64], b: &[[Voigt<f64>; 3]], c: &Tangent<f64>, w: f64) {
+unsafe fn add_material_tangent_avx2(
+    k: &mut [f64],
+    b: &[[Voigt<f64>; 3]],
+    c: &Tangent<f64>,
+    w: f64,
+) {
     material_tangent_sum(k, b, c, w);
 }
 

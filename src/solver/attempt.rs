@@ -189,10 +189,12 @@ impl AttemptState {
     }
 
     /// A Newton step whose end state cannot be evaluated (an element inverted, a target
-    /// segment degenerate or a smoothed normal turned away from its face) is halved, down to
-    /// [`SHORTEST_STEP`] of its length, instead of ending the attempt: the state the step
-    /// started from was evaluated, so a short enough step can be (contact models only, as
-    /// the line search). Returns whether it stepped `z` back (to be evaluated again).
+    /// segment degenerate or a smoothed normal turned away from its face) is halved while it
+    /// is longer than [`SHORTEST_STEP`] of its length, instead of ending the attempt: the
+    /// state the step started from was evaluated, so a short enough step can be (contact
+    /// models only, as the line search). When halving runs out, the attempt ends with the
+    /// failure at the shortest step. Returns whether it stepped `z` back (to be evaluated
+    /// again).
     fn shorten_on_failure(&mut self, z: &mut [f64]) -> bool {
         if !(self.line_search && self.k >= 1 && !self.forcing() && self.alpha > SHORTEST_STEP) {
             return false;

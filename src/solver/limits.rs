@@ -37,9 +37,10 @@ pub(super) fn bounding_diagonal(points: &[nalgebra::Vector3<f64>]) -> f64 {
     (hi - lo).norm()
 }
 
-/// Shortest fraction of a Newton step the line search halves it to: backtracking a blow-up
-/// of the residual, and halving a step whose end state cannot be evaluated (an inverted
-/// element, a degenerate target segment) before the attempt fails.
+/// The line search halves a Newton step only while it is longer than this fraction of it
+/// (so it ends between 1/64 and 1/32): backtracking a blow-up of the residual, and halving a
+/// step whose end state cannot be evaluated (an inverted element, a degenerate target
+/// segment) before the attempt fails.
 pub(super) const SHORTEST_STEP: f64 = 1.0 / 32.0;
 
 /// Shortest fraction of a Newton step the yield-surface crossing limiter keeps. Without a

@@ -18,6 +18,8 @@
 //!    converged state and the *last* factorization (that of the iterate before convergence —
 //!    the tangent the paper's semi-analytical method reuses).
 //!
+//! In a model with contact, a Newton step whose end state cannot be evaluated (an inverted
+//! element, a degenerate target segment) is first halved, down to about 1/32 of its length.
 //! An increment whose Newton iterations diverge (residual growth, iteration limit, a non-finite
 //! value) or in which an element inverts is halved and retried from the last converged state,
 //! up to `max_cutbacks` times; then the analysis stops with [`AnalysisError::Diverged`], which

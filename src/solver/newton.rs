@@ -45,7 +45,7 @@ impl Solver<'_> {
         cost: &mut PrimalCost,
     ) -> Result<(), AssemblyFailure> {
         let t0 = Instant::now();
-        self.assembler.evaluate(
+        let done = self.assembler.evaluate(
             self.model,
             &self.lifted,
             z,
@@ -54,9 +54,11 @@ impl Solver<'_> {
             frozen,
             Some(&mut self.matrix),
             eval,
-        )?;
-        cost.assemblies += 1;
+        );
+        // a failed evaluation's time counts too (the step it ends is halved or cut back)
         cost.assembly_seconds += t0.elapsed().as_secs_f64();
+        done?;
+        cost.assemblies += 1;
         Ok(())
     }
 
@@ -87,7 +89,7 @@ impl Solver<'_> {
             members_only: true,
             ..Frozen::default()
         };
-        self.assembler.evaluate(
+        let done = self.assembler.evaluate(
             self.model,
             &self.lifted,
             z,
@@ -96,8 +98,9 @@ impl Solver<'_> {
             Some(&frozen),
             None,
             buffer,
-        )?;
+        );
         cost.assembly_seconds += t0.elapsed().as_secs_f64();
+        done?;
         Ok(&buffer.contact.gap)
     }
 
