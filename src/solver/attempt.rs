@@ -178,14 +178,18 @@ impl AttemptState {
             && r_free > LINE_SEARCH_GROWTH * self.prev_r
             && self.alpha > SHORTEST_STEP
         {
-            // step back to z_prev + (alpha / 2) dz and evaluate again
-            self.alpha *= 0.5;
-            for (zi, d) in z.iter_mut().zip(&self.last_dz) {
-                *zi -= self.alpha * d;
-            }
+            self.halve(z);
             return true;
         }
         false
+    }
+
+    /// Step back from `z_prev + alpha dz` to `z_prev + (alpha / 2) dz`.
+    fn halve(&mut self, z: &mut [f64]) {
+        self.alpha *= 0.5;
+        for (zi, d) in z.iter_mut().zip(&self.last_dz) {
+            *zi -= self.alpha * d;
+        }
     }
 
     /// A Newton step whose end state cannot be evaluated (an element inverted, a target
@@ -199,10 +203,7 @@ impl AttemptState {
         if !(self.line_search && self.k >= 1 && !self.forcing() && self.alpha > SHORTEST_STEP) {
             return false;
         }
-        self.alpha *= 0.5;
-        for (zi, d) in z.iter_mut().zip(&self.last_dz) {
-            *zi -= self.alpha * d;
-        }
+        self.halve(z);
         true
     }
 
