@@ -276,14 +276,22 @@ fn quad_eval<S: Scalar>(nodes: &[Vector3<S>; 4], xi: &[S; 2]) -> QuadPoint<S> {
     let mut x = Vector3::zeros();
     let mut t1 = Vector3::zeros();
     let mut t2 = Vector3::zeros();
-    for (node, [a1, a2]) in nodes.iter().zip(XI_NODES) {
-        let p1 = xi[0] * a1 + 1.0;
-        let p2 = xi[1] * a2 + 1.0;
-        x += node * (p1 * p2 * 0.25);
-        t1 += node * (p2 * (a1 * 0.25));
-        t2 += node * (p1 * (a2 * 0.25));
+    for (node, [n, d1, d2]) in nodes.iter().zip(quad_weights(xi)) {
+        x += node * n;
+        t1 += node * d1;
+        t2 += node * d2;
     }
     QuadPoint { x, t1, t2 }
+}
+
+/// The bilinear quad's shape functions and their derivatives at `xi`, `[N_a, N_{a,1},
+/// N_{a,2}]` per node (in `f64` where `ξ` is a constant: [`node_jacobian`]).
+fn quad_weights<T: Scalar>(xi: &[T; 2]) -> [[T; 3]; 4] {
+    XI_NODES.map(|[a1, a2]| {
+        let p1 = xi[0] * a1 + 1.0;
+        let p2 = xi[1] * a2 + 1.0;
+        [p1 * p2 * 0.25, p2 * (a1 * 0.25), p1 * (a2 * 0.25)]
+    })
 }
 
 /// `x̄_{,12} = Σ N_{a,12} x_a = (x_1 − x_2 + x_3 − x_4)/4` (constant; `x̄_{,11} = x̄_{,22} = 0`).
@@ -1194,11 +1202,30 @@ pub(crate) fn project_smoothed<S: Scalar>(
 }
 
 /// The outward normal `t_1 × t_2` (not normalised: it weighs by area) of face `seg` at its
-/// node `a`.
+/// node `a`: the tangents of [`surface_point`] there, whose shape-function weights are
+/// constants, summed with `f64` weights (the nodal normals of smoothed faces take a dozen of
+/// these per hitting node in the contact kernel's many-direction duals, where a dual weight
+/// only copies: the same sums in the same order, so the same bits).
 pub(crate) fn node_jacobian<S: Scalar>(seg: &Segment<S>, a: usize) -> Vector3<S> {
     let st = seg.family.node_st(a);
-    let p = surface_point(seg, &[S::lift(st[0]), S::lift(st[1])]);
-    p.t1.cross(&p.t2)
+    let (mut t1, mut t2) = (Vector3::<S>::zeros(), Vector3::<S>::zeros());
+    let mut add = |node: &Vector3<S>, w1: f64, w2: f64| {
+        for c in 0..3 {
+            t1[c] += node[c] * w1;
+            t2[c] += node[c] * w2;
+        }
+    };
+    if seg.family == FaceFamily::Quad4 {
+        for (node, [_, d1, d2]) in seg.nodes.iter().zip(quad_weights(&st)) {
+            add(node, d1, d2);
+        }
+    } else {
+        let f = seg.family.interpolation(st);
+        for (node, d) in seg.used().iter().zip(f.d) {
+            add(node, d[0], d[1]);
+        }
+    }
+    t1.cross(&t2)
 }
 
 /// [`project_on_segment`] onto a bilinear quad.
