@@ -1205,7 +1205,8 @@ pub(crate) fn project_smoothed<S: Scalar>(
 /// node `a`: the tangents of [`surface_point`] there, whose shape-function weights are
 /// constants, summed with `f64` weights (the nodal normals of smoothed faces take a dozen of
 /// these per hitting node in the contact kernel's many-direction duals, where a dual weight
-/// only copies: the same sums in the same order, so the same bits).
+/// only copies: the same sums in the same order, so the same bits wherever the coordinates
+/// are finite).
 pub(crate) fn node_jacobian<S: Scalar>(seg: &Segment<S>, a: usize) -> Vector3<S> {
     let st = seg.family.node_st(a);
     let (mut t1, mut t2) = (Vector3::<S>::zeros(), Vector3::<S>::zeros());
