@@ -1207,3 +1207,40 @@ fn smoothed_projection_derivatives_match_central_differences() {
         assert_derivatives(&parts(&p, 0), &fd, "nodal normal");
     }
 }
+
+/// `node_jacobian` sums the face's tangents at a node with `f64` weights; the face map itself
+/// (`surface_point` at the node's lifted `ξ`) gives the same `t_1 × t_2` to the bit, in `f64`
+/// and in dual numbers seeded on every node coordinate, for every face family.
+#[test]
+fn node_jacobian_is_the_face_maps_normal_to_the_bit() {
+    for family in FaceFamily::ALL {
+        let seg = curved_face(family);
+        let n = family.n_nodes();
+        let nodes: Vec<Vector3<DualSVec64<24>>> = (0..n)
+            .map(|a| Vector3::from_fn(|k, _| DualSVec64::<24>::seeded(seg.nodes[a][k], 3 * a + k)))
+            .collect();
+        let dual = Segment::new(family, &nodes);
+        for a in 0..n {
+            let st = family.node_st(a);
+            let p = surface_point(&seg, &st);
+            assert_eq!(
+                node_jacobian(&seg, a),
+                p.t1.cross(&p.t2),
+                "{family:?} node {a}"
+            );
+            let lifted = [DualSVec64::<24>::lift(st[0]), DualSVec64::<24>::lift(st[1])];
+            let pd = surface_point(&dual, &lifted);
+            let (fast, full) = (node_jacobian(&dual, a), pd.t1.cross(&pd.t2));
+            for c in 0..3 {
+                assert_eq!(fast[c].value(), full[c].value(), "{family:?} node {a}");
+                for k in 0..3 * n {
+                    assert_eq!(
+                        fast[c].part(k).to_bits(),
+                        full[c].part(k).to_bits(),
+                        "{family:?} node {a} component {c} part {k}"
+                    );
+                }
+            }
+        }
+    }
+}
