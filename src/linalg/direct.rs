@@ -13,6 +13,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::linalg::lu::{factorize_symbolic_lu, NumericLu, SymbolicLu};
 use faer::sparse::linalg::LuError;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
 
 use super::*;
@@ -119,6 +120,108 @@ pub struct LinearSolver {
     pub(super) declined: usize,
     pub(super) solve_calls: AtomicUsize,
     pub(super) solve_columns: AtomicUsize,
+    /// The unknowns left out of the factorizations ([`LinearSolver::with_fixed`]), shared
+    /// with the siblings.
+    pub(super) reduction: Option<Arc<Reduction>>,
+    /// The free unknowns' matrix values, gathered at each factorization.
+    pub(super) reduced_values: Vec<f64>,
+}
+
+/// The unknowns a solver leaves out of its factorizations ([`LinearSolver::with_fixed`]): in
+/// every matrix it factors their rows and columns are the identity's (checked), so there the
+/// solution is the right-hand side, and elsewhere it solves the free unknowns' system alone.
+/// The full LU would eliminate them too, each a pivot of 1 with zero multipliers, on a
+/// pattern that still holds their couplings: a plane-strain model's out-of-plane
+/// unknowns, a third of all, in every supernode.
+pub(super) struct Reduction {
+    /// Full index of each free unknown, ascending.
+    free: Vec<usize>,
+    /// The pattern among the free unknowns: the full one's entries in a free row and a free
+    /// column, renumbered.
+    symbolic: SymbolicSparseColMat<usize>,
+    /// Full value slot of each of its entries, in its column-major order.
+    slots: Vec<usize>,
+    /// Full value slots in a fixed row or column, off the diagonal (zero in every matrix).
+    off: Vec<usize>,
+    /// Full value slots of the fixed unknowns' diagonal entries (one in every matrix).
+    diag: Vec<usize>,
+    /// [`SparsePattern::multipliers_from`] and [`SparsePattern::last_from`] among the free
+    /// unknowns.
+    multipliers_from: usize,
+    last_from: usize,
+}
+
+impl Reduction {
+    /// The reduction of `pattern` by `fixed`; `None` when nothing is fixed or nothing free.
+    fn new(pattern: &SparsePattern, fixed: &[bool]) -> Result<Option<Self>> {
+        let n = pattern.n;
+        check_len(n, fixed.len())?;
+        let free: Vec<usize> = (0..n).filter(|&i| !fixed[i]).collect();
+        if free.is_empty() || free.len() == n {
+            return Ok(None);
+        }
+        let mut index = vec![usize::MAX; n];
+        for (r, &i) in free.iter().enumerate() {
+            index[i] = r;
+        }
+        let cp = pattern.symbolic.col_ptr();
+        let ri = pattern.symbolic.row_idx();
+        let (mut col_ptr, mut row_idx, mut slots) = (vec![0], Vec::new(), Vec::new());
+        let (mut off, mut diag) = (Vec::new(), Vec::new());
+        for c in 0..n {
+            for (k, &r) in ri.iter().enumerate().take(cp[c + 1]).skip(cp[c]) {
+                if !fixed[c] && !fixed[r] {
+                    row_idx.push(index[r]);
+                    slots.push(k);
+                } else if r == c {
+                    diag.push(k);
+                } else {
+                    off.push(k);
+                }
+            }
+            if !fixed[c] {
+                col_ptr.push(row_idx.len());
+            }
+        }
+        let nf = free.len();
+        let symbolic = SymbolicSparseColMat::new_checked(nf, nf, col_ptr, None, row_idx);
+        let below = |b: usize| free.partition_point(|&i| i < b);
+        Ok(Some(Self {
+            multipliers_from: below(pattern.multipliers_from),
+            last_from: below(pattern.last_from),
+            free,
+            symbolic,
+            slots,
+            off,
+            diag,
+        }))
+    }
+
+    /// The free unknowns' values of `a` into `into`, after checking that the fixed rows and
+    /// columns are the identity's.
+    fn gather(&self, a: &SparseMatrix, into: &mut Vec<f64>) -> Result<()> {
+        let v = &a.values;
+        let bad = (self.off.iter().find(|&&k| v[k] != 0.0))
+            .or_else(|| self.diag.iter().find(|&&k| v[k] != 1.0));
+        if let Some(&k) = bad {
+            let cp = a.pattern.symbolic.col_ptr();
+            let col = cp.partition_point(|&p| p <= k) - 1;
+            let row = a.pattern.symbolic.row_idx()[k];
+            let fixed = if self.free.binary_search(&col).is_err() {
+                col
+            } else {
+                row
+            };
+            return Err(LinalgError::FixedNotIdentity {
+                unknown: fixed,
+                row,
+                col,
+            });
+        }
+        into.clear();
+        into.extend(self.slots.iter().map(|&k| v[k]));
+        Ok(())
+    }
 }
 
 impl std::fmt::Debug for LinearSolver {
@@ -143,11 +246,40 @@ impl LinearSolver {
 
     /// Solver with the given options; runs the symbolic analysis.
     pub fn with_options(pattern: Arc<SparsePattern>, options: SolverOptions) -> Result<Self> {
-        let a = pattern.symbolic.as_ref();
+        Self::build(pattern, options, None)
+    }
+
+    /// Solver for matrices whose rows and columns of the unknowns `fixed` are the
+    /// identity's (a [`SparseMatrix::set_identity_rows_cols`] by `fixed` or more), which
+    /// factors the other unknowns' system alone: the same solutions, to rounding, for less.
+    /// [`LinearSolver::factor`] fails with [`LinalgError::FixedNotIdentity`] on a matrix
+    /// that is not the identity's there.
+    pub fn with_fixed(
+        pattern: Arc<SparsePattern>,
+        options: SolverOptions,
+        fixed: &[bool],
+    ) -> Result<Self> {
+        let reduction = Reduction::new(&pattern, fixed)?.map(Arc::new);
+        Self::build(pattern, options, reduction)
+    }
+
+    fn build(
+        pattern: Arc<SparsePattern>,
+        options: SolverOptions,
+        reduction: Option<Arc<Reduction>>,
+    ) -> Result<Self> {
+        let (a, multipliers_from, last_from) = match &reduction {
+            Some(r) => (r.symbolic.as_ref(), r.multipliers_from, r.last_from),
+            None => (
+                pattern.symbolic.as_ref(),
+                pattern.multipliers_from,
+                pattern.last_from,
+            ),
+        };
         let symbolic = match options.kind {
             FactorKind::Lu => SymbolicFactor::SymLu(
                 Arc::new(
-                    SymbolicSymLu::new(a, pattern.multipliers_from, pattern.last_from)
+                    SymbolicSymLu::new(a, multipliers_from, last_from)
                         .map_err(LinalgError::Faer)?,
                 ),
                 None,
@@ -165,8 +297,9 @@ impl LinearSolver {
                 .map_err(faer_err)?,
             )),
         };
+        let factored_n = a.nrows();
         let factor_par = options.factor_par.unwrap_or_else(|| {
-            if pattern.n >= PAR_FACTOR_MIN_N && rayon::current_num_threads() > 1 {
+            if factored_n >= PAR_FACTOR_MIN_N && rayon::current_num_threads() > 1 {
                 Par::rayon(0)
             } else {
                 Par::Seq
@@ -184,6 +317,8 @@ impl LinearSolver {
             declined: 0,
             solve_calls: AtomicUsize::new(0),
             solve_columns: AtomicUsize::new(0),
+            reduction,
+            reduced_values: Vec::new(),
         })
     }
 
@@ -205,6 +340,8 @@ impl LinearSolver {
             declined: 0,
             solve_calls: AtomicUsize::new(0),
             solve_columns: AtomicUsize::new(0),
+            reduction: self.reduction.clone(),
+            reduced_values: Vec::new(),
         }
     }
 
@@ -262,7 +399,20 @@ impl LinearSolver {
             return Err(LinalgError::PatternMismatch);
         }
         let par = self.factor_par;
-        let mat = a.as_faer();
+        let mut reduced = std::mem::take(&mut self.reduced_values);
+        let out = match self.reduction.clone() {
+            Some(r) => r.gather(a, &mut reduced).and_then(|()| {
+                self.factor_faer(SparseColMatRef::new(r.symbolic.as_ref(), &reduced), par)
+            }),
+            None => self.factor_faer(a.as_faer(), par),
+        };
+        self.reduced_values = reduced;
+        out
+    }
+
+    /// [`LinearSolver::factor`] of the matrix the symbolic analysis is of (the free
+    /// unknowns' where the solver has a [`Reduction`]).
+    fn factor_faer(&mut self, mat: SparseColMatRef<'_, usize, f64>, par: Par) -> Result<()> {
         let numeric = std::mem::replace(&mut self.numeric, NumericFactor::None);
         let mem = self.factor_mem.take();
         let numeric = if let SymbolicFactor::SymLu(sym, colamd) = &mut self.symbolic {
@@ -278,8 +428,7 @@ impl LinearSolver {
             self.declined += 1;
             if colamd.is_none() {
                 *colamd = Some(Arc::new(
-                    factorize_symbolic_lu(self.pattern.symbolic.as_ref(), Default::default())
-                        .map_err(faer_err)?,
+                    factorize_symbolic_lu(mat.symbolic(), Default::default()).map_err(faer_err)?,
                 ));
             }
             NumericFactor::None
@@ -377,7 +526,32 @@ impl LinearSolver {
         Ok(())
     }
 
-    pub(super) fn solve_raw(&self, rhs: MatMut<'_, f64>, transpose: bool) -> Result<()> {
+    pub(super) fn solve_raw(&self, mut rhs: MatMut<'_, f64>, transpose: bool) -> Result<()> {
+        let Some(r) = &self.reduction else {
+            return self.solve_factored(rhs, transpose);
+        };
+        let (nf, k) = (r.free.len(), rhs.ncols());
+        let mut free = vec![0.0; nf * k];
+        for (c, col) in free.chunks_exact_mut(nf).enumerate() {
+            for (x, &i) in col.iter_mut().zip(&r.free) {
+                *x = rhs[(i, c)];
+            }
+        }
+        self.solve_factored(
+            MatMut::from_column_major_slice_mut(&mut free, nf, k),
+            transpose,
+        )?;
+        for (c, col) in free.chunks_exact(nf).enumerate() {
+            for (x, &i) in col.iter().zip(&r.free) {
+                rhs[(i, c)] = *x;
+            }
+        }
+        Ok(())
+    }
+
+    /// [`LinearSolver::solve_raw`] on the factored system (the free unknowns' where the
+    /// solver has a [`Reduction`]).
+    fn solve_factored(&self, rhs: MatMut<'_, f64>, transpose: bool) -> Result<()> {
         let par = self.options.solve_par;
         let k = rhs.ncols();
         match (&self.symbolic, &self.numeric) {

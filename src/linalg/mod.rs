@@ -17,7 +17,9 @@
 //!    Cholesky structure, [`crate::linalg::symlu`]; faer's LU: COLAMD column ordering + symbolic
 //!    LU, built only if a matrix is declined; LLT/LDLT: AMD + symbolic Cholesky).
 //!    [`LinearSolver::symbolic_count`] stays 1 ([`LinearSolver::sibling`] shares the
-//!    analysis: 0).
+//!    analysis: 0). [`LinearSolver::with_fixed`] analyses and factors the free unknowns'
+//!    system alone, for matrices whose prescribed rows and columns are the identity's
+//!    (Newton's: a plane-strain model's factorizations take half the time).
 //!
 //! # Per Newton iteration
 //! 1. [`SparseMatrix::zero`], then [`SparseMatrix::assemble_blocks_par`] (or
@@ -109,6 +111,17 @@ pub enum LinalgError {
     /// `solve` called before a successful `factor`.
     #[error("no numeric factorization available (call factor first)")]
     NotFactored,
+    /// A solver that leaves out fixed unknowns ([`LinearSolver::with_fixed`]) was given a
+    /// matrix whose row or column of one of them is not the identity's.
+    #[error("entry ({row}, {col}) of the matrix is not the identity's, though unknown {unknown} is fixed")]
+    FixedNotIdentity {
+        /// The fixed unknown.
+        unknown: usize,
+        /// Row of the entry.
+        row: usize,
+        /// Column of the entry.
+        col: usize,
+    },
     /// The pattern has more stored entries than a [`Slot`] can index.
     #[error("pattern too large: {nnz} stored entries")]
     PatternTooLarge {

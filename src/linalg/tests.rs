@@ -1186,3 +1186,112 @@ fn a_sibling_factors_as_a_solver_of_its_own() {
     assert_eq!(with_kept, solve(&own));
     assert_eq!(solve(&sibling), solve(&own));
 }
+
+/// A solver that leaves the fixed unknowns out of its factorizations
+/// ([`LinearSolver::with_fixed`]) against the dense LU of the whole matrix (its fixed rows
+/// and columns the identity's), on an unsymmetric saddle-point system with multipliers, the
+/// fixed unknowns on the boundary and inside: plain, transposed and multi-column solves agree
+/// to round-off, the fixed unknowns' solution is the right-hand side to the bit, a sibling and
+/// a kept factorization solve alike, and a matrix whose fixed row is not the identity's is
+/// refused, naming the unknown.
+#[test]
+fn a_solver_without_its_fixed_unknowns_solves_the_whole_system() {
+    let nx = 10;
+    let (n, mut blocks) = quad_grid(nx, nx);
+    let ties: Vec<(usize, usize)> = (0..4).map(|j| (24 + 17 * j, 35 + 13 * j)).collect();
+    let m = ties.len();
+    for (j, &(p, q)) in ties.iter().enumerate() {
+        blocks.push(vec![p, q, n + j]);
+    }
+    let pattern = Arc::new(
+        SparsePattern::new(n + m, &refs(&blocks), &[])
+            .unwrap()
+            .with_multipliers_from(n),
+    );
+    let mut a = SparseMatrix::new(pattern.clone());
+    let ke = q1_laplace(0.3);
+    for b in 0..nx * nx {
+        a.add_block(b, &ke).unwrap();
+    }
+    for (j, &(p, q)) in ties.iter().enumerate() {
+        for (i, v) in [(p, 1.0), (q, -1.0)] {
+            a.add(i, n + j, v).unwrap();
+            a.add(n + j, i, v).unwrap();
+        }
+    }
+    // the bottom edge and two interior unknowns
+    let mut fixed = vec![false; n + m];
+    for i in (0..=nx).chain([57, 58]) {
+        fixed[i] = true;
+    }
+    a.set_identity_rows_cols(&fixed).unwrap();
+    let dense = to_dense(&a);
+    let nt = n + m;
+    let ncols = 3;
+    let b: Vec<f64> = (0..ncols * nt)
+        .map(|i| ((i * 7 % 13) as f64 - 6.0) * 0.1 + 1e-3 * i as f64)
+        .collect();
+    let mut reduced =
+        LinearSolver::with_fixed(pattern.clone(), SolverOptions::default(), &fixed).unwrap();
+    reduced.factor(&a).unwrap();
+    let mut whole = LinearSolver::new(pattern.clone()).unwrap();
+    whole.factor(&a).unwrap();
+    for transpose in [false, true] {
+        let mut x = b.clone();
+        if transpose {
+            reduced
+                .solve_transpose_multi_in_place(&mut x, ncols)
+                .unwrap();
+        } else {
+            reduced.solve_multi_in_place(&mut x, ncols).unwrap();
+        }
+        let mut y = b.clone();
+        if transpose {
+            whole.solve_transpose_multi_in_place(&mut y, ncols).unwrap();
+        } else {
+            whole.solve_multi_in_place(&mut y, ncols).unwrap();
+        }
+        let d = if transpose {
+            dense.transpose().to_owned()
+        } else {
+            dense.clone()
+        };
+        for c in 0..ncols {
+            let col = c * nt..(c + 1) * nt;
+            let oracle = dense_solve(&d, &b[col.clone()]);
+            assert!(rel_err(&x[col.clone()], &oracle) < 1e-12);
+            assert!(rel_err(&x[col.clone()], &y[col.clone()]) < 1e-12);
+            for i in (0..nt).filter(|&i| fixed[i]) {
+                assert_eq!(x[c * nt + i].to_bits(), b[c * nt + i].to_bits());
+            }
+        }
+    }
+    // a sibling factors on the same reduction; a kept factorization solves in its place
+    let mut sibling = reduced.sibling();
+    sibling.factor(&a).unwrap();
+    let mut kept = reduced.keep().unwrap();
+    let mut x = b[..nt].to_vec();
+    sibling.solve_in_place(&mut x).unwrap();
+    let mut other = LinearSolver::with_fixed(pattern.clone(), SolverOptions::default(), &fixed)
+        .unwrap()
+        .sibling();
+    let mut y = b[..nt].to_vec();
+    other
+        .with_kept(&mut kept, |s| s.solve_in_place(&mut y))
+        .unwrap();
+    assert_eq!(x, y);
+    assert!(residual(&a, &x, &b[..nt]) < 1e-12);
+    // refinement reads the whole matrix
+    let mut z = vec![0.0; nt];
+    let r = reduced.refine(&a, &b[..nt], &mut z, 2).unwrap();
+    assert!(r < 1e-13, "refined residual {r:e}");
+    // a fixed unknown's row that is not the identity's
+    let mut bad = a.clone();
+    bad.add(57, 68, 0.5).unwrap();
+    match reduced.factor(&bad) {
+        Err(LinalgError::FixedNotIdentity { unknown, row, col }) => {
+            assert_eq!((unknown, row, col), (57, 57, 68));
+        }
+        other => panic!("expected FixedNotIdentity, got {other:?}"),
+    }
+}

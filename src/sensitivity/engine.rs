@@ -458,7 +458,11 @@ impl<'a> Engine<'a> {
                 // on the primal's symbolic analysis where it has one at hand
                 self.exact = Some(match c.last_factor {
                     Some(primal) => primal.sibling(),
-                    None => LinearSolver::new(c.assembler.pattern.clone())?,
+                    None => LinearSolver::with_fixed(
+                        c.assembler.pattern.clone(),
+                        Default::default(),
+                        c.constrained,
+                    )?,
                 });
             }
             let s = self.exact.as_mut().expect("just created");

@@ -70,7 +70,13 @@ impl<'m> Solver<'m> {
             0.0
         };
         let matrix = SparseMatrix::new(assembler.pattern.clone());
-        let linear = LinearSolver::new(assembler.pattern.clone())?;
+        // the prescribed unknowns' rows and columns are the identity's in every tangent
+        // Newton factors ([`Solver::factor_and_solve`]): left out of the factorizations
+        let linear = LinearSolver::with_fixed(
+            assembler.pattern.clone(),
+            crate::linalg::SolverOptions::default(),
+            &constrained,
+        )?;
         let penetration_floor = PENETRATION_LIMIT_SCALE * bounding_diagonal(&lifted.coords);
         let unit_pressure_norms = (model.pressures.iter())
             .map(|p| p.force_norm(&lifted.coords, 1.0, assembler.dofs.n_total))
