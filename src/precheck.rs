@@ -8,7 +8,9 @@
 //!   tangent is singular), a warning when it is in a contact pair (it is then held only by
 //!   contact, which must be closed from the first increment on, or the tangent is singular);
 //! * **pairs that cannot touch**: a rigid target that stays further from every hitting node
-//!   than the hitting body's size along its whole path — a warning.
+//!   than the hitting body's size along its whole path — a warning;
+//! * **a hitting surface coarser than its target** (deformable pairs): the target's nodes
+//!   between the hitting ones pass into the hitting body — a warning.
 //!
 //! [`crate::solver::Solver::new`] runs them; its errors are [`PrecheckError`]s inside
 //! [`crate::solver::AnalysisError::Precheck`], its warnings [`crate::solver::Solver::warnings`].
@@ -91,7 +93,74 @@ pub enum PrecheckWarning {
         /// Bounding-box diagonal of the hitting nodes.
         size: f64,
     },
+    /// A deformable pair whose hitting surface is coarser than its target.
+    #[error("contact pair '{pair}': its hitting surface is coarser than its target (median shortest face edge {hitting:.3e} against {target:.3e}, {:.1} times): the pair holds only the hitting nodes, so the target's nodes between them can pass into the hitting body unresisted; hitting with the finer surface (swap `hitting` and `target`) is the usual choice", hitting / target)]
+    CoarseHitting {
+        /// The pair.
+        pair: String,
+        /// Median over the hitting faces of their shortest edge (reference geometry).
+        hitting: f64,
+        /// The same over the target faces any hitting node may touch.
+        target: f64,
+    },
 }
+
+/// Median over `faces` of each face's shortest edge between corners, at the coordinates
+/// `x`; `None` for no face.
+fn median_shortest_edge<'a>(
+    faces: impl Iterator<Item = crate::mesh::Face<'a>>,
+    x: &[Vector3<f64>],
+) -> Option<f64> {
+    let mut edges: Vec<f64> = faces
+        .map(|f| {
+            (f.family.edges().iter())
+                .map(|[a, b]| (x[f.nodes[*a]] - x[f.nodes[*b]]).norm())
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    if edges.is_empty() {
+        return None;
+    }
+    edges.sort_by(f64::total_cmp);
+    Some(edges[edges.len() / 2])
+}
+
+/// Deformable pairs whose hitting faces are [`COARSE_HITTING`] times or more the size of
+/// the target faces they may touch (the median of each face's shortest edge). A node-to-surface
+/// pair constrains only its hitting nodes: where they are the sparser, the target's nodes
+/// between them pass into the hitting body, and each hitting node presses a dimple of its own
+/// into the finer target. The physics fuzzer's seed 537 (a slider of elements 0.225 wide
+/// hitting a base of 0.12, an augmented-Lagrangian penalty of 1,000 E, mu = 0.62) took 124
+/// sub-increments and 1,414 Newton iterations; with hitting and target swapped, 45 and 502.
+pub fn coarse_hitting(model: &Model, lifted: &Lifted<f64>) -> Vec<PrecheckWarning> {
+    let mut out = Vec::new();
+    for pair in &model.contacts {
+        let (Target::Faces { faces }, Some(own)) = (&pair.target, &pair.hitting_faces) else {
+            continue;
+        };
+        let mut touched: Vec<usize> = pair.candidates.iter().flatten().copied().collect();
+        touched.sort_unstable();
+        touched.dedup();
+        let x = &lifted.coords;
+        let (Some(hitting), Some(target)) = (
+            median_shortest_edge(own.iter(), x),
+            median_shortest_edge(touched.iter().map(|&k| faces.face(k)), x),
+        ) else {
+            continue;
+        };
+        if hitting >= COARSE_HITTING * target {
+            out.push(PrecheckWarning::CoarseHitting {
+                pair: pair.name.clone(),
+                hitting,
+                target,
+            });
+        }
+    }
+    out
+}
+
+/// How much coarser than its target a hitting surface is before [`coarse_hitting`] warns.
+pub const COARSE_HITTING: f64 = 1.5;
 
 /// Overlap of a model's contact pairs at the start (`eval`: the contact evaluated at the
 /// reference state and `t = 0`). A node counts when it is deeper than 1e-6 of its element size

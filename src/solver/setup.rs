@@ -201,6 +201,7 @@ fn prechecks(
     let (mut warnings, free) = crate::precheck::rigid_body_modes(model, lifted, constrained);
     free?;
     warnings.extend(crate::precheck::never_touching(model, lifted));
+    warnings.extend(crate::precheck::coarse_hitting(model, lifted));
     if !model.contacts.is_empty() {
         let mut eval = Evaluation::<f64>::new(assembler, model.mesh.n_elements());
         let z = vec![0.0; assembler.dofs.n_total];

@@ -1501,3 +1501,38 @@ fn abaqus_sides_of_quadratic_elements_are_their_faces_with_mid_side_nodes_outwar
         }
     }
 }
+
+/// A deformable pair whose hitting surface is coarser than its target is warned of before the
+/// first increment, with both sizes (tests/meshes/coarse-hitting.toml: a slider of elements
+/// 1.0 wide, 2.0 deep, on a base of elements 0.5); with hitting and target swapped it is not,
+/// and the run goes on either way.
+#[test]
+fn a_hitting_surface_coarser_than_its_target_is_warned_of() {
+    use fricsens::solver::{PrecheckWarning, Solver};
+    let text = std::fs::read_to_string(fixtures().join("coarse-hitting.toml")).unwrap();
+    let coarse = |text: &str| -> Vec<(String, f64, f64)> {
+        let scene = fricsens::scene::Scene::from_toml(text, "coarse-hitting.toml").unwrap();
+        let model = scene.build().unwrap();
+        let solver = Solver::new(&model).unwrap();
+        (solver.warnings().iter())
+            .filter_map(|w| match w {
+                PrecheckWarning::CoarseHitting {
+                    pair,
+                    hitting,
+                    target,
+                } => Some((pair.clone(), *hitting, *target)),
+                _ => None,
+            })
+            .collect()
+    };
+    let found = coarse(&text);
+    assert_eq!(found.len(), 1, "{found:?}");
+    let (pair, hitting, target) = &found[0];
+    assert_eq!(pair, "interface");
+    assert!((hitting - 1.0).abs() < 1e-12 && (target - 0.5).abs() < 1e-12);
+    let swapped = text
+        .replace("hitting = \"slider.ymin\"", "hitting = \"base.ymax\"")
+        .replace("faces = \"base.ymax\"", "faces = \"slider.ymin\"");
+    assert_ne!(swapped, text);
+    assert!(coarse(&swapped).is_empty());
+}
