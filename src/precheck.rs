@@ -94,61 +94,89 @@ pub enum PrecheckWarning {
         size: f64,
     },
     /// A deformable pair whose hitting surface is coarser than its target.
-    #[error("contact pair '{pair}': its hitting surface is coarser than its target (median shortest face edge {hitting:.3e} against {target:.3e}, {:.1} times): the pair holds only the hitting nodes, so the target's nodes between them can pass into the hitting body unresisted; hitting with the finer surface (swap `hitting` and `target`) is the usual choice", hitting / target)]
+    #[error("contact pair '{pair}': its hitting surface is coarser than its target (node spacing {hitting:.3e} against {target:.3e} along the same direction, {:.1} times, at the median hitting face): the pair holds only the hitting nodes, so the target's nodes between them can pass into the hitting body unresisted; hitting with the finer surface (swap `hitting` and `target`) is the usual choice", hitting / target)]
     CoarseHitting {
         /// The pair.
         pair: String,
-        /// Median over the hitting faces of their shortest edge (reference geometry).
+        /// Node spacing of the median hitting face along its coarsest direction against the
+        /// target (reference geometry).
         hitting: f64,
-        /// The same over the target faces any hitting node may touch.
+        /// Node spacing of the target face nearest it along the same direction.
         target: f64,
     },
 }
 
-/// Median over `faces` of each face's shortest edge between corners, at the coordinates
-/// `x`; `None` for no face.
-fn median_shortest_edge<'a>(
-    faces: impl Iterator<Item = crate::mesh::Face<'a>>,
+/// The corners of a face, their centroid, and its edges as (vector, node spacing along it):
+/// a quadratic face's edge holds a mid-side node, so its spacing is half its length.
+fn face_edges(
+    f: crate::mesh::Face<'_>,
     x: &[Vector3<f64>],
-) -> Option<f64> {
-    let mut edges: Vec<f64> = faces
-        .map(|f| {
-            (f.family.edges().iter())
-                .map(|[a, b]| (x[f.nodes[*a]] - x[f.nodes[*b]]).norm())
-                .fold(f64::INFINITY, f64::min)
+) -> (Vector3<f64>, Vec<(Vector3<f64>, f64)>) {
+    let nc = f.family.n_corners();
+    let centroid = (0..nc).map(|a| x[f.nodes[a]]).sum::<Vector3<f64>>() / nc as f64;
+    let per = if f.family.is_quadratic() { 2.0 } else { 1.0 };
+    let edges = (f.family.edges().iter())
+        .map(|[a, b]| {
+            let v = x[f.nodes[*b]] - x[f.nodes[*a]];
+            (v, v.norm() / per)
         })
         .collect();
-    if edges.is_empty() {
-        return None;
-    }
-    edges.sort_by(f64::total_cmp);
-    Some(edges[edges.len() / 2])
+    (centroid, edges)
 }
 
-/// Deformable pairs whose hitting faces are [`COARSE_HITTING`] times or more the size of
-/// the target faces they may touch (the median of each face's shortest edge). A node-to-surface
-/// pair constrains only its hitting nodes: where they are the sparser, the target's nodes
-/// between them pass into the hitting body, and each hitting node presses a dimple of its own
-/// into the finer target. The physics fuzzer's seed 537 (a slider of elements 0.225 wide
-/// hitting a base of 0.12, an augmented-Lagrangian penalty of 1,000 E, mu = 0.62) took 124
+/// Deformable pairs whose hitting surface is [`COARSE_HITTING`] times or more as coarse as
+/// the target faces under it. For each hitting face, the target face nearest it (of its
+/// first node's candidates) is compared edge by edge: each hitting edge's node spacing against
+/// that of the target edge most nearly parallel to it, the face's ratio the largest (so a
+/// plane-strain layer, one element through the thickness on both sides, compares its
+/// in-plane spacings); the warning gives the median face's spacings. A node-to-surface pair
+/// constrains only its hitting nodes: where they are the sparser, the target's nodes between
+/// them pass into the hitting body, and each hitting node presses a dimple of its own into the
+/// finer target. The physics fuzzer's seed 537 (a slider of elements 0.225 wide hitting a
+/// base of 0.12, an augmented-Lagrangian penalty of 1,000 E, mu = 0.62) took 124
 /// sub-increments and 1,414 Newton iterations; with hitting and target swapped, 45 and 502.
 pub fn coarse_hitting(model: &Model, lifted: &Lifted<f64>) -> Vec<PrecheckWarning> {
     let mut out = Vec::new();
+    let x = &lifted.coords;
     for pair in &model.contacts {
         let (Target::Faces { faces }, Some(own)) = (&pair.target, &pair.hitting_faces) else {
             continue;
         };
-        let mut touched: Vec<usize> = pair.candidates.iter().flatten().copied().collect();
-        touched.sort_unstable();
-        touched.dedup();
-        let x = &lifted.coords;
-        let (Some(hitting), Some(target)) = (
-            median_shortest_edge(own.iter(), x),
-            median_shortest_edge(touched.iter().map(|&k| faces.face(k)), x),
-        ) else {
+        let index: std::collections::HashMap<usize, usize> = pair
+            .hitting
+            .iter()
+            .enumerate()
+            .map(|(i, &n)| (n, i))
+            .collect();
+        let mut ratios: Vec<(f64, f64, f64)> = Vec::new();
+        for h in own.iter() {
+            let Some(&i) = h.nodes.first().and_then(|n| index.get(n)) else {
+                continue;
+            };
+            let (ch, eh) = face_edges(h, x);
+            let nearest = (pair.candidates[i].iter())
+                .map(|&k| face_edges(faces.face(k), x))
+                .min_by(|a, b| (a.0 - ch).norm().total_cmp(&(b.0 - ch).norm()));
+            let Some((_, et)) = nearest else {
+                continue;
+            };
+            let worst = (eh.iter())
+                .filter_map(|(vh, sh)| {
+                    let parallel = et.iter().max_by(|a, b| {
+                        let cos = |v: &Vector3<f64>| (v.dot(vh) / (v.norm() * vh.norm())).abs();
+                        cos(&a.0).total_cmp(&cos(&b.0))
+                    })?;
+                    (parallel.1 > 0.0).then(|| (sh / parallel.1, *sh, parallel.1))
+                })
+                .max_by(|a, b| a.0.total_cmp(&b.0));
+            ratios.extend(worst);
+        }
+        if ratios.is_empty() {
             continue;
-        };
-        if hitting >= COARSE_HITTING * target {
+        }
+        ratios.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (ratio, hitting, target) = ratios[ratios.len() / 2];
+        if ratio >= COARSE_HITTING {
             out.push(PrecheckWarning::CoarseHitting {
                 pair: pair.name.clone(),
                 hitting,

@@ -48,7 +48,8 @@ pub struct SolverOptions {
     /// Factorization kind.
     pub kind: FactorKind,
     /// Parallelism of the numeric factorization; `None` chooses: `Par::rayon(0)` (all
-    /// threads of the current rayon pool) when `n >= PAR_FACTOR_MIN_N` and the pool has
+    /// threads of the current rayon pool) when the factored unknowns
+    /// ([`LinearSolver::factored_n`]) are at least `PAR_FACTOR_MIN_N` and the pool has
     /// more than one thread, `Par::Seq` otherwise (see the module docs for the numbers).
     pub factor_par: Option<Par>,
     /// Parallelism of the triangular solves (`Par::Seq` measured never slower).
@@ -345,6 +346,14 @@ impl LinearSolver {
         }
     }
 
+    /// Unknowns in the factored system: the pattern's, less the fixed ones
+    /// ([`LinearSolver::with_fixed`]).
+    pub fn factored_n(&self) -> usize {
+        self.reduction
+            .as_ref()
+            .map_or(self.pattern.n, |r| r.free.len())
+    }
+
     /// The pattern.
     pub fn pattern(&self) -> &Arc<SparsePattern> {
         &self.pattern
@@ -401,9 +410,15 @@ impl LinearSolver {
         let par = self.factor_par;
         let mut reduced = std::mem::take(&mut self.reduced_values);
         let out = match self.reduction.clone() {
-            Some(r) => r.gather(a, &mut reduced).and_then(|()| {
-                self.factor_faer(SparseColMatRef::new(r.symbolic.as_ref(), &reduced), par)
-            }),
+            Some(r) => match r.gather(a, &mut reduced) {
+                Ok(()) => {
+                    self.factor_faer(SparseColMatRef::new(r.symbolic.as_ref(), &reduced), par)
+                }
+                Err(e) => {
+                    self.numeric = NumericFactor::None;
+                    Err(e)
+                }
+            },
             None => self.factor_faer(a.as_faer(), par),
         };
         self.reduced_values = reduced;
@@ -696,7 +711,7 @@ impl LinearSolver {
 /// A numeric factorization kept apart from the solver that made it ([`LinearSolver::keep`]):
 /// the adjoint keeps Newton's last factorization of every increment to solve with it on its
 /// way back ([`LinearSolver::with_kept`]).
-pub struct KeptFactor(NumericFactor);
+pub struct KeptFactor(NumericFactor, usize);
 
 impl KeptFactor {
     /// Bytes of its factors.
@@ -724,7 +739,7 @@ impl LinearSolver {
     pub fn keep(&self) -> Option<KeptFactor> {
         match &self.numeric {
             NumericFactor::None | NumericFactor::Lu(_) => None,
-            f => Some(KeptFactor(f.clone())),
+            f => Some(KeptFactor(f.clone(), self.factored_n())),
         }
     }
 
@@ -748,6 +763,9 @@ impl LinearSolver {
         if !fits {
             return Err(LinalgError::NotFactored);
         }
+        // a factorization of the free unknowns' system fits only a solver that leaves out
+        // the same unknowns
+        check_len(self.factored_n(), kept.1)?;
         std::mem::swap(&mut self.numeric, &mut kept.0);
         let out = f(self);
         std::mem::swap(&mut self.numeric, &mut kept.0);

@@ -154,6 +154,40 @@ fn residuals(solver: &LinearSolver, a: &SparseMatrix) -> (f64, f64) {
     worst
 }
 
+/// A grid of `nx x nx` bilinear quads whose node pairs `ties` are tied by one Lagrange
+/// multiplier each (unknowns `n..n + ties.len()`): the unknown count `n` of the grid and the
+/// blocks, the quads' first, then one per tie.
+fn tied_grid(nx: usize, ties: &[(usize, usize)]) -> (usize, Vec<Vec<usize>>) {
+    let (n, mut blocks) = quad_grid(nx, nx);
+    for (j, &(p, q)) in ties.iter().enumerate() {
+        blocks.push(vec![p, q, n + j]);
+    }
+    (n, blocks)
+}
+
+/// The matrix of [`tied_grid`] on `pattern`: the quads' Laplacian with convection `c` and
+/// the ties' rows and columns (`u_p - u_q`).
+fn tied_matrix(
+    pattern: Arc<SparsePattern>,
+    nx: usize,
+    n: usize,
+    ties: &[(usize, usize)],
+    c: f64,
+) -> SparseMatrix {
+    let mut a = SparseMatrix::new(pattern);
+    let ke = q1_laplace(c);
+    for b in 0..nx * nx {
+        a.add_block(b, &ke).unwrap();
+    }
+    for (j, &(p, q)) in ties.iter().enumerate() {
+        for (i, v) in [(p, 1.0), (q, -1.0)] {
+            a.add(i, n + j, v).unwrap();
+            a.add(n + j, i, v).unwrap();
+        }
+    }
+    a
+}
+
 /// The symmetric-pattern LU (the default) against faer's LU with partial pivoting on
 /// an unsymmetric convection-diffusion matrix: both solve it, plain and transposed, to
 /// round-off, and agree.
@@ -187,24 +221,11 @@ fn symmetric_pattern_lu_solves_like_faers_lu() {
 #[test]
 fn saddle_point_multipliers_are_eliminated_after_their_neighbours() {
     let nx = 12;
-    let (n, mut blocks) = quad_grid(nx, nx);
     let ties: Vec<(usize, usize)> = (0..6).map(|j| (20 + 17 * j, 30 + 13 * j)).collect();
+    let (n, blocks) = tied_grid(nx, &ties);
     let m = ties.len();
-    for (j, &(p, q)) in ties.iter().enumerate() {
-        blocks.push(vec![p, q, n + j]);
-    }
-    let ke = q1_laplace(0.2);
     let build = |pattern: SparsePattern| {
-        let mut a = SparseMatrix::new(Arc::new(pattern));
-        for b in 0..nx * nx {
-            a.add_block(b, &ke).unwrap();
-        }
-        for (j, &(p, q)) in ties.iter().enumerate() {
-            for (i, v) in [(p, 1.0), (q, -1.0)] {
-                a.add(i, n + j, v).unwrap();
-                a.add(n + j, i, v).unwrap();
-            }
-        }
+        let mut a = tied_matrix(Arc::new(pattern), nx, n, &ties, 0.2);
         for i in 0..=nx {
             a.set_identity_row_col(i).unwrap();
         }
@@ -1197,28 +1218,15 @@ fn a_sibling_factors_as_a_solver_of_its_own() {
 #[test]
 fn a_solver_without_its_fixed_unknowns_solves_the_whole_system() {
     let nx = 10;
-    let (n, mut blocks) = quad_grid(nx, nx);
     let ties: Vec<(usize, usize)> = (0..4).map(|j| (24 + 17 * j, 35 + 13 * j)).collect();
+    let (n, blocks) = tied_grid(nx, &ties);
     let m = ties.len();
-    for (j, &(p, q)) in ties.iter().enumerate() {
-        blocks.push(vec![p, q, n + j]);
-    }
     let pattern = Arc::new(
         SparsePattern::new(n + m, &refs(&blocks), &[])
             .unwrap()
             .with_multipliers_from(n),
     );
-    let mut a = SparseMatrix::new(pattern.clone());
-    let ke = q1_laplace(0.3);
-    for b in 0..nx * nx {
-        a.add_block(b, &ke).unwrap();
-    }
-    for (j, &(p, q)) in ties.iter().enumerate() {
-        for (i, v) in [(p, 1.0), (q, -1.0)] {
-            a.add(i, n + j, v).unwrap();
-            a.add(n + j, i, v).unwrap();
-        }
-    }
+    let mut a = tied_matrix(pattern.clone(), nx, n, &ties, 0.3);
     // the bottom edge and two interior unknowns
     let mut fixed = vec![false; n + m];
     for i in (0..=nx).chain([57, 58]) {
@@ -1234,6 +1242,12 @@ fn a_solver_without_its_fixed_unknowns_solves_the_whole_system() {
     let mut reduced =
         LinearSolver::with_fixed(pattern.clone(), SolverOptions::default(), &fixed).unwrap();
     reduced.factor(&a).unwrap();
+    // the multipliers stay last among the free unknowns: no decline to faer's LU
+    assert_eq!(reduced.stats().declined, 0);
+    assert_eq!(
+        reduced.factored_n(),
+        nt - fixed.iter().filter(|f| **f).count()
+    );
     let mut whole = LinearSolver::new(pattern.clone()).unwrap();
     whole.factor(&a).unwrap();
     for transpose in [false, true] {
@@ -1294,4 +1308,27 @@ fn a_solver_without_its_fixed_unknowns_solves_the_whole_system() {
         }
         other => panic!("expected FixedNotIdentity, got {other:?}"),
     }
+    // the refused matrix leaves no factorization behind
+    assert!(!reduced.is_factored());
+    // a kept factorization of the whole system does not fit the reduced solver
+    let mut whole_kept = whole.keep().unwrap();
+    assert!(sibling
+        .with_kept(&mut whole_kept, |s| s.solve_in_place(&mut y))
+        .is_err());
+    // without the multipliers marked, the reduced system's zero diagonal is declined by the
+    // symmetric-pattern LU and factored by faer's LU on the reduced pattern: the same solution
+    let unmarked = Arc::new(SparsePattern::new(n + m, &refs(&blocks), &[]).unwrap());
+    let mut b2 = SparseMatrix::new(unmarked.clone());
+    for (k, v) in b2.values_mut().iter_mut().enumerate() {
+        let (cp, ri) = (unmarked.col_ptr(), unmarked.row_idx());
+        let col = cp.partition_point(|&p| p <= k) - 1;
+        *v = a.get(ri[k], col);
+    }
+    let mut unmarked_solver =
+        LinearSolver::with_fixed(unmarked, SolverOptions::default(), &fixed).unwrap();
+    unmarked_solver.factor(&b2).unwrap();
+    assert_eq!(unmarked_solver.stats().declined, 1);
+    let mut z2 = b[..nt].to_vec();
+    unmarked_solver.solve_in_place(&mut z2).unwrap();
+    assert!(rel_err(&z2, &dense_solve(&dense, &b[..nt])) < 1e-12);
 }

@@ -1503,9 +1503,11 @@ fn abaqus_sides_of_quadratic_elements_are_their_faces_with_mid_side_nodes_outwar
 }
 
 /// A deformable pair whose hitting surface is coarser than its target is warned of before the
-/// first increment, with both sizes (tests/meshes/coarse-hitting.toml: a slider of elements
-/// 1.0 wide, 2.0 deep, on a base of elements 0.5); with hitting and target swapped it is not,
-/// and the run goes on either way.
+/// first increment, with both node spacings (tests/meshes/coarse-hitting.toml: a slider of
+/// elements 1.0 wide, 2.0 deep, on a base of elements 0.5, both one element deep), also when
+/// the layer is thinner than the elements are wide (0.25 deep: the shortest edges are then
+/// the depth on both sides); with hitting and target swapped it is not, and the solver is
+/// made either way (a warning, not an error).
 #[test]
 fn a_hitting_surface_coarser_than_its_target_is_warned_of() {
     use fricsens::solver::{PrecheckWarning, Solver};
@@ -1530,6 +1532,11 @@ fn a_hitting_surface_coarser_than_its_target_is_warned_of() {
     let (pair, hitting, target) = &found[0];
     assert_eq!(pair, "interface");
     assert!((hitting - 1.0).abs() < 1e-12 && (target - 0.5).abs() < 1e-12);
+    let thin = text.replace("[bodies.z]\nlength = 2.0", "[bodies.z]\nlength = 0.25");
+    assert_eq!(thin.matches("length = 0.25").count(), 2);
+    let found = coarse(&thin);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!((found[0].1 - 1.0).abs() < 1e-12 && (found[0].2 - 0.5).abs() < 1e-12);
     let swapped = text
         .replace("hitting = \"slider.ymin\"", "hitting = \"base.ymax\"")
         .replace("faces = \"base.ymax\"", "faces = \"slider.ymin\"");
