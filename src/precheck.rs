@@ -106,22 +106,22 @@ pub enum PrecheckWarning {
     },
 }
 
-/// The corners of a face, their centroid, and its edges as (vector, node spacing along it):
-/// a quadratic face's edge holds a mid-side node, so its spacing is half its length.
-fn face_edges(
-    f: crate::mesh::Face<'_>,
-    x: &[Vector3<f64>],
-) -> (Vector3<f64>, Vec<(Vector3<f64>, f64)>) {
+/// The centroid of a face's corners.
+fn corner_centroid(f: crate::mesh::Face<'_>, x: &[Vector3<f64>]) -> Vector3<f64> {
     let nc = f.family.n_corners();
-    let centroid = (0..nc).map(|a| x[f.nodes[a]]).sum::<Vector3<f64>>() / nc as f64;
+    (0..nc).map(|a| x[f.nodes[a]]).sum::<Vector3<f64>>() / nc as f64
+}
+
+/// A face's edges as (vector, node spacing along it): a quadratic face's edge holds a
+/// mid-side node, so its spacing is half its length.
+fn face_edges(f: crate::mesh::Face<'_>, x: &[Vector3<f64>]) -> Vec<(Vector3<f64>, f64)> {
     let per = if f.family.is_quadratic() { 2.0 } else { 1.0 };
-    let edges = (f.family.edges().iter())
+    (f.family.edges().iter())
         .map(|[a, b]| {
             let v = x[f.nodes[*b]] - x[f.nodes[*a]];
             (v, v.norm() / per)
         })
-        .collect();
-    (centroid, edges)
+        .collect()
 }
 
 /// Deformable pairs whose hitting surface is [`COARSE_HITTING`] times or more as coarse as
@@ -153,13 +153,15 @@ pub fn coarse_hitting(model: &Model, lifted: &Lifted<f64>) -> Vec<PrecheckWarnin
             let Some(&i) = h.nodes.first().and_then(|n| index.get(n)) else {
                 continue;
             };
-            let (ch, eh) = face_edges(h, x);
+            let ch = corner_centroid(h, x);
+            let distance = |k: usize| (corner_centroid(faces.face(k), x) - ch).norm();
             let nearest = (pair.candidates[i].iter())
-                .map(|&k| face_edges(faces.face(k), x))
-                .min_by(|a, b| (a.0 - ch).norm().total_cmp(&(b.0 - ch).norm()));
-            let Some((_, et)) = nearest else {
+                .copied()
+                .min_by(|&a, &b| distance(a).total_cmp(&distance(b)));
+            let Some(k) = nearest else {
                 continue;
             };
+            let (eh, et) = (face_edges(h, x), face_edges(faces.face(k), x));
             let worst = (eh.iter())
                 .filter_map(|(vh, sh)| {
                     let parallel = et.iter().max_by(|a, b| {
