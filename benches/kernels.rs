@@ -1,12 +1,12 @@
-//! One hex8 evaluation (large kinematics, 2x2x2 Gauss points), per scalar type, formulation and
-//! material:
+//! One hex8 evaluation (large kinematics, 2x2x2 Gauss points), per scalar type, formulation
+//! (full, incompatible modes, F-bar) and material:
 //!
 //! * `f64`, `dual64` (E seeded), `dsvec4`, `dsvec8` (all material parameters seeded): residual
 //!   only — the primal, DDM single and DDM batched pseudo-load evaluations;
 //! * `f64+tangent`: residual and the hand-coded consistent tangent (one Newton iteration);
 //! * `ad-tangent/dual64`: the tangent by forward AD, one `Dual64` pass per element unknown
 //!   (24 or 33 passes); `ad-tangent/dsvec8`: 3 or 5 passes of `DualSVec64<8>`;
-//!   `ad-tangent/dsvec24` (full) and `ad-tangent/dsvec33` (incompatible modes): one pass.
+//!   `ad-tangent/dsvec24` (full, F-bar) and `ad-tangent/dsvec33` (incompatible modes): one pass.
 //!
 //! Materials: St Venant-Kirchhoff, and J2 (linear hardening) stretched to four times its yield
 //! strain from a virgin history, so every Gauss point returns plastically.
@@ -67,6 +67,7 @@ fn case<M: MaterialLaw>(c: &mut Criterion, mat_name: &str, material: &M, plastic
     for (form_name, formulation) in [
         ("full", Formulation::Full),
         ("im", Formulation::IncompatibleModes),
+        ("fbar", Formulation::FBar),
     ] {
         let np = material.params().len();
         let mut base = Element::new(

@@ -716,23 +716,58 @@ impl Solid<'_> {
                 if large {
                     let s_c = resp.stress.component_mul(&cbar).sum(); // S : Cbar
                     let r2 = r * r;
+                    // G_ab for a = (A, i), b = (B, j), a row of K at a time over the flat
+                    // column index c = 3 B + j: the factors indexed by b laid out by c
+                    // (`q_cols[i][c] = (q_B)_i`), those indexed by (A, j) per row
+                    // (`q_row[c] = (q_A)_j`), so that the inner loop reads contiguous slices
+                    let mut v_c = [S::zero(); 3 * MAX_NODES];
+                    let mut p_c = [S::zero(); 3 * MAX_NODES];
+                    let mut q_cols = [[S::zero(); 3 * MAX_NODES]; 3];
+                    let mut q0_cols = [[S::zero(); 3 * MAX_NODES]; 3];
+                    for bb in 0..nn {
+                        for j in 0..3 {
+                            let c = 3 * bb + j;
+                            v_c[c] = v[bb][j];
+                            p_c[c] = p[bb][j];
+                            for i in 0..3 {
+                                q_cols[i][c] = q[bb][i];
+                                q0_cols[i][c] = q0[bb][i];
+                            }
+                        }
+                    }
+                    let (v_c, p_c) = (&v_c[..ndof], &p_c[..ndof]);
+                    let mut q_row = [S::zero(); 3 * MAX_NODES];
+                    let mut q0_row = [S::zero(); 3 * MAX_NODES];
+                    // gsg[i][3 B + i] = r^2 g_B . S g_A, zero off the block diagonals: adding
+                    // that zero to every entry leaves each entry's value as the branch on
+                    // i = j did (up to the sign of a zero), and the loop has no branch
+                    let mut gsg = [[S::zero(); 3 * MAX_NODES]; 3];
                     for a in 0..nn {
                         let sg = resp.stress * g_gp[a];
                         for bb in 0..nn {
-                            let gsg = g_gp[bb].dot(&sg) * r2;
-                            for i in 0..3 {
-                                let row = 3 * a + i;
-                                for j in 0..3 {
-                                    let mut g_ab = (v[a][i] * p[bb][j] + v[bb][j] * p[a][i]) * 2.0
-                                        + s_c * v[a][i] * v[bb][j] * 2.0
-                                        + s_c
-                                            * (q[a][j] * q[bb][i] - q0[a][j] * q0[bb][i])
-                                            * (1.0 / 3.0);
-                                    if i == j {
-                                        g_ab += gsg;
-                                    }
-                                    k[row * ndof + 3 * bb + j] += g_ab * w;
-                                }
+                            // r^2 g_B . S g_A, on the diagonal i = j of the block
+                            let gs = g_gp[bb].dot(&sg) * r2;
+                            for j in 0..3 {
+                                q_row[3 * bb + j] = q[a][j];
+                                q0_row[3 * bb + j] = q0[a][j];
+                                gsg[j][3 * bb + j] = gs;
+                            }
+                        }
+                        let (q_row, q0_row) = (&q_row[..ndof], &q0_row[..ndof]);
+                        for i in 0..3 {
+                            let row = 3 * a + i;
+                            let (va, pa) = (v[a][i], p[a][i]);
+                            let s_va = s_c * va;
+                            let (q_col, q0_col) = (&q_cols[i][..ndof], &q0_cols[i][..ndof]);
+                            let gsg = &gsg[i][..ndof];
+                            let k_row = &mut k[row * ndof..(row + 1) * ndof];
+                            for c in 0..ndof {
+                                let g_ab = (va * p_c[c] + v_c[c] * pa) * 2.0
+                                    + s_va * v_c[c] * 2.0
+                                    + s_c
+                                        * (q_row[c] * q_col[c] - q0_row[c] * q0_col[c])
+                                        * (1.0 / 3.0);
+                                k_row[c] += (g_ab + gsg[c]) * w;
                             }
                         }
                     }
