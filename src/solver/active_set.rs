@@ -284,6 +284,8 @@ impl Solver<'_> {
         let mut flips = Vec::new();
         let mut nodes = 0;
         let mut bodies: Vec<usize> = Vec::new();
+        // the bodies of those flipping points whose elements have incompatible modes
+        let mut enhanced: Vec<usize> = Vec::new();
         if let Some((first, branches, _)) = window.front() {
             for i in 0..first.len() {
                 let mut seen: Vec<String> = Vec::new();
@@ -308,6 +310,16 @@ impl Solver<'_> {
                     flips.push(format!("element {e} Gauss point {q} (elastic / plastic)"));
                     if let Some(b) = self.model.element_body(e).filter(|b| !bodies.contains(b)) {
                         bodies.push(b);
+                    }
+                    let family = self.assembler.dofs.element_family.get(e).copied().flatten();
+                    if family.and_then(|f| f.formulation())
+                        == Some(crate::element::Formulation::IncompatibleModes)
+                    {
+                        if let Some(b) =
+                            (self.model.element_body(e)).filter(|b| !enhanced.contains(b))
+                        {
+                            enhanced.push(b);
+                        }
                     }
                 }
             }
@@ -347,8 +359,18 @@ impl Solver<'_> {
                 self.bodies_words(&bodies)
             ),
         };
+        // the physics fuzzer's seeds 931 and 968 (J2 with incompatible modes under a
+        // contact) cycle so, and complete their whole path with F-bar
+        let formulation = if enhanced.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; the flipping points of {} are in elements with incompatible modes, whose enhanced modes can fold a Gauss point under large plastic flow: formulation = \"f-bar\" may hold there",
+                self.bodies_words(&enhanced)
+            )
+        };
         format!(
-            "Newton cycles {what}, the residual staying above {best:.3e} (tolerance {tolerance:.3e}); try more increments in this step, {advice}"
+            "Newton cycles {what}, the residual staying above {best:.3e} (tolerance {tolerance:.3e}); try more increments in this step, {advice}{formulation}"
         )
     }
 

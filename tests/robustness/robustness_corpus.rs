@@ -214,11 +214,13 @@ fn fresh_generated_scenes_complete_and_never_answer_wrongly() {
 
 /// A Newton cycle whose contact states stay fixed names the Gauss points that flip between
 /// elastic and plastic (seed 931 of the open corpus: a J2 slider, `H / E = 0.003`, under a
-/// Neo-Hookean base). Every point it names lies in the J2 body, the only one that can yield,
-/// and the run keeps the increments it converged.
+/// Neo-Hookean base, both with incompatible modes). Every point it names lies in the J2 body,
+/// the only one that can yield, and the run keeps the increments it converged. Those points'
+/// elements have incompatible modes, so the error suggests F-bar, and the advice holds: with
+/// F-bar the same scene completes its whole path with every physics check holding.
 #[test]
-fn a_cycle_of_material_branches_names_its_gauss_points() {
-    let scene = Scene::from_file(&corpus_dir().join("seed-931.toml")).unwrap();
+fn a_cycle_of_material_branches_names_its_gauss_points_and_suggests_f_bar() {
+    let mut scene = Scene::from_file(&corpus_dir().join("seed-931.toml")).unwrap();
     let model = scene.build().unwrap();
     let err = fricsens::solver::Solver::new(&model)
         .unwrap()
@@ -249,6 +251,21 @@ fn a_cycle_of_material_branches_names_its_gauss_points() {
         assert_eq!(model.element_body(e), Some(j2), "element {e}: {reason}");
     }
     assert!(partial.times.len() > 1, "the converged increments are kept");
+    let advice = format!(
+        "the flipping points of body '{}' are in elements with incompatible modes",
+        model.bodies[j2].name
+    );
+    assert!(
+        reason.contains(&advice) && reason.contains("formulation = \"f-bar\" may hold there"),
+        "{reason}"
+    );
+    for body in &mut scene.bodies {
+        if body.formulation == Some(fricsens::element::Formulation::IncompatibleModes) {
+            body.formulation = Some(fricsens::element::Formulation::FBar);
+        }
+    }
+    let o = run_case(0, &scene, Some(120.0));
+    assert!(o.passed, "with F-bar: {:?}: {}", o.failure, o.message);
 }
 
 /// An incompatible-modes element that inverts says so and what to try, and the advice holds:
