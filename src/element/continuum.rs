@@ -647,6 +647,17 @@ impl Solid<'_> {
         let mut v = [[S::zero(); 3]; MAX_NODES];
         let mut p = [[S::zero(); 3]; MAX_NODES];
         let mut q = [Vector3::<S>::zeros(); MAX_NODES];
+        // the geometric tangent's per-column factors (below), written anew at every Gauss
+        // point up to `ndof`; gsg[i][3 B + i] = r^2 g_B . S g_A, zero off the block diagonals
+        // (never written there): adding that zero to every entry leaves each entry's value as
+        // a branch on i = j would (up to the sign of a zero), and the loop has no branch
+        let mut v_c = [S::zero(); 3 * MAX_NODES];
+        let mut p_c = [S::zero(); 3 * MAX_NODES];
+        let mut q_cols = [[S::zero(); 3 * MAX_NODES]; 3];
+        let mut q0_cols = [[S::zero(); 3 * MAX_NODES]; 3];
+        let mut q_row = [S::zero(); 3 * MAX_NODES];
+        let mut q0_row = [S::zero(); 3 * MAX_NODES];
+        let mut gsg = [[S::zero(); 3 * MAX_NODES]; 3];
         for (gp, (g_gp, &w)) in grads.iter().zip(weights).enumerate() {
             let g_gp = &g_gp[..nn];
             let mut h = Matrix3::<S>::zeros();
@@ -720,10 +731,6 @@ impl Solid<'_> {
                     // column index c = 3 B + j: the factors indexed by b laid out by c
                     // (`q_cols[i][c] = (q_B)_i`), those indexed by (A, j) per row
                     // (`q_row[c] = (q_A)_j`), so that the inner loop reads contiguous slices
-                    let mut v_c = [S::zero(); 3 * MAX_NODES];
-                    let mut p_c = [S::zero(); 3 * MAX_NODES];
-                    let mut q_cols = [[S::zero(); 3 * MAX_NODES]; 3];
-                    let mut q0_cols = [[S::zero(); 3 * MAX_NODES]; 3];
                     for bb in 0..nn {
                         for j in 0..3 {
                             let c = 3 * bb + j;
@@ -736,12 +743,6 @@ impl Solid<'_> {
                         }
                     }
                     let (v_c, p_c) = (&v_c[..ndof], &p_c[..ndof]);
-                    let mut q_row = [S::zero(); 3 * MAX_NODES];
-                    let mut q0_row = [S::zero(); 3 * MAX_NODES];
-                    // gsg[i][3 B + i] = r^2 g_B . S g_A, zero off the block diagonals: adding
-                    // that zero to every entry leaves each entry's value as the branch on
-                    // i = j did (up to the sign of a zero), and the loop has no branch
-                    let mut gsg = [[S::zero(); 3 * MAX_NODES]; 3];
                     for a in 0..nn {
                         let sg = resp.stress * g_gp[a];
                         for bb in 0..nn {

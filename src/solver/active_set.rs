@@ -284,7 +284,8 @@ impl Solver<'_> {
         let mut flips = Vec::new();
         let mut nodes = 0;
         let mut bodies: Vec<usize> = Vec::new();
-        // the bodies of those flipping points whose elements have incompatible modes
+        // the bodies, under large kinematics, of those flipping points whose elements have
+        // incompatible modes
         let mut enhanced: Vec<usize> = Vec::new();
         if let Some((first, branches, _)) = window.front() {
             for i in 0..first.len() {
@@ -315,8 +316,12 @@ impl Solver<'_> {
                     if family.and_then(|f| f.formulation())
                         == Some(crate::element::Formulation::IncompatibleModes)
                     {
-                        if let Some(b) =
-                            (self.model.element_body(e)).filter(|b| !enhanced.contains(b))
+                        // large kinematics: the geometric stiffness that folds the modes
+                        let large = |b: &usize| {
+                            self.model.bodies[*b].kinematics == crate::element::Kinematics::Large
+                        };
+                        if let Some(b) = (self.model.element_body(e))
+                            .filter(|b| large(b) && !enhanced.contains(b))
                         {
                             enhanced.push(b);
                         }
@@ -359,8 +364,9 @@ impl Solver<'_> {
                 self.bodies_words(&bodies)
             ),
         };
-        // the physics fuzzer's seeds 931 and 968 (J2 with incompatible modes under a
-        // contact) cycle so, and complete their whole path with F-bar
+        // the physics fuzzer's seeds 931 and 968 (J2 with incompatible modes under large
+        // kinematics beneath a contact) cycle so, and complete their whole path with F-bar;
+        // a mixed cycle, of contact states too, gets the advice as well
         let formulation = if enhanced.is_empty() {
             String::new()
         } else {
