@@ -312,19 +312,14 @@ impl Solver<'_> {
                     if let Some(b) = self.model.element_body(e).filter(|b| !bodies.contains(b)) {
                         bodies.push(b);
                     }
-                    let family = self.assembler.dofs.element_family.get(e).copied().flatten();
-                    if family.and_then(|f| f.formulation())
-                        == Some(crate::element::Formulation::IncompatibleModes)
+                    // large kinematics: the geometric stiffness that folds the modes
+                    let large = |b: &usize| {
+                        self.model.bodies[*b].kinematics == crate::element::Kinematics::Large
+                    };
+                    if let Some(b) = (self.incompatible_modes_body(e))
+                        .filter(|b| large(b) && !enhanced.contains(b))
                     {
-                        // large kinematics: the geometric stiffness that folds the modes
-                        let large = |b: &usize| {
-                            self.model.bodies[*b].kinematics == crate::element::Kinematics::Large
-                        };
-                        if let Some(b) = (self.model.element_body(e))
-                            .filter(|b| large(b) && !enhanced.contains(b))
-                        {
-                            enhanced.push(b);
-                        }
+                        enhanced.push(b);
                     }
                 }
             }

@@ -444,6 +444,15 @@ impl Solver<'_> {
         Ok(())
     }
 
+    /// The body of element `e` if the element has incompatible modes (the advice of
+    /// [`Solver::inversion_advice`] and of a cycle of material branches).
+    pub(super) fn incompatible_modes_body(&self, e: usize) -> Option<usize> {
+        let family = self.assembler.dofs.element_family.get(e).copied().flatten();
+        (family.and_then(|f| f.formulation()) == Some(Formulation::IncompatibleModes))
+            .then(|| self.model.element_body(e))
+            .flatten()
+    }
+
     /// What to try when the attempt failed on an inverted incompatible-modes element: its
     /// enhanced modes can invert a Gauss point under large compressive (plastic) strain where
     /// F-bar may hold (the fuzzer's open corpus: three of its five element failures, seeds 451,
@@ -458,19 +467,10 @@ impl Solver<'_> {
         else {
             return String::new();
         };
-        let family = self
-            .assembler
-            .dofs
-            .element_family
-            .get(*element)
-            .copied()
-            .flatten();
-        if family.and_then(|f| f.formulation()) != Some(Formulation::IncompatibleModes) {
+        let Some(body) = self.incompatible_modes_body(*element) else {
             return String::new();
-        }
-        let body = (self.model.element_body(*element))
-            .map(|b| format!(" '{}'", self.model.bodies[b].name))
-            .unwrap_or_default();
+        };
+        let body = format!(" '{}'", self.model.bodies[body].name);
         format!(
             "; the element's body{body} has incompatible modes, whose enhanced modes can invert a Gauss point under large compressive strain: formulation = \"f-bar\" may hold there"
         )
