@@ -359,8 +359,9 @@ impl Solver<'_> {
                 self.bodies_words(&bodies)
             ),
         };
-        // the physics fuzzer's seeds 931 and 968 (J2 with incompatible modes under large
-        // kinematics beneath a contact) cycle so, and complete their whole path with F-bar;
+        // the physics fuzzer's seed 968 (J2 with incompatible modes under large kinematics
+        // beneath a contact; 931 did before the modes were relaxed after a failed attempt)
+        // cycles so, and completes its whole path with F-bar;
         // a mixed cycle, of contact states too, gets the advice as well
         let formulation = if enhanced.is_empty() {
             String::new()

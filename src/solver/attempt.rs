@@ -371,6 +371,23 @@ impl Solver<'_> {
                     Err(e) => return Err(AttemptFailure::Element(e)),
                 }
             }
+            if self.relaxing_modes && !self.relaxed_elements.is_empty() {
+                let start = Instant::now();
+                let moved = self.assembler.relax_modes(
+                    model,
+                    &self.lifted,
+                    z,
+                    hist,
+                    &self.relaxed_elements,
+                    MODE_RELAXATION_STEPS,
+                );
+                cost.assembly_seconds += start.elapsed().as_secs_f64();
+                if self.trace {
+                    eprintln!(
+                        "    incompatible modes of {moved} elements moved to their equilibrium"
+                    );
+                }
+            }
             let (r_free, f_ref) = match self.evaluate((z, hist, t), eval, &mut st, cost) {
                 Ok(v) => v,
                 Err(AttemptFailure::Element(e)) if st.shorten_on_failure(z) => {

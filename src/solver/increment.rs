@@ -5,7 +5,7 @@ use super::*;
 use crate::assembly::{AssemblyFailure, Evaluation};
 use crate::contact::eval::ContactEval;
 use crate::contact::ContactChoice;
-use crate::element::{ElementFailure, Formulation};
+use crate::element::ElementFailure;
 use crate::material::Branch;
 use crate::model::SolverSettings;
 use std::time::Instant;
@@ -103,6 +103,7 @@ impl Solver<'_> {
             .time_limit
             .map(|s| start + std::time::Duration::from_secs_f64(s.max(0.0)));
         self.force_history = (0.0, 0);
+        self.relaxing_modes = false;
         let model = self.model;
         let n = self.assembler.dofs.n_total;
         let ne = model.mesh.n_elements();
@@ -168,6 +169,7 @@ impl Solver<'_> {
             if inc.failed >= FAILED_ATTEMPTS_PER_STEP * max_cutbacks.max(1) {
                 return Err(inc.over_budget(run, t));
             }
+            self.relaxing_modes = inc.failed > 0;
             let (attempt, trial) = self.try_increment(run, t, inc.cutbacks)?;
             match attempt {
                 Ok(factored) => {
@@ -447,8 +449,7 @@ impl Solver<'_> {
     /// The body of element `e` if the element has incompatible modes (the advice of
     /// [`Solver::inversion_advice`] and of a cycle of material branches).
     pub(super) fn incompatible_modes_body(&self, e: usize) -> Option<usize> {
-        let family = self.assembler.dofs.element_family.get(e).copied().flatten();
-        (family.and_then(|f| f.formulation()) == Some(Formulation::IncompatibleModes))
+        (self.modes_elements.binary_search(&e).is_ok())
             .then(|| self.model.element_body(e))
             .flatten()
     }

@@ -4,6 +4,7 @@
 use super::*;
 use crate::assembly::{Assembler, Evaluation};
 use crate::contact::{ContactChoice, ContactState};
+use crate::element::Formulation;
 use crate::linalg::{LinearSolver, SparseMatrix};
 use crate::model::{node_dof, Lifted, Model};
 use std::time::Instant;
@@ -46,6 +47,15 @@ pub struct Solver<'m> {
     /// its first use, and its mask leaving out every element.
     pub(super) gap_eval: Option<Box<Evaluation<f64>>>,
     pub(super) no_elements: Vec<bool>,
+    /// The elements with incompatible modes.
+    pub(super) modes_elements: Vec<usize>,
+    /// Those of them with a history (a path-dependent material), whose modes are relaxed
+    /// after a failed attempt ([`super::limits::MODE_RELAXATION_STEPS`]).
+    pub(super) relaxed_elements: Vec<usize>,
+    /// Whether the attempts of this nominal increment condense the incompatible modes by
+    /// local Newton before each evaluation: once one of its attempts has failed
+    /// ([`super::limits::MODE_RELAXATION_STEPS`]).
+    pub(super) relaxing_modes: bool,
 }
 
 impl<'m> Solver<'m> {
@@ -81,6 +91,15 @@ impl<'m> Solver<'m> {
         let unit_pressure_norms = (model.pressures.iter())
             .map(|p| p.force_norm(&lifted.coords, 1.0, assembler.dofs.n_total))
             .collect();
+        let modes_elements: Vec<usize> = (0..model.mesh.n_elements())
+            .filter(|&e| {
+                let family = assembler.dofs.element_family.get(e).copied().flatten();
+                family.and_then(|f| f.formulation()) == Some(Formulation::IncompatibleModes)
+            })
+            .collect();
+        let relaxed_elements = (modes_elements.iter().copied())
+            .filter(|&e| !assembler.dofs.history(e).is_empty())
+            .collect();
         Ok(Solver {
             model,
             assembler,
@@ -100,6 +119,9 @@ impl<'m> Solver<'m> {
             force_floor,
             gap_eval: None,
             no_elements: Vec::new(),
+            modes_elements,
+            relaxed_elements,
+            relaxing_modes: false,
         })
     }
 

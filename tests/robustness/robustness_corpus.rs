@@ -171,7 +171,7 @@ fn open_corpus_scenes() {
 /// Fresh seeds (the campaign tuned on seeds 0-999): every one either completes with every
 /// check holding or stops with a typed divergence error; none builds wrong, none answers wrong
 /// (equilibrium, Coulomb, the contact constraint), and at least 31 of 32 complete (the last
-/// campaign completed 98.9 % of seeds 0-999 and 99.4 % of the held-out seeds 1000-1999).
+/// campaign completed 99.0 % of seeds 0-999 and 99.6 % of the held-out seeds 1000-1999).
 #[test]
 fn fresh_generated_scenes_complete_and_never_answer_wrongly() {
     let seeds: Vec<u64> = (100_000..100_032).collect();
@@ -213,15 +213,16 @@ fn fresh_generated_scenes_complete_and_never_answer_wrongly() {
 }
 
 /// A Newton cycle whose contact states stay fixed names the Gauss points that flip between
-/// elastic and plastic (seed 931 of the open corpus: a J2 slider, `H / E = 0.003`, under a
-/// Neo-Hookean base, both with incompatible modes). Every point it names lies in the J2 body,
-/// the only one that can yield, and the run keeps the increments it converged. Those points'
-/// elements have incompatible modes under large kinematics, so the error suggests F-bar for
-/// that body, and the advice holds: with F-bar for it (the base keeps its incompatible modes)
-/// the same scene completes its whole path with every physics check holding.
+/// elastic and plastic (seed 968 of the open corpus: a J2 slider with incompatible modes,
+/// `H / E = 0.017`, on a Saint Venant-Kirchhoff base with F-bar; seed 931, the test's scene
+/// before, completes since the modes are relaxed after a failed attempt). Every point it
+/// names lies in the J2 body, the only one that can yield, and the run keeps the increments
+/// it converged. Those points' elements have incompatible modes under large kinematics, so
+/// the error suggests F-bar for that body, and the advice holds: with F-bar for it the same
+/// scene completes its whole path with every physics check holding.
 #[test]
 fn a_cycle_of_material_branches_names_its_gauss_points_and_suggests_f_bar() {
-    let mut scene = Scene::from_file(&corpus_dir().join("seed-931.toml")).unwrap();
+    let mut scene = Scene::from_file(&corpus_dir().join("seed-968.toml")).unwrap();
     let model = scene.build().unwrap();
     let err = fricsens::solver::Solver::new(&model)
         .unwrap()
