@@ -596,6 +596,13 @@ impl Assembler {
         out.hist_new[hist.clone()].copy_from_slice(&hist_old[hist]);
     }
 
+    /// The unknowns of element `e`'s incompatible modes (its last nine), if it has them.
+    pub(crate) fn mode_dofs(&self, e: usize) -> Option<&[usize]> {
+        let gdofs = self.element_dofs(e);
+        (self.dofs.element_internal[e].is_some() && gdofs.len() >= 9)
+            .then(|| &gdofs[gdofs.len() - 9..])
+    }
+
     /// Local Newton on the incompatible-mode amplitudes of `elements` (hex8s with incompatible
     /// modes: each element's last nine unknowns), the other unknowns of `z` held: each
     /// element's mode rows of the residual driven towards zero by at most `steps` Newton steps
@@ -620,22 +627,20 @@ impl Assembler {
         let moved: Vec<(usize, [f64; 9])> = elements
             .par_iter()
             .map_init(
-                || zr.to_vec(),
-                |local, &e| {
+                || (zr.to_vec(), Vec::new(), Vec::new()),
+                |(local, k, h), &e| {
+                    let mode_dofs = self.mode_dofs(e)?;
                     let gdofs = self.element_dofs(e);
                     let nd = gdofs.len();
-                    if self.dofs.element_internal[e].is_none() || nd < 9 {
-                        return None;
-                    }
                     let modes = nd - 9;
-                    let mut k = vec![0.0; nd * nd];
-                    let mut h = vec![0.0; self.dofs.history(e).len().max(1)];
+                    k.resize(nd * nd, 0.0);
+                    h.resize(self.dofs.history(e).len().max(1), 0.0);
                     type Modes = nalgebra::SVector<f64, 9>;
                     // the mode residual, its norm, the nodal force's and the modes' block of
                     // the element tangent, at modes `m`; `None` where the element fails
                     let mut at = |m: &Modes| {
-                        for i in 0..9 {
-                            local[gdofs[modes + i]] = m[i];
+                        for (&g, v) in mode_dofs.iter().zip(m.iter()) {
+                            local[g] = *v;
                         }
                         let loc = self.element_local(
                             model,
@@ -644,8 +649,8 @@ impl Assembler {
                             hist_old,
                             None,
                             e,
-                            Some(&mut k),
-                            &mut h,
+                            Some(&mut k[..]),
+                            &mut h[..],
                         );
                         if loc.failure.is_some() {
                             return None;
@@ -657,7 +662,7 @@ impl Assembler {
                         });
                         Some((r, r.norm(), nodal.sqrt(), kaa))
                     };
-                    let start = Modes::from_fn(|i, _| zr[gdofs[modes + i]]);
+                    let start = Modes::from_fn(|i, _| zr[mode_dofs[i]]);
                     let mut m = start;
                     let relaxed = at(&m).map(|(mut r, mut norm, nodal, mut kaa)| {
                         for _ in 0..steps {
@@ -686,7 +691,7 @@ impl Assembler {
                         }
                         m
                     });
-                    for &g in gdofs {
+                    for &g in mode_dofs {
                         local[g] = zr[g];
                     }
                     relaxed.filter(|m| *m != start).map(|m| (e, m.into()))
@@ -696,10 +701,8 @@ impl Assembler {
             .collect();
         let n = moved.len();
         for (e, modes) in moved {
-            let gdofs = self.element_dofs(e);
-            let m = gdofs.len() - 9;
-            for i in 0..9 {
-                z[gdofs[m + i]] = modes[i];
+            for (&g, v) in self.mode_dofs(e).into_iter().flatten().zip(modes) {
+                z[g] = v;
             }
         }
         n
@@ -857,6 +860,7 @@ mod tests {
                     == Some(Formulation::IncompatibleModes)
             })
             .collect();
+        assert!(modes.iter().all(|&e| asm.mode_dofs(e).is_some()));
         assert!(!modes.is_empty());
         // each element's mode residual, relative to its nodal force, and its plastic points
         let balance = |z: &[f64]| {
@@ -893,9 +897,7 @@ mod tests {
         // round-off of the element's force sums is the floor
         assert!(after < 1e-10, "mode residual / nodal force {after:e}");
         for (d, (a, b)) in nodal.iter().zip(&z).enumerate() {
-            let is_mode = modes
-                .iter()
-                .any(|&e| asm.element_dofs(e)[asm.element_dofs(e).len() - 9..].contains(&d));
+            let is_mode = (modes.iter()).any(|&e| asm.mode_dofs(e).unwrap().contains(&d));
             if !is_mode {
                 assert_eq!(a.to_bits(), b.to_bits(), "unknown {d} moved");
             }
