@@ -1468,11 +1468,11 @@ fn fuzz(
     .map_err(|e| e.to_string())?;
     std::fs::write(out.join("fuzz.json"), json).map_err(|e| e.to_string())?;
     let mut csv = String::from(
-        "seed,unknowns,three_d,increments,converged,passed,seconds,iterations,cutbacks,failure\n",
+        "seed,unknowns,three_d,increments,converged,passed,seconds,work_seconds,iteration_seconds,iterations,cutbacks,failure\n",
     );
     for o in &outcomes {
         csv.push_str(&format!(
-            "{},{},{},{},{},{},{:.4},{},{},\"{}\"\n",
+            "{},{},{},{},{},{},{:.4},{:.4},{:.6},{},{},\"{}\"\n",
             o.seed,
             o.unknowns,
             o.three_d,
@@ -1480,6 +1480,8 @@ fn fuzz(
             o.converged,
             o.passed,
             o.seconds,
+            o.work_seconds,
+            o.iteration_seconds,
             o.iterations.iter().sum::<usize>(),
             o.cutbacks,
             o.failure

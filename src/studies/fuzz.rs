@@ -881,6 +881,12 @@ pub struct CaseOutcome {
     pub cutbacks: usize,
     /// Wall time, seconds.
     pub seconds: f64,
+    /// Of [`CaseOutcome::seconds`], those in assemblies, factorizations and triangular
+    /// solves (the Newton iterations' work, failed attempts and line searches included).
+    pub work_seconds: f64,
+    /// The cost of one Newton iteration of this scene: one assembly, one factorization and
+    /// one solve at the scene's mean cost of each (its ledger, [`crate::solver::PrimalCost`]).
+    pub iteration_seconds: f64,
     /// Why it failed.
     pub failure: Option<FailureClass>,
     /// The error message, or the failed check.
@@ -922,6 +928,8 @@ pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcom
         iterations: Vec::new(),
         cutbacks: 0,
         seconds: 0.0,
+        work_seconds: 0.0,
+        iteration_seconds: 0.0,
         failure: None,
         message: String::new(),
         check: IncrementCheck::default(),
@@ -968,6 +976,17 @@ pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcom
         Ok(res) => Some(&res.records),
         Err(e) => e.partial().map(|p| &p.records),
     };
+    let cost = match &result {
+        Ok(res) => Some(&res.cost),
+        Err(e) => e.partial().map(|p| &p.cost),
+    };
+    if let Some(c) = cost {
+        out.work_seconds = c.assembly_seconds + c.factor_seconds + c.solve_seconds;
+        let mean = |seconds: f64, n: usize| if n == 0 { 0.0 } else { seconds / n as f64 };
+        out.iteration_seconds = mean(c.assembly_seconds, c.assemblies)
+            + mean(c.factor_seconds, c.factorizations)
+            + mean(c.solve_seconds, c.solves);
+    }
     if let Some(records) = records {
         out.converged = records.len();
         out.iterations = records.iter().map(|r| r.iterations).collect();
@@ -1070,6 +1089,14 @@ pub struct SizeClass {
     /// Largest wall time per increment asked for, seconds, and its seed.
     #[serde(default)]
     pub max_per_increment: (f64, u64),
+    /// The time target's floor: the largest wall time, over the class's median, that a
+    /// complete scene would take at the class's median Newton iterations per increment
+    /// asked for (each iteration at the scene's own cost of one assembly, one
+    /// factorization and one solve, the rest of its time as it was), and its seed. What
+    /// is left of the time ratio at uniform difficulty: the scenes' own work per
+    /// iteration and path lengths.
+    #[serde(default)]
+    pub floor: (f64, u64),
 }
 
 impl SizeClass {
@@ -1084,11 +1111,29 @@ impl SizeClass {
     }
 }
 
+/// [`SizeClass::floor`] of the scenes `members`, whose median wall time is `median`.
+fn time_floor(members: &[&CaseOutcome], median: f64) -> (f64, u64) {
+    let complete: Vec<&&CaseOutcome> = members.iter().filter(|o| o.passed).collect();
+    let mut per: Vec<f64> = (complete.iter())
+        .map(|o| o.iterations.iter().sum::<usize>() as f64 / o.increments.max(1) as f64)
+        .collect();
+    let iterations = percentile(&mut per, 0.5);
+    (complete.iter())
+        .map(|o| {
+            let uniform = o.increments as f64 * iterations * o.iteration_seconds;
+            (
+                (o.seconds - o.work_seconds + uniform) / median.max(1e-9),
+                o.seed,
+            )
+        })
+        .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a })
+}
+
 /// Wall times per size class as a markdown table (totals and per increment asked for).
 fn size_class_table(classes: &[SizeClass]) -> String {
     use std::fmt::Write;
     let mut s = String::from(
-        "| unknowns | scenes | median (s) | largest (s) | largest / median | slowest seed | median per increment (s) | largest per increment / median | seed |\n|---|---|---|---|---|---|---|---|---|\n",
+        "| unknowns | scenes | median (s) | largest (s) | largest / median | slowest seed | median per increment (s) | largest per increment / median | seed | floor: largest at the median iterations / median | seed |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut lower = 0;
     for c in classes {
@@ -1100,7 +1145,7 @@ fn size_class_table(classes: &[SizeClass]) -> String {
         lower = c.below;
         let _ = writeln!(
             s,
-            "| {range} | {} | {:.3} | {:.3} | {:.1} | {} | {:.4} | {:.1} | {} |",
+            "| {range} | {} | {:.3} | {:.3} | {:.1} | {} | {:.4} | {:.1} | {} | {:.1} | {} |",
             c.scenes,
             c.median_seconds,
             c.max_seconds,
@@ -1108,7 +1153,9 @@ fn size_class_table(classes: &[SizeClass]) -> String {
             c.slowest_seed,
             c.median_per_increment,
             c.time_ratio_per_increment(),
-            c.max_per_increment.1
+            c.max_per_increment.1,
+            c.floor.0,
+            c.floor.1
         );
     }
     s
@@ -1165,10 +1212,12 @@ impl Summary {
                 .iter()
                 .max_by(|a, b| per(a).total_cmp(&per(b)))
                 .expect("not empty");
+            let median_seconds = percentile(&mut t, 0.5);
             size_classes.push(SizeClass {
                 below,
                 scenes: members.len(),
-                median_seconds: percentile(&mut t, 0.5),
+                median_seconds,
+                floor: time_floor(&members, median_seconds),
                 max_seconds: slowest.seconds,
                 slowest_seed: slowest.seed,
                 median_per_increment: percentile(&mut t_inc, 0.5),
@@ -1316,6 +1365,77 @@ pub fn report_section(after: &Summary, before: Option<&Summary>, notes: &str) ->
         "| no run over 10 x the median time of its size class | {ratio:.1} x ({ratio_inc:.1} x per increment asked for) | {} |\n",
         met(ratio <= 10.0)
     );
+    let floor =
+        (after.size_classes.iter().map(|c| c.floor)).fold(
+            (0.0, 0),
+            |a, b| {
+                if b.0 > a.0 {
+                    b
+                } else {
+                    a
+                }
+            },
+        );
+    let _ = writeln!(
+        s,
+        "The time target's floor (the table's \"floor\" column): had every complete scene taken its size class's median Newton iterations per increment asked for, each iteration at the scene's own mean cost of one assembly, one factorization and one solve (its ledger) and the rest of its time as it was, the largest ratio would be {:.1} x (seed {}). {}\n",
+        floor.0,
+        floor.1,
+        if floor.0 <= 10.0 {
+            "The target lies above this floor: what stands between is Newton iterations and failed attempts, not the scenes' size or their work per iteration."
+        } else {
+            "The target lies below this floor: the scenes' work per iteration and path lengths alone spread a size class's times by more than 10 x."
+        }
+    );
     s.push_str(notes);
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outcome(seed: u64, iterations: usize, iteration_seconds: f64, passed: bool) -> CaseOutcome {
+        // ten increments asked for, a tenth of a second outside the iterations' work
+        let work = iterations as f64 * iteration_seconds;
+        CaseOutcome {
+            seed,
+            unknowns: 100,
+            three_d: false,
+            increments: 10,
+            converged: 10,
+            passed,
+            iterations: vec![iterations / 10; 10],
+            cutbacks: 0,
+            seconds: 0.1 + work,
+            work_seconds: work,
+            iteration_seconds,
+            failure: None,
+            message: String::new(),
+            check: IncrementCheck::default(),
+        }
+    }
+
+    /// The floor puts every complete scene at the median iterations per increment asked for
+    /// (4 here: the failed scene's 3 do not count), at its own cost per iteration, with the
+    /// rest of its time: scene 3's five times the iterations at three times the cost per
+    /// iteration take 0.1 + 40 x 0.03 = 1.3 s against the median scene's 0.5 s.
+    #[test]
+    fn the_time_floor_takes_the_median_iterations_at_each_scenes_own_cost() {
+        let all = [
+            outcome(1, 40, 0.01, true),
+            outcome(2, 40, 0.01, true),
+            outcome(3, 200, 0.03, true),
+            outcome(4, 30, 0.001, false),
+        ];
+        let members: Vec<&CaseOutcome> = all.iter().collect();
+        let mut t: Vec<f64> = all.iter().map(|o| o.seconds).collect();
+        let median = percentile(&mut t, 0.5);
+        assert_eq!(median, 0.5);
+        let (ratio, seed) = time_floor(&members, median);
+        assert_eq!(seed, 3);
+        assert!((ratio - 2.6).abs() < 1e-12, "{ratio}");
+        // the raw ratio of scene 3 is 6.1 / 0.5: the floor is what iterations cannot remove
+        assert!(all[2].seconds / median > 12.0);
+    }
 }
