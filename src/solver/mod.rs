@@ -182,7 +182,24 @@ pub struct PrimalCost {
 impl PrimalCost {
     /// Of `total` seconds of a run, those outside assembly, factorization and solves.
     pub fn rest_seconds(&self, total: f64) -> f64 {
-        total - self.assembly_seconds - self.factor_seconds - self.solve_seconds
+        total - self.work_seconds()
+    }
+
+    /// The seconds in assembly, factorization and solves.
+    pub fn work_seconds(&self) -> f64 {
+        self.assembly_seconds + self.factor_seconds + self.solve_seconds
+    }
+
+    /// The price of one Newton iteration of this run: one assembly, one factorization and
+    /// one solve, each at its mean over the run. The assembly's mean is the assembly time
+    /// over the assemblies counted, and that time also holds what is not counted as one
+    /// (the penetration limiter's contact-only gap evaluations, the incompatible modes'
+    /// relaxation, evaluations that failed): an upper estimate.
+    pub fn iteration_seconds(&self) -> f64 {
+        let mean = |seconds: f64, n: usize| if n == 0 { 0.0 } else { seconds / n as f64 };
+        mean(self.assembly_seconds, self.assemblies)
+            + mean(self.factor_seconds, self.factorizations)
+            + mean(self.solve_seconds, self.solves)
     }
 }
 
