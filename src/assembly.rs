@@ -854,14 +854,22 @@ mod tests {
             z[asm.dofs.node_dof(n, 0)] = -curvature * x.x * x.y;
             z[asm.dofs.node_dof(n, 1)] = 0.5 * curvature * x.x * x.x;
         }
+        // the elements with incompatible modes, by their formulation: `mode_dofs` gives
+        // each its nine unknowns
         let modes: Vec<usize> = (0..model.mesh.n_elements())
             .filter(|&e| {
                 asm.dofs.element_family[e].and_then(|f| f.formulation())
                     == Some(Formulation::IncompatibleModes)
             })
             .collect();
-        assert!(modes.iter().all(|&e| asm.mode_dofs(e).is_some()));
         assert!(!modes.is_empty());
+        for e in 0..model.mesh.n_elements() {
+            assert_eq!(
+                asm.mode_dofs(e).is_some(),
+                modes.contains(&e),
+                "element {e}"
+            );
+        }
         // each element's mode residual, relative to its nodal force, and its plastic points
         let balance = |z: &[f64]| {
             let mut worst = 0.0f64;

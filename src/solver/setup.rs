@@ -4,7 +4,6 @@
 use super::*;
 use crate::assembly::{Assembler, Evaluation};
 use crate::contact::{ContactChoice, ContactState};
-use crate::element::Formulation;
 use crate::linalg::{LinearSolver, SparseMatrix};
 use crate::model::{node_dof, Lifted, Model};
 use std::time::Instant;
@@ -92,10 +91,7 @@ impl<'m> Solver<'m> {
             .map(|p| p.force_norm(&lifted.coords, 1.0, assembler.dofs.n_total))
             .collect();
         let modes_elements: Vec<usize> = (0..model.mesh.n_elements())
-            .filter(|&e| {
-                let family = assembler.dofs.element_family.get(e).copied().flatten();
-                family.and_then(|f| f.formulation()) == Some(Formulation::IncompatibleModes)
-            })
+            .filter(|&e| assembler.mode_dofs(e).is_some())
             .collect();
         let relaxed_elements = (modes_elements.iter().copied())
             .filter(|&e| !assembler.dofs.history(e).is_empty())

@@ -1433,7 +1433,5 @@ mod tests {
         assert!((ratio - 2.6).abs() < 1e-12, "{ratio}");
         // no complete scene: no floor
         assert_eq!(time_floor(&members[3..], median), None);
-        // the raw ratio of scene 3 is 6.1 / 0.5: the floor is what iterations cannot remove
-        assert!(all[2].seconds / median > 12.0);
     }
 }
