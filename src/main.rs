@@ -1031,6 +1031,12 @@ fn run(scene_name: &str, out: Option<PathBuf>, vtk: output::VtkOutput) -> Result
         res.cost.solve_seconds,
         res.cost.rest_seconds(res.cost.wall_seconds)
     );
+    if res.cost.limited_steps > 0 {
+        out!(
+            "  the penetration limiter shortened {} Newton steps (to just past where a node crossing a gap first touched)",
+            res.cost.limited_steps
+        );
+    }
     let last = res.states.len() - 1;
     for (k, r) in model.responses.iter().enumerate() {
         out!(
@@ -1468,11 +1474,11 @@ fn fuzz(
     .map_err(|e| e.to_string())?;
     std::fs::write(out.join("fuzz.json"), json).map_err(|e| e.to_string())?;
     let mut csv = String::from(
-        "seed,unknowns,three_d,increments,converged,passed,seconds,work_seconds,iteration_seconds,iterations,cutbacks,failure\n",
+        "seed,unknowns,three_d,increments,converged,passed,seconds,work_seconds,iteration_seconds,iterations,solves,limited_steps,cutbacks,failure\n",
     );
     for o in &outcomes {
         csv.push_str(&format!(
-            "{},{},{},{},{},{},{:.4},{:.4},{:.6},{},{},\"{}\"\n",
+            "{},{},{},{},{},{},{:.4},{:.4},{:.6},{},{},{},{},\"{}\"\n",
             o.seed,
             o.unknowns,
             o.three_d,
@@ -1483,6 +1489,8 @@ fn fuzz(
             o.work_seconds,
             o.iteration_seconds,
             o.iterations.iter().sum::<usize>(),
+            o.solves,
+            o.limited_steps,
             o.cutbacks,
             o.failure
                 .as_ref()

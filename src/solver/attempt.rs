@@ -130,33 +130,36 @@ impl AttemptState {
     /// refined meshes ran out of iterations).
     ///
     /// Shortens the step in `z` where it overshoots (before `z` is evaluated); `gap` are the
-    /// gaps at `z`, `floor` the solver's penetration floor.
-    fn limit_penetration(&mut self, z: &mut [f64], gap: &[f64], floor: f64, trace: bool) {
+    /// gaps at `z`, `floor` the solver's penetration floor. Returns whether it did.
+    fn limit_penetration(&mut self, z: &mut [f64], gap: &[f64], floor: f64, trace: bool) -> bool {
         if !self.may_limit() {
-            return;
+            return false;
         }
-        let first_touch = self
-            .base_gap
-            .iter()
+        // the earliest touch, its node and the node's gaps before and after the step
+        let (first_touch, node, g0, g1) = (self.base_gap.iter())
             .zip(&self.base_open)
             .zip(gap)
-            .filter(|((g0, open), g1)| {
+            .enumerate()
+            .filter(|(_, ((g0, open), g1))| {
                 **open && g0.is_finite() && **g0 > floor && **g1 < -floor && -**g1 > **g0
             })
-            .map(|((g0, _), g1)| g0 / (g0 - g1))
-            .fold(1.0f64, f64::min);
+            .map(|(i, ((g0, _), g1))| (g0 / (g0 - g1), i, *g0, *g1))
+            .fold((1.0f64, 0, 0.0, 0.0), |a, b| if b.0 < a.0 { b } else { a });
         if first_touch < 0.5 {
             self.limited = true;
             // a tenth of the node's gap past first touch
             let keep = 1.1 * first_touch;
             if trace {
-                eprintln!("    penetration limiter: step x {keep:.3e}");
+                eprintln!(
+                    "    penetration limiter: step x {keep:.3e} (hitting node {node}: gap {g0:.3e} -> {g1:.3e})"
+                );
             }
             for (zi, d) in z.iter_mut().zip(&self.last_dz) {
                 *zi -= self.alpha * (1.0 - keep) * d;
             }
             self.alpha *= keep;
         }
+        self.limited
     }
 
     /// Backtrack only from the second correction on, and only on a blow-up (residual
@@ -361,7 +364,11 @@ impl Solver<'_> {
             if st.may_limit() {
                 let (floor, trace) = (self.penetration_floor, self.trace);
                 match self.gaps((z, hist, t), &st.keep_faces, cost) {
-                    Ok(gap) => st.limit_penetration(z, gap, floor, trace),
+                    Ok(gap) => {
+                        if st.limit_penetration(z, gap, floor, trace) {
+                            cost.limited_steps += 1;
+                        }
+                    }
                     Err(e) if st.shorten_on_failure(z) => {
                         if self.trace {
                             eprintln!("    {e}: step x {:.3e}", st.alpha);

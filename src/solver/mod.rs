@@ -177,6 +177,11 @@ pub struct PrimalCost {
     pub factor_seconds: f64,
     /// Wall time spent in triangular solves, seconds.
     pub solve_seconds: f64,
+    /// Newton steps the penetration limiter shortened (failed attempts included): each
+    /// stops just past where the first hitting node the step carries from a gap to a
+    /// deeper penetration touches, and the next iteration goes on from there.
+    #[serde(default)]
+    pub limited_steps: usize,
 }
 
 impl PrimalCost {

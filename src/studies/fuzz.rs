@@ -889,6 +889,14 @@ pub struct CaseOutcome {
     /// one solve at its ledger's means ([`crate::solver::PrimalCost::iteration_seconds`],
     /// an upper estimate).
     pub iteration_seconds: f64,
+    /// Linear solves, every one ([`crate::solver::PrimalCost::solves`]): those of the
+    /// converged increments are their [`CaseOutcome::iterations`] (the predictor's and the
+    /// active-set settling's included), the rest those of failed attempts and failed
+    /// augmented-Lagrangian passes.
+    pub solves: usize,
+    /// Newton steps the penetration limiter shortened
+    /// ([`crate::solver::PrimalCost::limited_steps`]).
+    pub limited_steps: usize,
     /// Why it failed.
     pub failure: Option<FailureClass>,
     /// The error message, or the failed check.
@@ -932,6 +940,8 @@ pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcom
         seconds: 0.0,
         work_seconds: 0.0,
         iteration_seconds: 0.0,
+        solves: 0,
+        limited_steps: 0,
         failure: None,
         message: String::new(),
         check: IncrementCheck::default(),
@@ -985,6 +995,8 @@ pub fn run_case(seed: u64, scene: &Scene, time_limit: Option<f64>) -> CaseOutcom
     if let Some(c) = cost {
         out.work_seconds = c.work_seconds();
         out.iteration_seconds = c.iteration_seconds();
+        out.solves = c.solves;
+        out.limited_steps = c.limited_steps;
     }
     if let Some(records) = records {
         out.converged = records.len();
@@ -1067,6 +1079,42 @@ pub struct Summary {
     /// Scenes that completed with a check failing (wrong answers).
     #[serde(default)]
     pub wrong: usize,
+    /// Where the linear solves went, in the scenes over 10 x their size class's median
+    /// time and in the others.
+    #[serde(default)]
+    pub solves_over_ten: SolveShare,
+    /// See [`Summary::solves_over_ten`].
+    #[serde(default)]
+    pub solves_within_ten: SolveShare,
+}
+
+/// Where a set of scenes' linear solves went ([`Summary::solves_over_ten`]).
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct SolveShare {
+    /// Scenes.
+    pub scenes: usize,
+    /// Their linear solves ([`CaseOutcome::solves`]).
+    pub solves: usize,
+    /// Their converged increments' Newton iterations.
+    pub iterations: usize,
+    /// Their steps the penetration limiter shortened.
+    pub limited_steps: usize,
+}
+
+impl SolveShare {
+    fn add(&mut self, o: &CaseOutcome) {
+        self.scenes += 1;
+        self.solves += o.solves;
+        self.iterations += o.iterations.iter().sum::<usize>();
+        self.limited_steps += o.limited_steps;
+    }
+
+    /// Percentages of the solves: in converged increments' iterations, and shortened by
+    /// the penetration limiter.
+    fn shares(&self) -> (f64, f64) {
+        let of = |n: usize| 100.0 * n as f64 / self.solves.max(1) as f64;
+        (of(self.iterations), of(self.limited_steps))
+    }
 }
 
 /// Wall times of the scenes of one size class.
@@ -1224,7 +1272,18 @@ impl Summary {
                 max_per_increment: (per(slowest_inc), slowest_inc.seed),
             });
         }
+        let (mut solves_over_ten, mut solves_within_ten) =
+            (SolveShare::default(), SolveShare::default());
+        for o in outcomes {
+            let class = (size_classes.iter()).find(|c| o.unknowns < c.below);
+            match class {
+                Some(c) if o.seconds > 10.0 * c.median_seconds => solves_over_ten.add(o),
+                _ => solves_within_ten.add(o),
+            }
+        }
         Summary {
+            solves_over_ten,
+            solves_within_ten,
             tried: outcomes.len(),
             passed: outcomes.iter().filter(|o| o.passed).count(),
             classes,
@@ -1378,6 +1437,15 @@ pub fn report_section(after: &Summary, before: Option<&Summary>, notes: &str) ->
             }
         );
     }
+    let (over, within) = (&after.solves_over_ten, &after.solves_within_ten);
+    if over.scenes > 0 {
+        let ((i_over, l_over), (i_within, l_within)) = (over.shares(), within.shares());
+        let _ = writeln!(
+            s,
+            "Where the linear solves went (`fuzz.csv`'s `solves` and `limited_steps`): the {} scenes over 10 x made {} solves, {i_over:.0} % of them Newton iterations of the increments they converged (the rest in failed attempts and failed augmented-Lagrangian passes), and the penetration limiter shortened as many Newton steps as {l_over:.0} % of their solves; the other {} scenes: {i_within:.0} % and {l_within:.0} %.\n",
+            over.scenes, over.solves, within.scenes
+        );
+    }
     s.push_str(notes);
     s
 }
@@ -1401,6 +1469,8 @@ mod tests {
             seconds: 0.1 + work,
             work_seconds: work,
             iteration_seconds,
+            solves: iterations,
+            limited_steps: 0,
             failure: None,
             message: String::new(),
             check: IncrementCheck::default(),
@@ -1433,5 +1503,33 @@ mod tests {
         assert!((ratio - 2.6).abs() < 1e-12, "{ratio}");
         // no complete scene: no floor
         assert_eq!(time_floor(&members[3..], median), None);
+    }
+
+    /// The solves' shares split the scenes at 10 x their size class's median: of four scenes
+    /// of one class whose median is 0.5 s (seconds 0.5, 0.5, 6.1, 0.13), scene 3 at 6.1 s is
+    /// the one over; its 100 converged iterations of 400 solves are 25 %, its 100 limited
+    /// steps 25 %; the others' 380 iterations of 400 solves 95 %, none limited.
+    #[test]
+    fn the_solves_split_at_ten_times_the_median() {
+        let mut slow = outcome(3, 100, 0.06, true);
+        slow.solves = 400;
+        slow.limited_steps = 100;
+        let mut failed = outcome(4, 300, 1e-4, false);
+        failed.solves = 320;
+        let summary = Summary::of(&[
+            outcome(1, 40, 0.01, true),
+            outcome(2, 40, 0.01, true),
+            slow,
+            failed,
+        ]);
+        assert_eq!(summary.size_classes[0].median_seconds, 0.5);
+        let (over, within) = (&summary.solves_over_ten, &summary.solves_within_ten);
+        assert_eq!((over.scenes, over.solves), (1, 400));
+        assert_eq!(over.shares(), (25.0, 25.0));
+        assert_eq!(
+            (within.scenes, within.solves, within.iterations),
+            (3, 400, 380)
+        );
+        assert_eq!(within.shares(), (95.0, 0.0));
     }
 }
