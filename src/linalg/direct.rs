@@ -732,13 +732,21 @@ impl std::fmt::Debug for KeptFactor {
 }
 
 impl LinearSolver {
-    /// A copy of the current numeric factorization, to solve with later by a solver on the
-    /// same pattern ([`LinearSolver::with_kept`]). `None` when not factored, or factored by
+    /// The current numeric factorization, to solve with later by a solver on the same
+    /// pattern ([`LinearSolver::with_kept`]). `None` when not factored, or factored by
     /// faer's LU after the symmetric-pattern LU declined the matrix (whose symbolic analysis
-    /// another solver may not hold).
+    /// another solver may not hold). The symmetric-pattern LU's factors are shared, not
+    /// copied: this solver's next factorization writes into new memory instead of over
+    /// them (the adjoint's forward run keeps every increment's: copied, the leaf spring's
+    /// 75 MiB took its observer 0.06 s, shared 0.007 s with the rest it keeps). Cholesky
+    /// factors are copied.
     pub fn keep(&self) -> Option<KeptFactor> {
         match &self.numeric {
             NumericFactor::None | NumericFactor::Lu(_) => None,
+            NumericFactor::SymLu(f) => Some(KeptFactor(
+                NumericFactor::SymLu(Box::new(f.share_factors())),
+                self.factored_n(),
+            )),
             f => Some(KeptFactor(f.clone(), self.factored_n())),
         }
     }

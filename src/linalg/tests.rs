@@ -1206,6 +1206,27 @@ fn a_sibling_factors_as_a_solver_of_its_own() {
     let with_kept = sibling.with_kept(&mut kept, |s| Ok(solve(s))).unwrap();
     assert_eq!(with_kept, solve(&own));
     assert_eq!(solve(&sibling), solve(&own));
+    // the kept factors are shared, not copied: the first factored `a` into memory of its own,
+    // and does so again each time it is kept (into memory prepared beside it, when ready)
+    let solve_a = |s: &LinearSolver| {
+        let mut x = rhs.clone();
+        s.solve_in_place(&mut x).unwrap();
+        x
+    };
+    assert!(residual(&a, &solve_a(&first), &rhs) < 1e-13);
+    let mut kept_a = Vec::new();
+    for _ in 0..3 {
+        kept_a.push(first.keep().unwrap());
+        first.factor(&b).unwrap();
+        assert_eq!(solve(&first), solve(&own));
+        kept_a.push(first.keep().unwrap());
+        first.factor(&a).unwrap();
+    }
+    for (i, k) in kept_a.iter_mut().enumerate() {
+        let x = sibling.with_kept(k, |s| Ok(solve_a(s))).unwrap();
+        let m = if i % 2 == 0 { &a } else { &b };
+        assert!(residual(m, &x, &rhs) < 1e-13, "kept factorization {i}");
+    }
 }
 
 /// A solver that leaves the fixed unknowns out of its factorizations

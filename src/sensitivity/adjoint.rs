@@ -1060,6 +1060,11 @@ impl<'a> Sweep<'a> {
             let mut scratch = vec![0.0; n];
             for (c, cot) in cots.iter().enumerate() {
                 let g = &mut rhs[c * n..(c + 1) * n];
+                // nothing on the residual's rows (no reaction read here): no product
+                if cot[out.res()].iter().all(|v| *v == 0.0) {
+                    g.copy_from_slice(&cot[out.z()]);
+                    continue;
+                }
                 k.mul_vec_transpose(&cot[out.res()], &mut scratch)?;
                 for ((gi, a), b) in g.iter_mut().zip(&scratch).zip(&cot[out.z()]) {
                     *gi = a + b;
