@@ -714,7 +714,9 @@ impl LinearSolver {
 pub struct KeptFactor(NumericFactor, usize);
 
 impl KeptFactor {
-    /// Bytes of its factors.
+    /// Bytes of its factors, in full however many others share them (the adjoint keeps an
+    /// earlier increment's factorization again for an increment converged without one: its
+    /// ledger counts it twice).
     pub fn bytes(&self) -> usize {
         match &self.0 {
             NumericFactor::None => 0,
