@@ -50,7 +50,7 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Accum, MatMut, MatRef, Par, Side};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// Largest magnitude accepted for an entry of `L` below a diagonal block (a multiplier
 /// relative to its pivot). Threshold partial pivoting with `u = 1e-4`: each elimination
@@ -113,61 +113,10 @@ pub(crate) struct LuFactors {
     factored: bool,
 }
 
-/// Memory for the next factors while the present ones are kept by another solver, its
-/// pages written ahead by a task on the thread pool (it runs where a worker is idle; a
-/// factorization parallel over the pool, from `PAR_FACTOR_MIN_N` unknowns, competes with
-/// it). One such buffer stays prepared until the solver's next factorization that finds its
-/// factors kept, or the solver's end. Memory never written has its
-/// pages faulted in at the first write: on the leaf spring's forward run keeping all 35
-/// increments' factors, the factorizations' zeroing of their factors took 0.031 to 0.035 s
-/// into new memory, 0.021 to 0.026 s into memory written ahead, and 0.019 s when nothing is
-/// kept (174 factorizations, four runs each).
-#[derive(Debug, Default)]
-struct Spare(Option<Arc<Mutex<Vec<f64>>>>);
-
-impl Clone for Spare {
-    /// A copy prepares nothing.
-    fn clone(&self) -> Self {
-        Spare(None)
-    }
-}
-
-impl Spare {
-    /// The memory prepared since the last call if it is ready (empty if not: no wait), and
-    /// room for `len` values set going for the next.
-    fn take(&mut self, len: usize) -> Vec<f64> {
-        let ready = (self.0.take())
-            .and_then(|slot| {
-                slot.try_lock()
-                    .ok()
-                    .map(|mut mem| std::mem::take(&mut *mem))
-            })
-            .unwrap_or_default();
-        let slot = Arc::new(Mutex::new(Vec::new()));
-        self.0 = Some(Arc::clone(&slot));
-        rayon::spawn(move || {
-            // the slot's one other holder may be gone (its solver dropped, or it took the
-            // slot empty before this ran): nothing to prepare then
-            if Arc::strong_count(&slot) < 2 {
-                return;
-            }
-            if let Ok(mut mem) = slot.lock() {
-                mem.reserve_exact(len);
-                // written (memory allocated zeroed may have no pages yet), then emptied
-                mem.resize(len, f64::NAN);
-                mem.clear();
-            }
-        });
-        ready
-    }
-}
-
 /// Numeric factors and the scratch reused between factorizations.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct NumericSymLu {
     lu: Arc<LuFactors>,
-    /// Memory for the next factors when these are kept elsewhere.
-    spare: Spare,
     head: Vec<usize>,
     next: Vec<usize>,
     cursor: Vec<usize>,
@@ -400,10 +349,9 @@ impl SymbolicSymLu {
         let ns = self.begin.len() - 1;
         if Arc::get_mut(&mut num.lu).is_none() {
             // kept by another solver: the factors go to new memory, the old ones stay theirs
-            num.lu = Arc::new(LuFactors {
-                values: num.spare.take(self.len),
-                ..LuFactors::default()
-            });
+            // (its pages faulted in by the zeroing below: on the leaf spring's forward run
+            // keeping all 35 increments' factors, 0.013 s more over its 174 factorizations)
+            num.lu = Arc::default();
         }
         let lu = Arc::make_mut(&mut num.lu);
         lu.factored = false;

@@ -1207,7 +1207,7 @@ fn a_sibling_factors_as_a_solver_of_its_own() {
     assert_eq!(with_kept, solve(&own));
     assert_eq!(solve(&sibling), solve(&own));
     // the kept factors are shared, not copied: the first factored `a` into memory of its own,
-    // and does so again each time it is kept (into memory prepared beside it, when ready)
+    // and does so again each time it is kept
     let solve_a = |s: &LinearSolver| {
         let mut x = rhs.clone();
         s.solve_in_place(&mut x).unwrap();
