@@ -735,7 +735,11 @@ struct DesignPartial {
 /// ([`KeepFactors`]), and whether the sweep's solver holds the tangent's own factorization
 /// already (made beside the increment's recordings).
 struct Transposed<'x> {
-    k: &'x SparseMatrix,
+    k: &'x mut SparseMatrix,
+    /// Where `k` is not made yet (`--tangent last` with the factorization kept, which reads
+    /// no tangent): the stored tangent and the prescribed unknowns, to make it from should
+    /// the kept factorization fail and the tangent be factored after all.
+    unmade: Option<(&'x [f64], &'x [bool])>,
     factor: Option<&'x mut KeptFactor>,
     factored: bool,
 }
@@ -1037,9 +1041,12 @@ impl<'a> Sweep<'a> {
                 cost.evaluation_seconds += t.elapsed().as_secs_f64();
                 cost.residual_evaluations += 1;
             }
-            if !s.tangent.is_empty() {
-                k.values_mut().copy_from_slice(&s.tangent);
-            }
+            // Newton's last factorization, kept, and no refinement: the transposed solve
+            // reads no tangent, so it is made only for a product with a reaction's cotangent
+            // (or should the kept factorization fail)
+            let lazy = self.tangent.choice == TangentChoice::Last
+                && factor.is_some()
+                && !s.tangent.is_empty();
             let mut input = reads.then(|| DualInput::new(&self.asm, &s.z, &ev));
             let mut cots: Vec<Vec<f64>> = cols
                 .iter()
@@ -1055,6 +1062,10 @@ impl<'a> Sweep<'a> {
                     c
                 })
                 .collect();
+            let product = (cots.iter()).any(|c| c[out.res()].iter().any(|v| *v != 0.0));
+            if !s.tangent.is_empty() && (product || !lazy) {
+                k.values_mut().copy_from_slice(&s.tangent);
+            }
             // d/dz [F + mu . H]
             let mut rhs = vec![0.0; n * cols.len()];
             let mut scratch = vec![0.0; n];
@@ -1072,7 +1083,9 @@ impl<'a> Sweep<'a> {
             }
             // the prescribed unknowns' identity rows, in place (`k` is rewritten at the next
             // increment): the right-hand sides have read the tangent
-            k.set_identity_rows_cols(&s.constrained)?;
+            if !lazy {
+                k.set_identity_rows_cols(&s.constrained)?;
+            }
             let reverse = self.reverse(cols.len());
             let mut factored = false;
             let (recorded, mut state) = if reverse && self.factors_anew() {
@@ -1117,7 +1130,8 @@ impl<'a> Sweep<'a> {
                 }
             }
             let transposed = Transposed {
-                k: &k,
+                k: &mut k,
+                unmade: lazy.then_some((&s.tangent[..], &s.constrained[..])),
                 factor: factor.as_mut(),
                 factored,
             };
@@ -1284,7 +1298,6 @@ impl<'a> Sweep<'a> {
         ncols: usize,
         ls: &mut LinearSolver,
     ) -> Result<(), AnalysisError> {
-        let kd = t.k;
         let SweepTangent {
             choice,
             refine_steps,
@@ -1292,6 +1305,7 @@ impl<'a> Sweep<'a> {
         } = self.tangent;
         if let Some(kept) = t.factor {
             let b = rhs.to_vec();
+            let kd = &*t.k;
             let solved = match choice {
                 // kept only where it is the converged branches' tangent (KeepFactors::Matching)
                 TangentChoice::Last | TangentChoice::Refined => {
@@ -1303,7 +1317,10 @@ impl<'a> Sweep<'a> {
                     let start = Instant::now();
                     let kept_solve = ls.with_kept(kept, |last| {
                         last.solve_transpose_multi_in_place(rhs, ncols)?;
-                        last.refine_transpose_multi(kd, &b, rhs, ncols, steps)
+                        if steps > 0 {
+                            last.refine_transpose_multi(kd, &b, rhs, ncols, steps)?;
+                        }
+                        Ok(())
                     });
                     cost.solve_seconds += start.elapsed().as_secs_f64();
                     kept_solve
@@ -1328,6 +1345,11 @@ impl<'a> Sweep<'a> {
             // no solve with the kept factor: factor anew
             rhs.copy_from_slice(&b);
         }
+        if let Some((tangent, constrained)) = t.unmade {
+            t.k.values_mut().copy_from_slice(tangent);
+            t.k.set_identity_rows_cols(constrained)?;
+        }
+        let kd = &*t.k;
         if !t.factored {
             cost.factor_seconds += factor_timed(ls, kd)?;
             cost.factorizations += 1;
