@@ -4,6 +4,8 @@
 //! * `f64`, `dual64` (E seeded), `dsvec4`, `dsvec8` (all material parameters seeded): residual
 //!   only — the primal, DDM single and DDM batched pseudo-load evaluations;
 //! * `f64+tangent`: residual and the hand-coded consistent tangent (one Newton iteration);
+//! * `rev/record+sweep`: one vector-Jacobian product in reverse mode (the unknowns and the
+//!   history read as inputs, one recording and one sweep), the adjoint's local derivative;
 //! * `ad-tangent/dual64`: the tangent by forward AD, one `Dual64` pass per element unknown
 //!   (24 or 33 passes); `ad-tangent/dsvec8`: 3 or 5 passes of `DualSVec64<8>`;
 //!   `ad-tangent/dsvec24` (full, F-bar) and `ad-tangent/dsvec33` (incompatible modes): one pass.
@@ -19,7 +21,7 @@ use common::{ad_tangent, j2, relative_difference, svk, Element};
 use criterion::{criterion_group, criterion_main, Criterion};
 use fricsens::element::Formulation;
 use fricsens::material::{Branch, MaterialLaw};
-use fricsens::scalar::Scalar;
+use fricsens::scalar::{tape, Rev, Scalar};
 use num_dual::{Dual64, DualSVec64};
 use std::hint::black_box;
 use std::time::Duration;
@@ -63,6 +65,55 @@ fn ad<S: Scalar, M: MaterialLaw>(
     });
 }
 
+/// One vector-Jacobian product of the element in reverse mode, as the adjoint's sweep takes
+/// it: the unknowns and the history read are the inputs, the tape recorded by one evaluation
+/// and swept once with a weight on every force and history output. Checked against the
+/// hand-coded tangent (with the history's weights zero, the unknowns' part is `w^T K`).
+fn vjp<M: MaterialLaw>(
+    c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    base: &Element<f64>,
+    material: &M,
+    reference: &[f64],
+) {
+    let nd = base.ndof();
+    let w: Vec<f64> = (0..nd).map(|i| 1.0 + 0.1 * i as f64).collect();
+    let mut el: Element<Rev> = base.lift(0);
+    let mut adjoint = Vec::new();
+    let once = |el: &mut Element<Rev>, adjoint: &mut Vec<f64>, history: f64| {
+        tape::clear();
+        for (d, x) in el.dofs.iter_mut().zip(&base.dofs) {
+            *d = x.map(Rev::input);
+        }
+        for (h, x) in el.hist_old.iter_mut().zip(&base.hist_old) {
+            *h = Rev::input(*x);
+        }
+        el.evaluate(material, false).expect("element");
+        let seeds = (el.force.iter().zip(&w).map(|(f, w)| (*f, *w)))
+            .chain(el.hist_new.iter().map(|h| (*h, history)));
+        tape::sweep(seeds, adjoint);
+    };
+    // the history's weights zero for the check: w^T K from the sweep against the hand-coded tangent
+    once(&mut el, &mut adjoint, 0.0);
+    let got: Vec<f64> = (el.dofs.iter())
+        .flat_map(|d| (0..3).map(move |i| d[i]))
+        .map(|d| d.adjoint(&adjoint))
+        .collect();
+    let want: Vec<f64> = (0..nd)
+        .map(|k| (0..nd).map(|i| w[i] * reference[i * nd + k]).sum())
+        .collect();
+    let rel = relative_difference(&want, &got);
+    assert!(
+        rel < 1e-8,
+        "rev: w^T K differs from the hand-coded one by {rel:.2e}"
+    );
+    c.bench_function("rev/record+sweep", |b| {
+        b.iter(|| {
+            once(&mut el, &mut adjoint, 1.0);
+            black_box(&adjoint);
+        })
+    });
+}
+
 fn case<M: MaterialLaw>(c: &mut Criterion, mat_name: &str, material: &M, plastic: bool) {
     for (form_name, formulation) in [
         ("full", Formulation::Full),
@@ -99,6 +150,7 @@ fn case<M: MaterialLaw>(c: &mut Criterion, mat_name: &str, material: &M, plastic
                 })
             });
         }
+        vjp(&mut g, &base, material, &reference);
         ad::<Dual64, M>(&mut g, "ad-tangent/dual64", &base, material, &reference);
         ad::<DualSVec64<8>, M>(&mut g, "ad-tangent/dsvec8", &base, material, &reference);
         if formulation == Formulation::IncompatibleModes {
