@@ -547,7 +547,7 @@ impl Solid<'_> {
                 // a recording without a tangent forms no B rows: f_Ai += w B_Ai : S =
                 // w (F S g_A)_i ((S g_A)_i for small kinematics), and sigma dv = (w F S) F^T,
                 // the same sums in fewer operations, each of which a tape stores and a sweep
-                // reads (a J2 hex8's vector-Jacobian product took half the time). Other
+                // reads (a J2 hex8's tape 8,419 -> 4,699 entries). Other
                 // scalars keep the B rows: a dual evaluation's real part is the `f64` one to
                 // the bit, and the `f64` residual is the same with and without its tangent.
                 let ps = if large { f * resp.stress } else { resp.stress } * w;

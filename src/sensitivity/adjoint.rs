@@ -28,9 +28,10 @@
 //!   recorded alone on the thread that evaluates it (in parallel), every colour of hitting
 //!   nodes in one evaluation, once per increment for both phases; each column is then one
 //!   backward sweep of each recording. A J2 hexahedron's recording is about 4,700 tape
-//!   entries (5,400 with incompatible modes; 8,400 and 10,200 when its force went through the
-//!   tangent's B rows, which a recording no longer forms), and a recording and one sweep about sixteen times its `f64`
-//!   residual, four times its residual and tangent (`cargo bench --bench kernels`);
+//!   entries (5,400 with incompatible modes; 8,400 and 10,200 when its force went through
+//!   the tangent's B rows, which a recording no longer forms), and a recording and one
+//!   sweep about sixteen times its `f64` residual, four times its residual and tangent
+//!   (`cargo bench --bench kernels`);
 //! * **forward duals**: `DualSVec64<W>` numbers seeded over each element's local unknowns (its
 //!   degrees of freedom, then its history scalars) and each hitting node's (its block's
 //!   unknowns, then its history); the elements are coloured so that no two of a colour
@@ -738,9 +739,10 @@ struct DesignPartial {
 /// already (made beside the increment's recordings).
 struct Transposed<'x> {
     k: &'x mut SparseMatrix,
-    /// Where `k` is not made yet (`--tangent last` with the factorization kept, which reads
-    /// no tangent): the stored tangent and the prescribed unknowns, to make it from should
-    /// the kept factorization fail and the tangent be factored after all.
+    /// Where `k` is not made (`--tangent last` with the factorization kept, which reads no
+    /// tangent: `k` is stale, or the stored tangent without its identity rows where a
+    /// reaction's product read it): the stored tangent and the prescribed unknowns, to make
+    /// it from should the kept factorization fail and the tangent be factored after all.
     unmade: Option<(&'x [f64], &'x [bool])>,
     factor: Option<&'x mut KeptFactor>,
     factored: bool,
@@ -1280,7 +1282,7 @@ impl<'a> Sweep<'a> {
     }
 
     /// `K^T X = RHS` with the tangent `k` at the converged state (prescribed unknowns as
-    /// identity rows) — the transposes of what DDM solves with each tangent option:
+    /// identity rows; made first from [`Transposed::unmade`] where it is not) — the transposes of what DDM solves with each tangent option:
     /// [`TangentChoice::Exact`] factored anew (already, beside the recordings, where
     /// [`Transposed::factored`]), or by block GMRES preconditioned with
     /// Newton's last factor kept by the forward run ([`Settings::adjoint_krylov`]; factored

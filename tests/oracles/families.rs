@@ -14,7 +14,7 @@ use fricsens::material::j2::Hardening;
 use fricsens::material::{Branch, J2Plasticity, MaterialLaw, NeoHookean, StVenantKirchhoff};
 use fricsens::mesh::Mesh;
 use fricsens::model::{Amplitude, Material};
-use fricsens::scalar::Scalar;
+use fricsens::scalar::{tape, Rev, Scalar};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use num_dual::Dual64;
 use proptest::prelude::*;
@@ -206,6 +206,66 @@ fn plastic_tangents_of_every_family_are_the_derivatives_of_their_forces() {
             "{}: the state is meant to be plastic",
             family.name()
         );
+    }
+}
+
+/// A reverse-mode recording (which sums the force and the Cauchy stress without the B rows)
+/// against the `f64` evaluation with its hand-coded tangent: the same force and stress to
+/// round-off (the sums taken in another order), and one sweep weighted by `w` on the force
+/// gives `w^T K` to the round-off of the element's stiffness scale, as the dual check above.
+fn recording_is_the_force_and_its_derivative<M: MaterialLaw>(
+    family: ElementFamily,
+    kinematics: Kinematics,
+    material: &M,
+) {
+    let x = distorted_element(family.shape());
+    let n_gen = family.n_dofs() / 3;
+    let d = displacements(&x, n_gen, 1.0);
+    let (f, k, cauchy, _) = evaluate(family, &x, &d, kinematics, material, true);
+    let nd = 3 * n_gen;
+    let scale = |v: &[f64]| v.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let (f_norm, k_norm) = (scale(&f), scale(&k));
+    tape::clear();
+    let xr: Vec<Vector3<Rev>> = x.iter().map(|p| p.map(Rev::constant)).collect();
+    let dr: Vec<Vector3<Rev>> = d.iter().map(|v| v.map(Rev::input)).collect();
+    let (fr, _, cr, _) = evaluate(family, &xr, &dr, kinematics, material, false);
+    let name = family.name();
+    for (a, b) in fr.iter().zip(&f) {
+        assert!(
+            (a.value() - b).abs() < 1e-13 * f_norm,
+            "{name} {kinematics:?}: force {} vs {b}",
+            a.value()
+        );
+    }
+    let c_err = (cr.map(|c| c.value()) - cauchy).norm();
+    assert!(
+        c_err < 1e-13 * cauchy.norm(),
+        "{name} {kinematics:?}: Cauchy stress off by {c_err:.2e}"
+    );
+    let w: Vec<f64> = (0..nd).map(|i| 1.0 + 0.37 * i as f64).collect();
+    let mut adjoint = Vec::new();
+    tape::sweep(fr.iter().zip(&w).map(|(f, w)| (*f, *w)), &mut adjoint);
+    let w_norm = scale(&w);
+    for (j, dj) in dr.iter().flat_map(|v| v.iter()).enumerate() {
+        let want: f64 = (0..nd).map(|i| w[i] * k[i * nd + j]).sum();
+        let got = dj.adjoint(&adjoint);
+        assert!(
+            (got - want).abs() < 1e-10 * k_norm * w_norm,
+            "{name} {kinematics:?}: (w^T K)[{j}] = {want} vs the sweep's {got}"
+        );
+    }
+    tape::clear();
+}
+
+#[test]
+fn a_recording_gives_the_force_and_the_tangents_vector_jacobian_product() {
+    let svk = StVenantKirchhoff::new(1000.0, 0.3);
+    let j2 = J2Plasticity::new(1000.0, 0.3, 1.0, Hardening::Linear { h: 50.0 });
+    for family in ElementFamily::solids() {
+        for kinematics in [Kinematics::Small, Kinematics::Large] {
+            recording_is_the_force_and_its_derivative(family, kinematics, &svk);
+            recording_is_the_force_and_its_derivative(family, kinematics, &j2);
+        }
     }
 }
 
