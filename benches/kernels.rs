@@ -92,7 +92,8 @@ fn vjp<M: MaterialLaw>(
             .chain(el.hist_new.iter().map(|h| (*h, history)));
         tape::sweep(seeds, adjoint);
     };
-    // the history's weights zero for the check: w^T K from the sweep against the hand-coded tangent
+    // the history's weights zero for the check: w^T K from the sweep against the
+    // hand-coded tangent
     once(&mut el, &mut adjoint, 0.0);
     let got: Vec<f64> = (el.dofs.iter())
         .flat_map(|d| (0..3).map(move |i| d[i]))

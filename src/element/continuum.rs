@@ -543,13 +543,9 @@ impl Solid<'_> {
             let w = geo.weight;
             let dv = if large { w * det_f } else { w };
             volume += dv;
-            if S::RECORDS && out.tangent.is_none() {
-                // a recording without a tangent forms no B rows: f_Ai += w B_Ai : S =
-                // w (F S g_A)_i ((S g_A)_i for small kinematics), and sigma dv = (w F S) F^T,
-                // the same sums in fewer operations, each of which a tape stores and a sweep
-                // reads (a J2 hex8's tape 8,419 -> 4,699 entries). Other
-                // scalars keep the B rows: a dual evaluation's real part is the `f64` one to
-                // the bit, and the `f64` residual is the same with and without its tangent.
+            if without_b_rows(out) {
+                // f_Ai += w B_Ai : S = w (F S g_A)_i ((S g_A)_i for small kinematics), and
+                // sigma dv = (w F S) F^T
                 let ps = if large { f * resp.stress } else { resp.stress } * w;
                 for (a, g) in geo.grads.iter().enumerate().take(n_gen) {
                     let fa = ps * g;
@@ -722,10 +718,8 @@ impl Solid<'_> {
             } else {
                 resp.stress
             };
-            // a recording without a tangent forms no B rows (as in `evaluate_standard`):
-            // f_Ai += w B_Ai : S = w (p_Ai + v_Ai S : Cbar)
-            let s_cbar = (S::RECORDS && out.tangent.is_none())
-                .then(|| resp.stress.component_mul(&cbar).sum());
+            // without B rows: f_Ai += w B_Ai : S = w (p_Ai + v_Ai S : Cbar)
+            let s_cbar = without_b_rows(out).then(|| resp.stress.component_mul(&cbar).sum());
             for (a, g) in g_gp.iter().enumerate() {
                 let pa = rfs * g;
                 for i in 0..3 {
@@ -810,6 +804,15 @@ impl Solid<'_> {
         out.cauchy = cauchy / volume;
         Ok(())
     }
+}
+
+/// Whether an evaluation sums its force without the B rows: a recording ([`Scalar::RECORDS`])
+/// that wants no tangent. `f_Ai = w B_Ai : S` is then summed from the stress directly, the same
+/// sums in fewer operations, each of which a tape stores and a sweep reads (a J2 hex8's tape
+/// 8,419 -> 4,699 entries). Other scalars keep the B rows: a dual evaluation's real part is
+/// the `f64` one to the bit, and the `f64` residual is the same with and without its tangent.
+fn without_b_rows<S: Scalar>(out: &ElementOutput<'_, S>) -> bool {
+    S::RECORDS && out.tangent.is_none()
 }
 
 /// Reference geometry at one Gauss point: generalised gradients and the volume weight.

@@ -1282,7 +1282,8 @@ impl<'a> Sweep<'a> {
     }
 
     /// `K^T X = RHS` with the tangent `k` at the converged state (prescribed unknowns as
-    /// identity rows; made first from [`Transposed::unmade`] where it is not) — the transposes of what DDM solves with each tangent option:
+    /// identity rows; made first from [`Transposed::unmade`] where it is not) — the
+    /// transposes of what DDM solves with each tangent option:
     /// [`TangentChoice::Exact`] factored anew (already, beside the recordings, where
     /// [`Transposed::factored`]), or by block GMRES preconditioned with
     /// Newton's last factor kept by the forward run ([`Settings::adjoint_krylov`]; factored
