@@ -467,6 +467,7 @@ impl Assembler {
                     e,
                     k,
                     h,
+                    true,
                 )
             };
             // a tape is a thread's: a recording evaluation stays on the calling thread
@@ -651,6 +652,7 @@ impl Assembler {
                             e,
                             Some(&mut k[..]),
                             &mut h[..],
+                            false,
                         );
                         if loc.failure.is_some() {
                             return None;
@@ -710,7 +712,8 @@ impl Assembler {
 
     /// One solid element alone, on the calling thread: its rows of the residual into `force`
     /// (in [`Assembler::element_dofs`] order), its updated history into `hist_new` (its
-    /// [`DofMap::history`] range), and its volume-averaged Cauchy stress returned. The
+    /// [`DofMap::history`] range), and its volume-averaged Cauchy stress returned (zero where
+    /// not `want_cauchy`: a recording of an element whose stress nothing reads). The
     /// adjoint's reverse-mode local derivatives ([`crate::scalar::Rev`]) record one element
     /// at a time on the thread that evaluates it.
     #[allow(clippy::too_many_arguments)]
@@ -724,8 +727,19 @@ impl Assembler {
         e: usize,
         force: &mut [S],
         hist_new: &mut [S],
+        want_cauchy: bool,
     ) -> Result<Matrix3<S>, AssemblyFailure> {
-        let loc = self.element_local(model, lifted, z, hist_old, frozen, e, None, hist_new);
+        let loc = self.element_local(
+            model,
+            lifted,
+            z,
+            hist_old,
+            frozen,
+            e,
+            None,
+            hist_new,
+            want_cauchy,
+        );
         if let Some(failure) = loc.failure {
             return Err(AssemblyFailure::Element {
                 element: e,
@@ -748,6 +762,7 @@ impl Assembler {
         e: usize,
         k_out: Option<&mut [S]>,
         h_out: &mut [S],
+        want_cauchy: bool,
     ) -> Local<S> {
         let mut loc = Local::empty();
         let Some(family) = self.dofs.element_family[e] else {
@@ -768,6 +783,7 @@ impl Assembler {
                 branches: &mut [],
                 yield_ratio: &mut [],
                 cauchy: Matrix3::zeros(),
+                want_cauchy,
                 min_det_f: f64::INFINITY,
             };
             if let Err(f) = family.evaluate_discrete(&set.k(), &d[..nd / 3], &mut out) {
@@ -800,6 +816,7 @@ impl Assembler {
                 branches: &mut loc.branches[..ng],
                 yield_ratio: &mut loc.yield_ratio[..ng],
                 cauchy: Matrix3::zeros(),
+                want_cauchy,
                 min_det_f: f64::INFINITY,
             };
             let r = family.evaluate(&input, &mut out);
@@ -876,7 +893,8 @@ mod tests {
             let mut plastic = 0;
             for &e in &modes {
                 let mut h = vec![0.0; asm.dofs.history(e).len().max(1)];
-                let loc = asm.element_local(&model, &lifted, z, &hist, None, e, None, &mut h);
+                let loc =
+                    asm.element_local(&model, &lifted, z, &hist, None, e, None, &mut h, false);
                 assert!(loc.failure.is_none(), "element {e}");
                 let nd = asm.element_dofs(e).len();
                 let norm = |f: &[f64]| f.iter().map(|v| v * v).sum::<f64>().sqrt();

@@ -125,8 +125,12 @@ pub struct ElementOutput<'a, S: Scalar> {
     pub branches: &'a mut [Branch],
     /// Trial yield ratio at each Gauss point (`n_gauss` entries).
     pub yield_ratio: &'a mut [f64],
-    /// Volume-averaged Cauchy stress.
+    /// Volume-averaged Cauchy stress (zero where not [`ElementOutput::want_cauchy`]).
     pub cauchy: Matrix3<S>,
+    /// Whether [`ElementOutput::cauchy`] is wanted: a recording of an element whose stress
+    /// nothing reads skips its sums (439 tape entries of a hex8's under large kinematics, with
+    /// or without incompatible modes; 951 with F-bar).
+    pub want_cauchy: bool,
     /// Smallest det F over the Gauss points (real part).
     pub min_det_f: f64,
 }
@@ -542,7 +546,9 @@ impl Solid<'_> {
             let resp = material_point(input, out, gp, &strain)?;
             let w = geo.weight;
             let dv = if large { w * det_f } else { w };
-            volume += dv;
+            if out.want_cauchy {
+                volume += dv;
+            }
             if without_b_rows(out) {
                 // f_Ai += w B_Ai : S = w (F S g_A)_i ((S g_A)_i for small kinematics), and
                 // sigma dv = (w F S) F^T
@@ -553,7 +559,9 @@ impl Solid<'_> {
                         out.force[3 * a + i] += fa[i];
                     }
                 }
-                cauchy += if large { ps * f.transpose() } else { ps };
+                if out.want_cauchy {
+                    cauchy += if large { ps * f.transpose() } else { ps };
+                }
                 continue;
             }
             let sv = stress_to_voigt(&resp.stress);
@@ -586,14 +594,18 @@ impl Solid<'_> {
                     }
                 }
             }
-            let sigma = if large {
-                f * resp.stress * f.transpose() / det_f
-            } else {
-                resp.stress
-            };
-            cauchy += sigma * dv;
+            if out.want_cauchy {
+                let sigma = if large {
+                    f * resp.stress * f.transpose() / det_f
+                } else {
+                    resp.stress
+                };
+                cauchy += sigma * dv;
+            }
         }
-        out.cauchy = cauchy / volume;
+        if out.want_cauchy {
+            out.cauchy = cauchy / volume;
+        }
         Ok(())
     }
 
@@ -710,8 +722,13 @@ impl Solid<'_> {
             };
             let resp = material_point(input, out, gp, &strain)?;
             let sv = stress_to_voigt(&resp.stress);
-            // Cbar in Voigt strain form (engineering shears): the dEbar of a unit d ln r
-            let cbar_v = strain_to_voigt(&cbar);
+            // Cbar in Voigt strain form (engineering shears): the dEbar of a unit d ln r (in
+            // the B rows alone)
+            let cbar_v = if without_b_rows(out) {
+                Voigt::zeros()
+            } else {
+                strain_to_voigt(&cbar)
+            };
             // r Fbar S (large); S (small): p_a = (this g_A)_i
             let rfs = if large {
                 fbar * resp.stress * r
@@ -793,15 +810,19 @@ impl Solid<'_> {
                     }
                 }
             }
-            let (sigma, dv) = if large {
-                (fbar * resp.stress * fbar.transpose() / j0, w * det_f)
-            } else {
-                (resp.stress, w)
-            };
-            cauchy += sigma * dv;
-            volume += dv;
+            if out.want_cauchy {
+                let (sigma, dv) = if large {
+                    (fbar * resp.stress * fbar.transpose() / j0, w * det_f)
+                } else {
+                    (resp.stress, w)
+                };
+                cauchy += sigma * dv;
+                volume += dv;
+            }
         }
-        out.cauchy = cauchy / volume;
+        if out.want_cauchy {
+            out.cauchy = cauchy / volume;
+        }
         Ok(())
     }
 }

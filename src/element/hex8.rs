@@ -209,6 +209,7 @@ pub fn evaluate<S: Scalar, M: MaterialLaw>(
         branches: &mut out.branches,
         yield_ratio: &mut out.yield_ratio,
         cauchy: Matrix3::zeros(),
+        want_cauchy: true,
         min_det_f: f64::INFINITY,
     };
     let r = solid(input.formulation).evaluate(&general, &mut o);
