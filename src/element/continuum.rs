@@ -125,11 +125,11 @@ pub struct ElementOutput<'a, S: Scalar> {
     pub branches: &'a mut [Branch],
     /// Trial yield ratio at each Gauss point (`n_gauss` entries).
     pub yield_ratio: &'a mut [f64],
-    /// Volume-averaged Cauchy stress (zero where not [`ElementOutput::want_cauchy`]).
+    /// Volume-averaged Cauchy stress (set to zero where not [`ElementOutput::want_cauchy`]).
     pub cauchy: Matrix3<S>,
     /// Whether [`ElementOutput::cauchy`] is wanted: a recording of an element whose stress
-    /// nothing reads skips its sums (439 tape entries of a hex8's under large kinematics, with
-    /// or without incompatible modes; 951 with F-bar).
+    /// nothing reads skips its sums and records no `det F` (under large kinematics 559 tape
+    /// entries of a hex8's, with or without incompatible modes; 1,063 with F-bar).
     pub want_cauchy: bool,
     /// Smallest det F over the Gauss points (real part).
     pub min_det_f: f64,
@@ -534,7 +534,7 @@ impl Solid<'_> {
             let geo = self.reference_geometry(x_ref, gp, &centre)?;
             let h = displacement_gradient(input.dofs, &geo.grads, n_gen);
             let f = h + Matrix3::identity();
-            let det_f = det3(&f);
+            let det_f = det_f_of(&f, large, out);
             out.min_det_f = out.min_det_f.min(re(det_f));
             if large && re(det_f) <= 0.0 {
                 return Err(ElementFailure::Inverted {
@@ -545,8 +545,8 @@ impl Solid<'_> {
             let strain = strain_measure(&h, large);
             let resp = material_point(input, out, gp, &strain)?;
             let w = geo.weight;
-            let dv = if large { w * det_f } else { w };
-            if out.want_cauchy {
+            let dv = out.want_cauchy.then(|| if large { w * det_f } else { w });
+            if let Some(dv) = dv {
                 volume += dv;
             }
             if without_b_rows(out) {
@@ -594,7 +594,7 @@ impl Solid<'_> {
                     }
                 }
             }
-            if out.want_cauchy {
+            if let Some(dv) = dv {
                 let sigma = if large {
                     f * resp.stress * f.transpose() / det_f
                 } else {
@@ -603,9 +603,11 @@ impl Solid<'_> {
                 cauchy += sigma * dv;
             }
         }
-        if out.want_cauchy {
-            out.cauchy = cauchy / volume;
-        }
+        out.cauchy = if out.want_cauchy {
+            cauchy / volume
+        } else {
+            Matrix3::zeros()
+        };
         Ok(())
     }
 
@@ -690,7 +692,7 @@ impl Solid<'_> {
                 h += d * g.transpose();
             }
             let f = h + Matrix3::identity();
-            let det_f = det3(&f);
+            let det_f = det_f_of(&f, large, out);
             out.min_det_f = out.min_det_f.min(re(det_f));
             // F-bar kinematics
             let (fbar, cbar, r, strain) = if large {
@@ -820,10 +822,25 @@ impl Solid<'_> {
                 volume += dv;
             }
         }
-        if out.want_cauchy {
-            out.cauchy = cauchy / volume;
-        }
+        out.cauchy = if out.want_cauchy {
+            cauchy / volume
+        } else {
+            Matrix3::zeros()
+        };
         Ok(())
+    }
+}
+
+/// `det F` of `f`, recorded only where the Cauchy stress's volume reads it (large kinematics
+/// and [`ElementOutput::want_cauchy`]): elsewhere a recording ([`Scalar::RECORDS`]) reads
+/// only its value (the smallest `det F`, the inversion check), and a constant of that value
+/// spares the tape its entries (about fourteen a Gauss point). Other scalars compute it as
+/// ever.
+fn det_f_of<S: Scalar>(f: &Matrix3<S>, large: bool, out: &ElementOutput<'_, S>) -> S {
+    if S::RECORDS && !(large && out.want_cauchy) {
+        S::lift(det3(&f.map(re)))
+    } else {
+        det3(f)
     }
 }
 

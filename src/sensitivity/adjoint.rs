@@ -29,8 +29,9 @@
 //!   nodes in one evaluation, once per increment for both phases; each column is then one
 //!   backward sweep of each recording. A J2 hexahedron's recording is about 4,700 tape
 //!   entries (5,400 with incompatible modes; 8,400 and 10,200 when its force went through
-//!   the tangent's B rows, which a recording no longer forms), 440 fewer where no response
-//!   reads its stress (the Cauchy stress's sums left out), and a recording and one
+//!   the tangent's B rows, which a recording no longer forms; under large kinematics 559
+//!   fewer, 1,063 with F-bar, where no response reads its stress: the Cauchy stress's sums
+//!   and `det F` left out), and a recording and one
 //!   sweep about sixteen times its `f64` residual, four times its residual and tangent
 //!   (`cargo bench --bench kernels`);
 //! * **forward duals**: `DualSVec64<W>` numbers seeded over each element's local unknowns (its

@@ -66,8 +66,12 @@ fn distorted_element(shape: Shape) -> Vec<Vector3<f64>> {
         .collect()
 }
 
+/// An element's force, tangent, Cauchy stress, branches and updated history.
+type Evaluated<S> = (Vec<S>, Vec<S>, Matrix3<S>, Vec<Branch>, Vec<S>);
+
 /// Internal force (and tangent) of one element of `family` at generalised displacements
-/// `dofs`, with `material`'s own parameters and a zero history.
+/// `dofs`, with `material`'s own parameters and a zero history; the Cauchy stress summed
+/// only if `want_cauchy`; and the updated history.
 fn evaluate<S: Scalar, M: MaterialLaw>(
     family: ElementFamily,
     x: &[Vector3<S>],
@@ -75,20 +79,8 @@ fn evaluate<S: Scalar, M: MaterialLaw>(
     kinematics: Kinematics,
     material: &M,
     want_tangent: bool,
-) -> (Vec<S>, Vec<S>, Matrix3<S>, Vec<Branch>) {
-    evaluate_with(family, x, dofs, kinematics, material, want_tangent, true)
-}
-
-/// [`evaluate`], the Cauchy stress summed only if `want_cauchy`.
-fn evaluate_with<S: Scalar, M: MaterialLaw>(
-    family: ElementFamily,
-    x: &[Vector3<S>],
-    dofs: &[Vector3<S>],
-    kinematics: Kinematics,
-    material: &M,
-    want_tangent: bool,
     want_cauchy: bool,
-) -> (Vec<S>, Vec<S>, Matrix3<S>, Vec<Branch>) {
+) -> Evaluated<S> {
     let nd = 3 * dofs.len();
     let ng = family.n_gauss();
     let params: Vec<S> = material.params().iter().map(|p| S::lift(*p)).collect();
@@ -119,7 +111,7 @@ fn evaluate_with<S: Scalar, M: MaterialLaw>(
     };
     family.evaluate(&input, &mut out).unwrap();
     let cauchy = out.cauchy;
-    (force, tangent, cauchy, branches)
+    (force, tangent, cauchy, branches, hist_new)
 }
 
 /// A smooth non-homogeneous displacement of the element's nodes (and small internal modes).
@@ -150,7 +142,7 @@ fn tangent_is_the_force_derivative<M: MaterialLaw>(
     let x = distorted_element(family.shape());
     let n_gen = family.n_dofs() / 3;
     let d = displacements(&x, n_gen, scale);
-    let (f, k, _, branches) = evaluate(family, &x, &d, kinematics, material, true);
+    let (f, k, _, branches, _) = evaluate(family, &x, &d, kinematics, material, true, true);
     let nd = 3 * n_gen;
     let xd: Vec<Vector3<Dual64>> = x.iter().map(|p| p.map(Dual64::from_re)).collect();
     let k_norm = k.iter().map(|v| v * v).sum::<f64>().sqrt();
@@ -165,7 +157,7 @@ fn tangent_is_the_force_derivative<M: MaterialLaw>(
                 })
             })
             .collect();
-        let (fd, _, _, _) = evaluate(family, &xd, &dd, kinematics, material, false);
+        let (fd, _, _, _, _) = evaluate(family, &xd, &dd, kinematics, material, false, true);
         for i in 0..nd {
             if exact_real {
                 assert_eq!(
@@ -228,7 +220,7 @@ fn plastic_tangents_of_every_family_are_the_derivatives_of_their_forces() {
 /// round-off (the sums taken in another order), and one sweep weighted by `w` on the force
 /// gives `w^T K` to the round-off of the element's stiffness scale, as the dual check above.
 /// A recording that wants no Cauchy stress (an element whose stress nothing reads) is a
-/// shorter tape with the same force and the same sweep, bit for bit: the skipped sums feed
+/// shorter tape with the same force, history and sweep, bit for bit: the skipped sums feed
 /// nothing else.
 fn recording_is_the_force_and_its_derivative<M: MaterialLaw>(
     family: ElementFamily,
@@ -238,14 +230,14 @@ fn recording_is_the_force_and_its_derivative<M: MaterialLaw>(
     let x = distorted_element(family.shape());
     let n_gen = family.n_dofs() / 3;
     let d = displacements(&x, n_gen, 1.0);
-    let (f, k, cauchy, _) = evaluate(family, &x, &d, kinematics, material, true);
+    let (f, k, cauchy, _, _) = evaluate(family, &x, &d, kinematics, material, true, true);
     let nd = 3 * n_gen;
     let scale = |v: &[f64]| v.iter().map(|v| v * v).sum::<f64>().sqrt();
     let (f_norm, k_norm) = (scale(&f), scale(&k));
     tape::clear();
     let xr: Vec<Vector3<Rev>> = x.iter().map(|p| p.map(Rev::constant)).collect();
     let dr: Vec<Vector3<Rev>> = d.iter().map(|v| v.map(Rev::input)).collect();
-    let (fr, _, cr, _) = evaluate(family, &xr, &dr, kinematics, material, false);
+    let (fr, _, cr, _, hr) = evaluate(family, &xr, &dr, kinematics, material, false, true);
     let name = family.name();
     for (a, b) in fr.iter().zip(&f) {
         assert!(
@@ -277,7 +269,7 @@ fn recording_is_the_force_and_its_derivative<M: MaterialLaw>(
     let long = tape::len();
     tape::clear();
     let dr: Vec<Vector3<Rev>> = d.iter().map(|v| v.map(Rev::input)).collect();
-    let (fs, _, cs, _) = evaluate_with(family, &xr, &dr, kinematics, material, false, false);
+    let (fs, _, cs, _, hs) = evaluate(family, &xr, &dr, kinematics, material, false, false);
     assert!(
         tape::len() < long,
         "{name} {kinematics:?}: without the Cauchy stress the tape is {} entries, with it {long}",
@@ -286,7 +278,10 @@ fn recording_is_the_force_and_its_derivative<M: MaterialLaw>(
     assert_eq!(cs.map(|c| c.value()), Matrix3::zeros());
     let mut short = Vec::new();
     tape::sweep(fs.iter().zip(&w).map(|(f, w)| (*f, *w)), &mut short);
-    for (a, b) in fs.iter().zip(&fr) {
+    // the same adjoints to the bit: the entries left out fed only the Cauchy stress (and its
+    // volume), whose weights are zero, so in the long recording's sweep they held zero
+    // adjoints, which the sweep skips (it adds nothing from them, not even a zero)
+    for (a, b) in fs.iter().zip(&fr).chain(hs.iter().zip(&hr)) {
         assert_eq!(
             a.value().to_bits(),
             b.value().to_bits(),
@@ -341,14 +336,14 @@ fn a_homogeneous_state_is_the_material_law_at_every_point() {
                 None => Vector3::zeros(), // no incompatible mode in a homogeneous state
             })
             .collect();
-        let (_, _, c, _) = evaluate(family, &x, &d, Kinematics::Large, &svk, false);
+        let (_, _, c, _, _) = evaluate(family, &x, &d, Kinematics::Large, &svk, false, true);
         let expected = cauchy_at_a_point(&svk, &f);
         assert!(
             (c - expected).norm() < 1e-12 * expected.norm(),
             "{}",
             family.name()
         );
-        let (_, _, c, branches) = evaluate(family, &x, &d, Kinematics::Large, &j2, false);
+        let (_, _, c, branches, _) = evaluate(family, &x, &d, Kinematics::Large, &j2, false, true);
         let expected = cauchy_at_a_point(&j2, &f);
         assert!(branches.iter().all(|b| *b == Branch::Plastic));
         assert!(
@@ -381,7 +376,7 @@ proptest! {
                     None => Vector3::zeros(),
                 })
                 .collect();
-            let (f, _, c, _) = evaluate(family, &x, &d, Kinematics::Large, &svk, false);
+            let (f, _, c, _, _) = evaluate(family, &x, &d, Kinematics::Large, &svk, false, true);
             // force scale of a unit strain: E times the element's size (about 1)
             let fmax = f.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             prop_assert!(fmax < 1e-10 * 1000.0, "{}: force {fmax}", family.name());
