@@ -127,7 +127,10 @@ pub struct Evaluation<S: Scalar> {
     pub branches: Vec<Branch>,
     /// Trial yield ratio at each Gauss point.
     pub yield_ratio: Vec<f64>,
-    /// Volume-averaged Cauchy stress per element (real parts).
+    /// Volume-averaged Cauchy stress per element (real parts): an `f64` evaluation's every
+    /// element's; a differentiating one sums it only where [`Evaluation::stress`] keeps it
+    /// (zero elsewhere: nothing reads a derivative there, and its value is the `f64`
+    /// evaluation's).
     pub cauchy: Vec<Matrix3<f64>>,
     /// Volume-averaged Cauchy stress, in the evaluation's scalar, of the elements a response
     /// reads ([`Assembler::stress_elements`]; empty where none does).
@@ -136,6 +139,26 @@ pub struct Evaluation<S: Scalar> {
     pub min_det_f: f64,
     /// Contact results.
     pub contact: ContactEval<S>,
+    /// The element tangents of a chunk, kept for the next evaluation with a tangent.
+    kbuf: TangentSlots<S>,
+}
+
+/// Room for the element tangents of a chunk of [`Assembler::evaluate`], grown as needed and
+/// never zeroed: every element kernel writes the whole of its slot
+/// ([`crate::element::ElementOutput::tangent`]). A Newton iteration then spares its
+/// allocation and zeroing (the leaf spring's 1.2 MB). A clone starts without it.
+struct TangentSlots<S>(Vec<S>);
+
+impl<S> Clone for TangentSlots<S> {
+    fn clone(&self) -> Self {
+        TangentSlots(Vec::new())
+    }
+}
+
+impl<S> std::fmt::Debug for TangentSlots<S> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "TangentSlots({} scalars)", self.0.len())
+    }
 }
 
 impl<S: Scalar> Evaluation<S> {
@@ -151,6 +174,7 @@ impl<S: Scalar> Evaluation<S> {
             cauchy: vec![Matrix3::zeros(); n_elements],
             stress: vec![Matrix3::zeros(); asm.stress_elements.len()],
             min_det_f: f64::INFINITY,
+            kbuf: TangentSlots(Vec::new()),
         }
     }
 }
@@ -417,8 +441,8 @@ impl Assembler {
         }
         let ne = order.len();
         let mut locals: Vec<Local<S>> = Vec::new();
-        // element tangents of one chunk, allocated once per evaluation (not per element)
-        // the largest element of this evaluation sets the tangent slots' size
+        // element tangents of one chunk, in room kept from one evaluation to the next
+        // (`TangentSlots`); the largest element of this evaluation sets the slots' size
         let max_dofs = order
             .iter()
             .map(|&e| self.element_dofs(e).len())
@@ -426,11 +450,11 @@ impl Assembler {
             .unwrap_or(0);
         debug_assert!(max_dofs <= MAX_DOFS);
         let stride = max_dofs.max(1) * max_dofs.max(1);
-        let mut kbuf: Vec<S> = if want_k {
-            vec![S::zero(); CHUNK.min(ne) * stride]
-        } else {
-            Vec::new()
-        };
+        // every slot is written whole by its element (`TangentSlots`)
+        let mut kbuf = std::mem::take(&mut out.kbuf.0);
+        if want_k && kbuf.len() < CHUNK.min(ne) * stride {
+            kbuf.resize(CHUNK.min(ne) * stride, S::zero());
+        }
         let mut kf = vec![0.0; if want_k { stride } else { 0 }];
         // the elements' updated histories, one slot per element of a chunk, sized by the
         // largest of this evaluation (a hex20's 27 points are not every element's)
@@ -467,7 +491,7 @@ impl Assembler {
                     e,
                     k,
                     h,
-                    true,
+                    !S::DIFFERENTIATES || self.stress_slot(e).is_some(),
                 )
             };
             // a tape is a thread's: a recording evaluation stays on the calling thread
@@ -489,6 +513,7 @@ impl Assembler {
                     continue;
                 }
                 if let Some(f) = &loc.failure {
+                    out.kbuf.0 = kbuf;
                     return Err(AssemblyFailure::Element {
                         element: e,
                         failure: f.clone(),
@@ -520,6 +545,7 @@ impl Assembler {
             }
             start = end;
         }
+        out.kbuf.0 = kbuf;
         // contact
         let no_node = frozen
             .and_then(|f| f.skip_contact)

@@ -54,7 +54,8 @@ pub const EQUIVALENT_PLASTIC_STRAIN: &str = "alpha";
 /// The fields of the state `z` of the evaluation `ev` (its updated history, stresses and
 /// contact). `asm` must keep the stress of every element in the evaluation's scalar
 /// ([`Assembler::reading_every_stress`]) for the stress fields to carry derivatives; elsewhere
-/// they are the real parts.
+/// an `f64` evaluation's are its stresses, a differentiating one's zero
+/// ([`crate::assembly::Evaluation::cauchy`]).
 pub fn state_fields<S: Scalar>(
     model: &Model,
     asm: &Assembler,

@@ -117,7 +117,8 @@ pub struct ElementInput<'a, S: Scalar, M: MaterialLaw> {
 pub struct ElementOutput<'a, S: Scalar> {
     /// Internal force, `n_dofs` entries (node-major, component-minor).
     pub force: &'a mut [S],
-    /// Tangent, row-major `n_dofs^2`, if wanted.
+    /// Tangent, row-major `n_dofs^2`, if wanted: every kernel writes each entry of it (the
+    /// assembly hands it a slot holding another element's tangent).
     pub tangent: Option<&'a mut [S]>,
     /// Updated history, `n_gauss * history_len` scalars.
     pub hist_new: &'a mut [S],
@@ -127,9 +128,10 @@ pub struct ElementOutput<'a, S: Scalar> {
     pub yield_ratio: &'a mut [f64],
     /// Volume-averaged Cauchy stress (set to zero where not [`ElementOutput::want_cauchy`]).
     pub cauchy: Matrix3<S>,
-    /// Whether [`ElementOutput::cauchy`] is wanted: a recording of an element whose stress
-    /// nothing reads skips its sums and records no `det F` (under large kinematics 559 tape
-    /// entries of a hex8's, with or without incompatible modes; 1,063 with F-bar).
+    /// Whether [`ElementOutput::cauchy`] is wanted: a differentiating evaluation (a recording
+    /// or a dual one) of an element whose stress nothing reads skips its sums and
+    /// differentiates no `det F` (under large kinematics 559 tape entries of a hex8's, with or
+    /// without incompatible modes; 1,063 with F-bar).
     pub want_cauchy: bool,
     /// Smallest det F over the Gauss points (real part).
     pub min_det_f: f64,
@@ -831,13 +833,14 @@ impl Solid<'_> {
     }
 }
 
-/// `det F` of `f`, recorded only where the Cauchy stress's volume reads it (large kinematics
-/// and [`ElementOutput::want_cauchy`]): elsewhere a recording ([`Scalar::RECORDS`]) reads
-/// only its value (the smallest `det F`, the inversion check), and a constant of that value
-/// spares the tape its entries (about fourteen a Gauss point). Other scalars compute it as
-/// ever.
+/// `det F` of `f`, differentiated only where the Cauchy stress's volume reads it (large
+/// kinematics and [`ElementOutput::want_cauchy`]): elsewhere a differentiating scalar
+/// ([`Scalar::DIFFERENTIATES`]) reads only its value (the smallest `det F`, the inversion
+/// check), and a constant of that value (the same `f64` operations on the real parts) spares
+/// a recording its tape entries (about fourteen a Gauss point) and a dual evaluation its
+/// derivative parts. `f64` computes it as ever.
 fn det_f_of<S: Scalar>(f: &Matrix3<S>, large: bool, out: &ElementOutput<'_, S>) -> S {
-    if S::RECORDS && !(large && out.want_cauchy) {
+    if S::DIFFERENTIATES && !(large && out.want_cauchy) {
         S::lift(det3(&f.map(re)))
     } else {
         det3(f)
