@@ -44,7 +44,7 @@
 //! Reverse mode is the default while the columns alive at an increment are few
 //! ([`REVERSE_COLUMNS`]); many columns (`--at all` on a long path) share the forward passes.
 //! The residual's Jacobian in the unknowns is the tangent the forward run assembled at the
-//! converged state, kept with each stored increment. The derivatives in the design are one
+//! converged state, kept with each stored increment where the sweep reads it ([`Keep`]). The derivatives in the design are one
 //! dual evaluation per parameter, as DDM's pseudo-load, over the elements the parameter
 //! reaches (a field's members seeded a colour at a time). A user material or friction law
 //! gets the adjoint with no code of its own.
@@ -83,9 +83,9 @@ const W: usize = 8;
 type Ad = DualSVec64<W>;
 
 /// Bytes of converged tangents the forward run keeps for the sweep (each segment's, with
-/// checkpoints); beyond them an increment's tangent is assembled again when the sweep
-/// reaches it. On the leaf spring the 35 tangents take 44 MiB, one assembly each saved
-/// (0.13 s of a 0.45 s sweep for one response).
+/// checkpoints; [`Keep`] says which); beyond them an increment's tangent is assembled again
+/// where the sweep reads it. On the leaf spring the 35 tangents take 44 MiB, one assembly
+/// each saved (0.13 s of a 0.45 s sweep for one response, with the exact tangent).
 const TANGENT_ROOM: usize = 1 << 30;
 
 /// One converged increment, as the backward sweep needs it.
@@ -99,7 +99,8 @@ struct Stored {
     constrained: Vec<bool>,
     /// The values of the tangent assembled at the converged state (the assembler's pattern):
     /// the sweep's transposed solve needs no assembly of its own. Empty beyond
-    /// [`TANGENT_ROOM`]: the sweep assembles it again.
+    /// [`TANGENT_ROOM`] (the sweep assembles it again), and where [`Keep::tangent`] keeps
+    /// none (the sweep reads none there, but should the kept factorization fail).
     tangent: Vec<f64>,
     /// Newton's last factorization, where [`KeepFactors`] keeps it: for `--tangent
     /// last|refined` only where it was assembled on the converged branches (then it is the
@@ -130,18 +131,47 @@ impl KeepFactors {
     }
 }
 
+/// What the forward run (or a recomputed segment) keeps of a converged increment besides its
+/// state: Newton's last factorization, and the converged tangent where the sweep reads it.
+#[derive(Debug, Clone)]
+struct Keep {
+    factors: KeepFactors,
+    /// Every increment keeps its tangent: the tangent options other than `--tangent last`
+    /// factor it, refine or run GMRES against it.
+    every: bool,
+    /// With `--tangent last`, the sweep solves with the kept factorization and reads the
+    /// tangent only for a reaction response's product, at the increments of the functionals:
+    /// their times (empty: every increment), `None` where no response is a reaction. An
+    /// increment with its factorization kept keeps no tangent elsewhere (on the leaf spring,
+    /// whose block force is a target's, none of the 35, 1.3 MiB each).
+    reactions_at: Option<Vec<f64>>,
+}
+
+impl Keep {
+    fn of(settings: &Settings, model: &Model) -> Self {
+        let reaction =
+            (model.responses.iter()).any(|r| matches!(r.kind, ResponseKind::Reaction { .. }));
+        Keep {
+            factors: KeepFactors::of(settings),
+            every: settings.tangent != TangentChoice::Last,
+            reactions_at: reaction.then(|| settings.adjoint_at.clone()),
+        }
+    }
+
+    /// Whether the increment converged at `time` keeps its tangent, its factorization kept
+    /// or not.
+    fn tangent(&self, time: f64, factor_kept: bool) -> bool {
+        let read = |at: &Vec<f64>| at.is_empty() || at.iter().any(|t| (t - time).abs() < 1e-9);
+        self.every || !factor_kept || self.reactions_at.as_ref().is_some_and(read)
+    }
+}
+
 impl Stored {
     /// What the sweep needs of `c`, Newton's last factorization with it as `keep` says, its
-    /// tangent if `*tangent_room` bytes hold it (which it then takes from them).
-    fn new(c: &Converged<'_>, keep: KeepFactors, tangent_room: &mut usize) -> Self {
-        let values = c.tangent.values();
-        let tangent = if 8 * values.len() <= *tangent_room {
-            *tangent_room -= 8 * values.len();
-            values.to_vec()
-        } else {
-            Vec::new()
-        };
-        let kept = match keep {
+    /// tangent where `keep` keeps it and `*tangent_room` bytes hold it (which it then takes
+    /// from them).
+    fn new(c: &Converged<'_>, keep: &Keep, tangent_room: &mut usize) -> Self {
+        let kept = match keep.factors {
             KeepFactors::None => false,
             KeepFactors::Matching => c.factor_matches,
             KeepFactors::Any => true,
@@ -150,6 +180,14 @@ impl Stored {
             .then_some(c.last_factor)
             .flatten()
             .and_then(LinearSolver::keep);
+        let values = c.tangent.values();
+        let tangent = if keep.tangent(c.time, factor.is_some()) && 8 * values.len() <= *tangent_room
+        {
+            *tangent_room -= 8 * values.len();
+            values.to_vec()
+        } else {
+            Vec::new()
+        };
         Stored {
             factor,
             index: c.index,
@@ -160,6 +198,15 @@ impl Stored {
             choice: c.eval.contact.choice.clone(),
             constrained: c.constrained.to_vec(),
             tangent,
+        }
+    }
+
+    /// The increment's converged branches and contact choices.
+    fn frozen(&self) -> Frozen<'_> {
+        Frozen {
+            gauss: Some(&self.branches),
+            contact: &self.choice,
+            ..Frozen::default()
         }
     }
 
@@ -196,8 +243,8 @@ struct Recorder<'a> {
     stored: Vec<Stored>,
     /// The first user increment whose converged increments are stored.
     keep_from: usize,
-    /// Which of Newton's last factorizations to keep with the stored increments.
-    keep_factors: KeepFactors,
+    /// What the stored increments keep besides their states.
+    keep: Keep,
     /// Per element: the first increment (position) at which a Gauss point of it is plastic
     /// (`usize::MAX`: not yet).
     first_plastic: Vec<usize>,
@@ -237,7 +284,7 @@ impl Observer for Recorder<'_> {
             kinks: self.engine.kinks(c),
         });
         if user_increment_of(c) >= self.keep_from {
-            let s = Stored::new(c, self.keep_factors, &mut self.tangent_room);
+            let s = Stored::new(c, &self.keep, &mut self.tangent_room);
             self.stored.push(s);
         }
         self.seconds += t.elapsed().as_secs_f64();
@@ -246,11 +293,11 @@ impl Observer for Recorder<'_> {
     }
 }
 
-/// A recomputed span's states, Newton's last factorizations with them as `.1` says, their
-/// tangents while `.2` bytes hold them.
-struct Keeper(Vec<Stored>, KeepFactors, usize);
+/// A recomputed span's states, Newton's last factorizations and tangents with them as `.1`
+/// says, the tangents while `.2` bytes hold them.
+struct Keeper<'k>(Vec<Stored>, &'k Keep, usize);
 
-impl Observer for Keeper {
+impl Observer for Keeper<'_> {
     fn converged(&mut self, c: &Converged<'_>) -> Result<(), AnalysisError> {
         self.0.push(Stored::new(c, self.1, &mut self.2));
         Ok(())
@@ -269,8 +316,8 @@ struct Store<'m> {
     last: Vec<Stored>,
     /// Bytes of the resume points.
     resume_bytes: usize,
-    /// Which of Newton's last factorizations to keep.
-    keep_factors: KeepFactors,
+    /// What the recomputed increments keep besides their states.
+    keep: Keep,
 }
 
 impl Store<'_> {
@@ -295,7 +342,7 @@ impl Store<'_> {
             keep_states: false,
             time_limit: None,
         };
-        let mut keeper = Keeper(Vec::new(), self.keep_factors, TANGENT_ROOM);
+        let mut keeper = Keeper(Vec::new(), &self.keep, TANGENT_ROOM);
         self.solver
             .run_span(&span, &opts, &mut keeper, &mut Vec::new())?;
         cost.recompute_seconds += t.elapsed().as_secs_f64();
@@ -319,9 +366,9 @@ pub(super) fn run_adjoint(
     } else {
         ((users - 1) / every) * every
     };
-    let keep_factors = KeepFactors::of(settings);
+    let keep = Keep::of(settings, model);
     let mut rec = Recorder {
-        keep_factors,
+        keep: keep.clone(),
         engine: Engine::new(model, &[], settings.clone()),
         params,
         dh0: Vec::new(),
@@ -389,7 +436,7 @@ pub(super) fn run_adjoint(
         segments,
         last: stored,
         resume_bytes,
-        keep_factors,
+        keep,
     };
     let tangent = SweepTangent {
         choice: settings.tangent,
@@ -743,9 +790,10 @@ struct Transposed<'x> {
     k: &'x mut SparseMatrix,
     /// Where `k` is not made (`--tangent last` with the factorization kept, which reads no
     /// tangent: `k` is stale, or the stored tangent without its identity rows where a
-    /// reaction's product read it): the stored tangent and the prescribed unknowns, to make
-    /// it from should the kept factorization fail and the tangent be factored after all.
-    unmade: Option<(&'x [f64], &'x [bool])>,
+    /// reaction's product read it): the increment, to make it from (its stored tangent, or
+    /// assembled where it kept none) should the kept factorization fail and the tangent be
+    /// factored after all.
+    unmade: Option<&'x Stored>,
     factor: Option<&'x mut KeptFactor>,
     factored: bool,
 }
@@ -1025,34 +1073,23 @@ impl<'a> Sweep<'a> {
             // the columns alive at this increment: responses read here or later
             let cols: Vec<usize> = (0..ncol).filter(|&j| at(j) >= m).collect();
             let reads = cols.iter().any(|&j| at(j) == m);
-            // the converged state on the converged branches, where a response reads it or
-            // the forward run kept no tangent, and that tangent
-            let frozen = Frozen {
-                gauss: Some(&s.branches),
-                contact: &s.choice,
-                ..Frozen::default()
-            };
-            if reads || s.tangent.is_empty() {
-                let t = Instant::now();
-                self.asm.evaluate(
-                    model,
-                    &self.lifted,
-                    &s.z,
-                    &s.hist_prev,
-                    s.time,
-                    Some(&frozen),
-                    s.tangent.is_empty().then_some(&mut k),
-                    &mut ev,
-                )?;
-                cost.evaluation_seconds += t.elapsed().as_secs_f64();
-                cost.residual_evaluations += 1;
-            }
+            let reads_reaction = (cols.iter()).any(|&j| {
+                at(j) == m && matches!(model.responses[j % nr].kind, ResponseKind::Reaction { .. })
+            });
             // Newton's last factorization, kept, and no refinement: the transposed solve
             // reads no tangent, so it is made only for a product with a reaction's cotangent
-            // (or should the kept factorization fail)
+            // (or should the kept factorization fail: `Transposed::unmade`), from the stored
+            // one where the forward run kept it ([`Keep`])
             let lazy = self.tangent.choice == TangentChoice::Last
                 && factor.is_some()
-                && !s.tangent.is_empty();
+                && (!s.tangent.is_empty() || !reads_reaction);
+            let frozen = s.frozen();
+            // the converged state, where a response reads it or the tangent is read and the
+            // forward run kept none, and that tangent
+            let assemble = s.tangent.is_empty() && !lazy;
+            if reads || assemble {
+                self.assemble_at(s, assemble.then_some(&mut k), &mut ev, cost)?;
+            }
             let mut input = reads.then(|| DualInput::new(&self.asm, &s.z, &ev));
             let mut cots: Vec<Vec<f64>> = cols
                 .iter()
@@ -1069,6 +1106,10 @@ impl<'a> Sweep<'a> {
                 })
                 .collect();
             let product = (cots.iter()).any(|c| c[out.res()].iter().any(|v| *v != 0.0));
+            debug_assert!(
+                !product || reads_reaction,
+                "only a reaction's cotangent is on the residual's rows before the solve"
+            );
             if !s.tangent.is_empty() && (product || !lazy) {
                 k.values_mut().copy_from_slice(&s.tangent);
             }
@@ -1137,7 +1178,7 @@ impl<'a> Sweep<'a> {
             }
             let transposed = Transposed {
                 k: &mut k,
-                unmade: lazy.then_some((&s.tangent[..], &s.constrained[..])),
+                unmade: lazy.then_some(s),
                 factor: factor.as_mut(),
                 factored,
             };
@@ -1352,9 +1393,15 @@ impl<'a> Sweep<'a> {
             // no solve with the kept factor: factor anew
             rhs.copy_from_slice(&b);
         }
-        if let Some((tangent, constrained)) = t.unmade {
-            t.k.values_mut().copy_from_slice(tangent);
-            t.k.set_identity_rows_cols(constrained)?;
+        if let Some(s) = t.unmade {
+            if s.tangent.is_empty() {
+                let ne = self.model.mesh.n_elements();
+                let mut ev = Evaluation::<f64>::new(&self.asm, ne);
+                self.assemble_at(s, Some(&mut *t.k), &mut ev, cost)?;
+            } else {
+                t.k.values_mut().copy_from_slice(&s.tangent);
+            }
+            t.k.set_identity_rows_cols(&s.constrained)?;
         }
         let kd = &*t.k;
         if !t.factored {
@@ -1363,6 +1410,32 @@ impl<'a> Sweep<'a> {
         }
         // refined to the solution rounded to working precision, as DDM's solves are
         factored_refined(ls, kd, true, rhs, ncols, cost)?;
+        Ok(())
+    }
+
+    /// The stored increment `s` evaluated at its converged state on its converged branches
+    /// into `ev`, with its tangent into `k` if given.
+    fn assemble_at(
+        &self,
+        s: &Stored,
+        k: Option<&mut SparseMatrix>,
+        ev: &mut Evaluation<f64>,
+        cost: &mut SensitivityCost,
+    ) -> Result<(), AnalysisError> {
+        let t = Instant::now();
+        let frozen = s.frozen();
+        (self.asm).evaluate(
+            self.model,
+            &self.lifted,
+            &s.z,
+            &s.hist_prev,
+            s.time,
+            Some(&frozen),
+            k,
+            ev,
+        )?;
+        cost.evaluation_seconds += t.elapsed().as_secs_f64();
+        cost.residual_evaluations += 1;
         Ok(())
     }
 

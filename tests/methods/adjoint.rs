@@ -579,3 +579,85 @@ fn ddm_through_smoothed_normals_passes_a_taylor_test() {
         );
     }
 }
+
+/// With `--tangent last` the forward run keeps a converged tangent only where the sweep reads
+/// one: at the increments of the functionals, for a reaction response's product, and where
+/// no factorization was kept. Every other increment solves with its kept factorization alone
+/// (were that to fail, the sweep would assemble the tangent there). On the uniaxial J2 cube,
+/// whose `stress` is a reaction, the end's derivatives with one functional at the end are
+/// those of the sweep with every increment a functional, which keeps a tangent at every
+/// increment, to the round-off of their different column counts (both in reverse mode); the
+/// memory is less by whole tangents, each the assembler's pattern's values, at least one and
+/// at most all but the end's. Checkpointed, the same to round-off. The coarse leaf spring
+/// reads no reaction: every
+/// functional or one, it keeps the same bytes (no tangent where a factorization is kept).
+#[test]
+fn the_last_factor_sweep_keeps_a_tangent_only_where_it_reads_one() {
+    let tangent_bytes = |model: &Model| {
+        8 * fricsens::assembly::Assembler::new(model, &[])
+            .unwrap()
+            .pattern
+            .nnz()
+    };
+    for name in ["uniaxial-j2", "leaf-spring-coarse"] {
+        let scene = Scene::load(name).unwrap();
+        let model = scene.build().unwrap();
+        let names: Vec<&str> = scene.study.params.iter().map(String::as_str).collect();
+        let ps = params(&model, &names);
+        let end = *model.times.last().unwrap();
+        let run = |adjoint_at: Vec<f64>, every| {
+            let settings = Settings {
+                method: Method::Adjoint,
+                tangent: TangentChoice::Last,
+                adjoint_at,
+                adjoint_checkpoint: every,
+                adjoint_reverse: Some(true),
+                ..Settings::default()
+            };
+            run_sensitivity(&model, &ps, &settings).unwrap().1
+        };
+        let every = run(Vec::new(), 0);
+        let at_end = run(vec![end], 0);
+        let (a, b) = (every.increments.last().unwrap(), &at_end.increments[0]);
+        assert_eq!((at_end.increments.len(), a.increment), (1, b.increment));
+        for (r, resp) in every.responses.iter().enumerate() {
+            for (k, p) in ps.iter().enumerate() {
+                let Some(scale) = every.sensitive_scale(r, k, p.value) else {
+                    continue;
+                };
+                let d = (a.derivatives[r][k] - b.derivatives[r][k]).abs() / scale;
+                // the same recordings and sweeps, solved with more columns: round-off alone
+                assert!(d < 1e-12, "{name}: {resp} / {}: {d:.2e}", p.name);
+            }
+        }
+        let saved = every.cost.stored_bytes - at_end.cost.stored_bytes;
+        let stored = every.increments.len();
+        let tangent = tangent_bytes(&model);
+        if name == "uniaxial-j2" {
+            assert!(
+                saved % tangent == 0 && saved >= tangent && saved <= (stored - 1) * tangent,
+                "{name}: {saved} bytes fewer, tangents of {tangent} bytes, {stored} increments"
+            );
+        } else {
+            assert_eq!(saved, 0, "{name}: no reaction, no tangent read");
+        }
+        // checkpointed: the recomputed segments keep tangents by the same rule. Not bit for
+        // bit on the cube (nor before this rule): a resume point keeps no factorization, and
+        // Newton's last one at a recomputed segment's first increment is not always the
+        // forward run's, which moves the last bit of its history response
+        let cp = run(vec![end], 3);
+        for (r, resp) in every.responses.iter().enumerate() {
+            for (k, p) in ps.iter().enumerate() {
+                let Some(scale) = every.sensitive_scale(r, k, p.value) else {
+                    continue;
+                };
+                let d = (cp.increments[0].derivatives[r][k] - b.derivatives[r][k]).abs() / scale;
+                assert!(
+                    d < 1e-12,
+                    "{name}, checkpointed: {resp} / {}: {d:.2e}",
+                    p.name
+                );
+            }
+        }
+    }
+}
