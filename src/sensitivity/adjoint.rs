@@ -31,9 +31,8 @@
 //!   entries (5,400 with incompatible modes; 8,400 and 10,200 when its force went through
 //!   the tangent's B rows, which a recording no longer forms; under large kinematics 559
 //!   fewer, 1,063 with F-bar, where no response reads its stress: the Cauchy stress's sums
-//!   and `det F` left out), and a recording and one
-//!   sweep about sixteen times its `f64` residual, four times its residual and tangent
-//!   (`cargo bench --bench kernels`);
+//!   and `det F` left out), and a recording and one sweep about sixteen times its `f64`
+//!   residual, four times its residual and tangent (`cargo bench --bench kernels`);
 //! * **forward duals**: `DualSVec64<W>` numbers seeded over each element's local unknowns (its
 //!   degrees of freedom, then its history scalars) and each hitting node's (its block's
 //!   unknowns, then its history); the elements are coloured so that no two of a colour
@@ -44,10 +43,10 @@
 //! Reverse mode is the default while the columns alive at an increment are few
 //! ([`REVERSE_COLUMNS`]); many columns (`--at all` on a long path) share the forward passes.
 //! The residual's Jacobian in the unknowns is the tangent the forward run assembled at the
-//! converged state, kept with each stored increment where the sweep reads it ([`Keep`]). The derivatives in the design are one
-//! dual evaluation per parameter, as DDM's pseudo-load, over the elements the parameter
-//! reaches (a field's members seeded a colour at a time). A user material or friction law
-//! gets the adjoint with no code of its own.
+//! converged state, kept with each stored increment where the sweep reads it ([`Keep`]).
+//! The derivatives in the design are one dual evaluation per parameter, as DDM's
+//! pseudo-load, over the elements the parameter reaches (a field's members seeded a colour
+//! at a time). A user material or friction law gets the adjoint with no code of its own.
 //!
 //! At a flagged (non-differentiable) increment the sweep follows the converged branches, as
 //! DDM's main value does; the one-sided variants are DDM's (`--method ddm`).
