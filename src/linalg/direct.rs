@@ -713,6 +713,21 @@ impl LinearSolver {
 /// way back ([`LinearSolver::with_kept`]).
 pub struct KeptFactor(NumericFactor, usize);
 
+/// `f`, its symmetric-pattern LU factors shared ([`LinearSolver::keep`]), other kinds copied.
+fn shared(f: &NumericFactor) -> NumericFactor {
+    match f {
+        NumericFactor::SymLu(f) => NumericFactor::SymLu(Box::new(f.share_factors())),
+        f => f.clone(),
+    }
+}
+
+impl Clone for KeptFactor {
+    /// Another handle on the same factors (shared, as [`LinearSolver::keep`] shares them).
+    fn clone(&self) -> Self {
+        KeptFactor(shared(&self.0), self.1)
+    }
+}
+
 impl KeptFactor {
     /// Bytes of its factors, in full however many others share them (the adjoint keeps an
     /// earlier increment's factorization again for an increment converged without one: its
@@ -745,23 +760,34 @@ impl LinearSolver {
     pub fn keep(&self) -> Option<KeptFactor> {
         match &self.numeric {
             NumericFactor::None | NumericFactor::Lu(_) => None,
-            NumericFactor::SymLu(f) => Some(KeptFactor(
-                NumericFactor::SymLu(Box::new(f.share_factors())),
-                self.factored_n(),
-            )),
-            f => Some(KeptFactor(f.clone(), self.factored_n())),
+            f => Some(KeptFactor(shared(f), self.factored_n())),
         }
     }
 
-    /// Run `f` with `kept` in place of this solver's own factorization (this solver's
-    /// symbolic analysis; the pattern must be the one `kept` was factored on), and put both
-    /// back. Fails with [`LinalgError::NotFactored`] when the factor's kind is not this
-    /// solver's.
-    pub fn with_kept<R>(
-        &mut self,
-        kept: &mut KeptFactor,
-        f: impl FnOnce(&LinearSolver) -> Result<R>,
-    ) -> Result<R> {
+    /// Take `kept` (or no factorization, for `None`) as this solver's own last
+    /// factorization, shared as [`LinearSolver::keep`] shares it: a run resumed where
+    /// another kept it goes on with that run's factorization, and this solver's next one
+    /// writes into new memory. Fails as [`LinearSolver::with_kept`] does when `kept` is not
+    /// of this solver's kind or size, leaving this solver unfactored.
+    pub fn restore(&mut self, kept: Option<&KeptFactor>) -> Result<()> {
+        let Some(kept) = kept else {
+            self.numeric = NumericFactor::None;
+            return Ok(());
+        };
+        if let Err(e) = self.fits(kept) {
+            self.numeric = NumericFactor::None;
+            return Err(e);
+        }
+        match (&mut self.numeric, &kept.0) {
+            // the scratch of this solver's own factorization kept for its next
+            (NumericFactor::SymLu(own), NumericFactor::SymLu(f)) => own.adopt_factors(f),
+            (own, f) => *own = shared(f),
+        }
+        Ok(())
+    }
+
+    /// Whether `kept` is a factorization of this solver's kind and size.
+    fn fits(&self, kept: &KeptFactor) -> Result<()> {
         let fits = matches!(
             (&self.symbolic, &kept.0),
             (SymbolicFactor::SymLu(..), NumericFactor::SymLu(_))
@@ -775,7 +801,19 @@ impl LinearSolver {
         }
         // a factorization of the free unknowns' system fits only a solver that leaves out
         // the same unknowns
-        check_len(self.factored_n(), kept.1)?;
+        check_len(self.factored_n(), kept.1)
+    }
+
+    /// Run `f` with `kept` in place of this solver's own factorization (this solver's
+    /// symbolic analysis; the pattern must be the one `kept` was factored on), and put both
+    /// back. Fails with [`LinalgError::NotFactored`] when the factor's kind is not this
+    /// solver's.
+    pub fn with_kept<R>(
+        &mut self,
+        kept: &mut KeptFactor,
+        f: impl FnOnce(&LinearSolver) -> Result<R>,
+    ) -> Result<R> {
+        self.fits(kept)?;
         std::mem::swap(&mut self.numeric, &mut kept.0);
         let out = f(self);
         std::mem::swap(&mut self.numeric, &mut kept.0);

@@ -140,6 +140,11 @@ impl NumericSymLu {
             ..NumericSymLu::default()
         }
     }
+
+    /// Take `other`'s factors as its own, shared, keeping its scratch.
+    pub(crate) fn adopt_factors(&mut self, other: &NumericSymLu) {
+        self.lu = Arc::clone(&other.lu);
+    }
 }
 
 fn mat(values: &[f64], nrows: usize, ncols: usize, stride: usize) -> MatRef<'_, f64> {

@@ -336,6 +336,7 @@ impl Store<'_> {
             from: from.as_ref(),
             to: *to,
             keep_every: 0,
+            keep_factor: false,
         };
         let opts = RunOptions {
             keep_states: false,
@@ -384,6 +385,8 @@ pub(super) fn run_adjoint(
         from: None,
         to: users,
         keep_every: every,
+        // Newton's last factorization at a segment's first increment is the forward run's
+        keep_factor: keep.factors != KeepFactors::None,
     };
     // checkpointed, the primal's results keep no state per increment either
     let opts = RunOptions {

@@ -6,6 +6,7 @@ use crate::assembly::{AssemblyFailure, Evaluation};
 use crate::contact::eval::ContactEval;
 use crate::contact::ContactChoice;
 use crate::element::ElementFailure;
+use crate::linalg::KeptFactor;
 use crate::material::Branch;
 use crate::model::SolverSettings;
 use std::time::Instant;
@@ -21,6 +22,7 @@ impl Solver<'_> {
             from: None,
             to: self.model.times.len(),
             keep_every: 0,
+            keep_factor: false,
         };
         self.run_span(&span, opts, observer, &mut Vec::new())
     }
@@ -30,7 +32,8 @@ impl Solver<'_> {
     /// `span.keep_every`-th user increment (counted from the start of the load history). A
     /// run resumed from a point another run kept goes on exactly as that run did, bit for bit:
     /// the resume point holds everything the solver carries from one user increment into
-    /// the next. The results of a resumed run start at its resume point.
+    /// the next (Newton's last factorization too where `span.keep_factor`). The results of a
+    /// resumed run start at its resume point.
     pub fn run_span(
         &mut self,
         span: &Span<'_>,
@@ -41,20 +44,33 @@ impl Solver<'_> {
         let model = self.model;
         let (mut run, first) = match span.from {
             None => (self.begin(opts)?, 0),
-            Some(r) => (self.resume(r, opts), r.user),
+            Some(r) => (self.resume(r, opts)?, r.user),
         };
         let to = span.to.min(model.times.len());
         for (u, &t_end) in model.times.iter().enumerate().take(to).skip(first) {
             self.user_increment(&mut run, t_end, opts, observer)?;
+            // the last resume point's factorization, where the increment after it factored
+            // before it converged, is never read: a run resumed there makes the same one
+            if run.resume_factor_read == Some(false) {
+                if let Some(f) = resumes.last_mut().and_then(|r| r.factored.as_mut()) {
+                    f.factor = None;
+                }
+            }
+            run.resume_factor_read = None;
             if span.keep_every > 0 && (u + 1) % span.keep_every == 0 && u + 1 < to {
-                resumes.push(self.resume_point(&run, u + 1));
+                let resume = self.resume_point(&run, u + 1, span.keep_factor);
+                if resume.factored.as_ref().is_some_and(|f| f.factor.is_some()) {
+                    run.factors_at_resume = Some(self.linear.factor_count());
+                }
+                resumes.push(resume);
             }
         }
         Ok(run.finish(opts))
     }
 
-    /// What the solver carries into user increment `user` (0-based) from `run`.
-    fn resume_point(&self, run: &Run, user: usize) -> Resume {
+    /// What the solver carries into user increment `user` (0-based) from `run`, with
+    /// Newton's last factorization if `keep_factor`.
+    fn resume_point(&self, run: &Run, user: usize, keep_factor: bool) -> Resume {
         Resume {
             user,
             z: run.z.clone(),
@@ -65,24 +81,38 @@ impl Solver<'_> {
             suggested: run.suggested,
             converged_choice: self.converged_choice.clone(),
             force_history: self.force_history,
+            factored: keep_factor.then(|| Factored {
+                factor: self.linear.keep(),
+                choice: self.factored_choice.clone(),
+                branches: self.factored_branches.clone(),
+            }),
         }
     }
 
     /// A run set up to go on from resume point `r`.
-    fn resume(&mut self, r: &Resume, opts: &RunOptions) -> Run {
+    fn resume(&mut self, r: &Resume, opts: &RunOptions) -> Result<Run, AnalysisError> {
         let start = Instant::now();
         self.deadline = opts
             .time_limit
             .map(|s| start + std::time::Duration::from_secs_f64(s.max(0.0)));
         self.force_history = r.force_history;
         self.converged_choice.clone_from(&r.converged_choice);
-        self.factored_choice.clear();
-        self.factored_branches.clear();
+        match &r.factored {
+            Some(f) => {
+                self.linear.restore(f.factor.as_ref())?;
+                self.factored_choice.clone_from(&f.choice);
+                self.factored_branches.clone_from(&f.branches);
+            }
+            None => {
+                self.factored_choice.clear();
+                self.factored_branches.clear();
+            }
+        }
         let ne = self.model.mesh.n_elements();
         let mut res = Results::default();
         res.times.push(r.t_prev);
         res.contact_flat = self.assembler.contact.flat.clone();
-        Run {
+        Ok(Run {
             start,
             res,
             z: r.z.clone(),
@@ -92,7 +122,9 @@ impl Solver<'_> {
             previous: r.previous.clone(),
             index: r.index,
             suggested: r.suggested,
-        }
+            factors_at_resume: None,
+            resume_factor_read: None,
+        })
     }
 
     /// Set up a run: the deadline, the initial state and history, the start state's contact
@@ -145,6 +177,8 @@ impl Solver<'_> {
             previous: None,
             index: 0,
             suggested: f64::INFINITY,
+            factors_at_resume: None,
+            resume_factor_read: None,
         })
     }
 
@@ -402,6 +436,9 @@ impl Solver<'_> {
     ) -> Result<(), AnalysisError> {
         let t = trial.t;
         run.index += 1;
+        if let Some(n) = run.factors_at_resume.take() {
+            run.resume_factor_read = Some(self.linear.factor_count() == n);
+        }
         let conv = Converged {
             model: self.model,
             assembler: &self.assembler,
@@ -551,13 +588,19 @@ pub struct Span<'r> {
     pub to: usize,
     /// Keep a resume point after every `keep_every`-th user increment (0: none).
     pub keep_every: usize,
+    /// The resume points keep Newton's last factorization: an increment of the resumed run
+    /// that converges without factoring reports it as its last ([`Converged::last_factor`]),
+    /// as the run that kept the point did. One factorization per resume point, for the
+    /// adjoint's solves with Newton's factors (`--tangent last|refined`, GMRES).
+    pub keep_factor: bool,
 }
 
 /// Everything the solver carries from the end of one user increment into the next: the
 /// converged state and committed history, the predictor's previous state, the step the last
 /// sub-increment suggests, the contact states the next first iteration starts from and the
-/// mean reference force. A run resumed from it ([`Solver::run_span`]) is the run that kept
-/// it, bit for bit (the adjoint's checkpoints).
+/// mean reference force, and where asked ([`Span::keep_factor`]) Newton's last factorization.
+/// A run resumed from it ([`Solver::run_span`]) is the run that kept it, bit for bit (the
+/// adjoint's checkpoints).
 #[derive(Clone, Debug)]
 pub struct Resume {
     /// User increments done (the next one's index, 0-based).
@@ -570,6 +613,17 @@ pub struct Resume {
     suggested: f64,
     converged_choice: Vec<ContactChoice>,
     force_history: (f64, usize),
+    factored: Option<Factored>,
+}
+
+/// Newton's last factorization at a resume point and the contact choices and branches it
+/// was assembled on. No factorization where none was made yet, or where the increment after
+/// the point factored before it converged (no increment of a resumed run reads it then).
+#[derive(Clone, Debug)]
+struct Factored {
+    factor: Option<KeptFactor>,
+    choice: Vec<ContactChoice>,
+    branches: Vec<Branch>,
 }
 
 impl Resume {
@@ -578,11 +632,17 @@ impl Resume {
         self.index
     }
 
-    /// Bytes it keeps.
+    /// Bytes it keeps (a factorization in full, however many others share it).
     pub fn bytes(&self) -> usize {
         let prev = self.previous.as_ref().map_or(0, |p| p.0.len());
+        let factored = self.factored.as_ref().map_or(0, |f| {
+            f.factor.as_ref().map_or(0, KeptFactor::bytes)
+                + std::mem::size_of::<ContactChoice>() * f.choice.len()
+                + std::mem::size_of::<Branch>() * f.branches.len()
+        });
         8 * (self.z.len() + self.hist.len() + prev)
             + std::mem::size_of::<ContactChoice>() * self.converged_choice.len()
+            + factored
     }
 }
 
@@ -605,6 +665,12 @@ struct Run {
     /// The step the last converged increment suggests for the next (halved after a hard
     /// one, doubled after an easy one), carried into the next of the user's increments.
     suggested: f64,
+    /// Newton's successful factorizations when the run kept a resume point with a
+    /// factorization, until the increment after it converges.
+    factors_at_resume: Option<usize>,
+    /// Whether that increment reported the resume point's factorization as its last (none
+    /// made since), once it converged.
+    resume_factor_read: Option<bool>,
 }
 
 impl Run {
