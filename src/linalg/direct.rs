@@ -807,7 +807,8 @@ impl LinearSolver {
     /// Run `f` with `kept` in place of this solver's own factorization (this solver's
     /// symbolic analysis; the pattern must be the one `kept` was factored on), and put both
     /// back. Fails with [`LinalgError::NotFactored`] when the factor's kind is not this
-    /// solver's.
+    /// solver's, and with [`LinalgError::DimensionMismatch`] when it leaves out other
+    /// unknowns.
     pub fn with_kept<R>(
         &mut self,
         kept: &mut KeptFactor,

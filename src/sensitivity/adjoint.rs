@@ -308,8 +308,8 @@ impl Observer for Keeper<'_> {
 /// the sweep reaches them ([`Solver::run_span`]: bit for bit the forward run's states).
 struct Store<'m> {
     solver: Solver<'m>,
-    /// Per segment: its resume point (`None`: the start), the position of its first
-    /// increment, and the user increment it ends after.
+    /// Per segment: its resume point (`None`: the start; taken when the segment is
+    /// fetched), the position of its first increment, and the user increment it ends after.
     segments: Vec<(Option<Resume>, usize, usize)>,
     /// The last segment's states, from the forward run.
     last: Vec<Stored>,
@@ -330,11 +330,12 @@ impl Store<'_> {
         if k + 1 == self.segments.len() {
             return Ok(std::mem::take(&mut self.last));
         }
-        let (from, _, to) = &self.segments[k];
+        // each segment is fetched once: its resume point (and factorization) freed after
+        let (from, to) = (self.segments[k].0.take(), self.segments[k].2);
         let t = Instant::now();
         let span = Span {
             from: from.as_ref(),
-            to: *to,
+            to,
             keep_every: 0,
             keep_factor: false,
         };

@@ -50,13 +50,14 @@ impl Solver<'_> {
         for (u, &t_end) in model.times.iter().enumerate().take(to).skip(first) {
             self.user_increment(&mut run, t_end, opts, observer)?;
             // the last resume point's factorization, where the increment after it factored
-            // before it converged, is never read: a run resumed there makes the same one
-            if run.resume_factor_read == Some(false) {
+            // (or failed to) before it converged, is never read: a run resumed there does the
+            // same
+            if run.resume_factor_held == Some(false) {
                 if let Some(f) = resumes.last_mut().and_then(|r| r.factored.as_mut()) {
                     f.factor = None;
                 }
             }
-            run.resume_factor_read = None;
+            run.resume_factor_held = None;
             if span.keep_every > 0 && (u + 1) % span.keep_every == 0 && u + 1 < to {
                 let resume = self.resume_point(&run, u + 1, span.keep_factor);
                 if resume.factored.as_ref().is_some_and(|f| f.factor.is_some()) {
@@ -103,7 +104,9 @@ impl Solver<'_> {
                 self.factored_choice.clone_from(&f.choice);
                 self.factored_branches.clone_from(&f.branches);
             }
+            // no factorization at hand, rather than one of another segment
             None => {
+                self.linear.restore(None)?;
                 self.factored_choice.clear();
                 self.factored_branches.clear();
             }
@@ -123,7 +126,7 @@ impl Solver<'_> {
             index: r.index,
             suggested: r.suggested,
             factors_at_resume: None,
-            resume_factor_read: None,
+            resume_factor_held: None,
         })
     }
 
@@ -178,7 +181,7 @@ impl Solver<'_> {
             index: 0,
             suggested: f64::INFINITY,
             factors_at_resume: None,
-            resume_factor_read: None,
+            resume_factor_held: None,
         })
     }
 
@@ -437,7 +440,8 @@ impl Solver<'_> {
         let t = trial.t;
         run.index += 1;
         if let Some(n) = run.factors_at_resume.take() {
-            run.resume_factor_read = Some(self.linear.factor_count() == n);
+            run.resume_factor_held =
+                Some(self.linear.factor_count() == n && self.linear.is_factored());
         }
         let conv = Converged {
             model: self.model,
@@ -590,8 +594,9 @@ pub struct Span<'r> {
     pub keep_every: usize,
     /// The resume points keep Newton's last factorization: an increment of the resumed run
     /// that converges without factoring reports it as its last ([`Converged::last_factor`]),
-    /// as the run that kept the point did. One factorization per resume point, for the
-    /// adjoint's solves with Newton's factors (`--tangent last|refined`, GMRES).
+    /// as the run that kept the point did. At most one factorization per resume point, for
+    /// the adjoint's solves with Newton's factors (`--tangent last|refined`, GMRES). Without
+    /// it a resumed run reports no factorization until it makes one.
     pub keep_factor: bool,
 }
 
@@ -600,7 +605,8 @@ pub struct Span<'r> {
 /// sub-increment suggests, the contact states the next first iteration starts from and the
 /// mean reference force, and where asked ([`Span::keep_factor`]) Newton's last factorization.
 /// A run resumed from it ([`Solver::run_span`]) is the run that kept it, bit for bit (the
-/// adjoint's checkpoints).
+/// adjoint's checkpoints): its states, and the factorization each increment reports where the
+/// point kept it.
 #[derive(Clone, Debug)]
 pub struct Resume {
     /// User increments done (the next one's index, 0-based).
@@ -668,9 +674,9 @@ struct Run {
     /// Newton's successful factorizations when the run kept a resume point with a
     /// factorization, until the increment after it converges.
     factors_at_resume: Option<usize>,
-    /// Whether that increment reported the resume point's factorization as its last (none
-    /// made since), once it converged.
-    resume_factor_read: Option<bool>,
+    /// Whether the solver still held the resume point's factorization (none made since,
+    /// none failed) when that increment converged: else no later increment reads it.
+    resume_factor_held: Option<bool>,
 }
 
 impl Run {

@@ -312,7 +312,9 @@ fn checkpointed_adjoint_is_the_stored_one_bit_for_bit() {
         for every in [1, 3] {
             let cp = run(every);
             assert!(cp.cost.checkpoints > 0);
+            assert_eq!(cp.increments.len(), all.increments.len());
             for (a, c) in all.increments.iter().zip(&cp.increments) {
+                assert_eq!((a.increment, &a.values), (c.increment, &c.values));
                 assert_eq!(
                     a.derivatives, c.derivatives,
                     "uniaxial-j2, {tangent:?}, GMRES {adjoint_krylov}, every {every}, increment {}",
@@ -678,7 +680,7 @@ fn the_last_factor_sweep_keeps_a_tangent_only_where_it_reads_one() {
         } else {
             assert_eq!(saved, 0, "{name}: no reaction, no tangent read");
         }
-        // checkpointed: the recomputed segments keep tangents by the same rule
+        // checkpointed, the one functional's derivatives are the same
         let cp = run(vec![end], 3);
         assert_eq!(
             cp.increments[0].derivatives, b.derivatives,
