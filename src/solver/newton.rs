@@ -146,6 +146,10 @@ impl Solver<'_> {
                 }
             })
             .collect();
+        // the states this factorization is assembled on ([`Converged::factor_matches`]): an
+        // increment that converges without a Newton step reports it as its last
+        self.factored_choice.clone_from(&eval.contact.choice);
+        self.factored_branches.clone_from(&eval.branches);
         if self.factor_and_solve(&mut dz, cost).is_err() {
             return Ok(None);
         }
