@@ -211,6 +211,11 @@ pub trait MaterialLaw: Law {
         true
     }
     /// Number of history scalars per Gauss point (0 for elastic laws: they pay for none).
+    /// Every history scalar starts at zero, the virgin state: the solver sets no other
+    /// initial value (a law measures its history from that state, as J2's plastic strain
+    /// and equivalent plastic strain are), and a scalar moved from zero means the point's
+    /// path has changed its state (the active-set predictor holds contact nodes against
+    /// such a body).
     fn history_len(&self) -> usize {
         0
     }

@@ -16,8 +16,24 @@ pub(super) struct ActiveSetPredictor {
     pub(super) choice: Vec<ContactChoice>,
     /// First flat hitting-node index of each pair, and the end.
     pub(super) pair_start: Vec<usize>,
-    /// Per flat hitting node: the elements around it that have history.
-    around: Vec<Vec<usize>>,
+}
+
+/// Per flat hitting node, the elements at it that carry history (a path-dependent
+/// material): where [`ActiveSetPredictor::next`] looks for a yielded body. Built once per
+/// run ([`Solver::new`]).
+pub(super) fn history_elements_at_hitting_nodes(model: &Model, asm: &Assembler) -> Vec<Vec<usize>> {
+    let mesh = &model.mesh;
+    let mut with_history: Vec<Vec<usize>> = vec![Vec::new(); mesh.n_nodes()];
+    for e in 0..mesh.n_elements() {
+        if !asm.dofs.history(e).is_empty() {
+            for &n in mesh.element_nodes(e) {
+                with_history[n].push(e);
+            }
+        }
+    }
+    (model.contacts.iter())
+        .flat_map(|pair| pair.hitting.iter().map(|&n| with_history[n].clone()))
+        .collect()
 }
 
 /// A first step the active-set predictor solved with: how many states its prediction
@@ -32,27 +48,14 @@ pub(super) struct SettledStep {
 }
 
 impl ActiveSetPredictor {
-    pub(super) fn new(model: &Model, asm: &Assembler) -> Self {
+    pub(super) fn new(asm: &Assembler) -> Self {
         let mut pair_start = asm.contact.flat.clone();
         pair_start.push(asm.contact.n_hitting);
-        let mesh = &model.mesh;
-        let mut with_history: Vec<Vec<usize>> = vec![Vec::new(); mesh.n_nodes()];
-        for e in 0..mesh.n_elements() {
-            if !asm.dofs.history(e).is_empty() {
-                for &n in mesh.element_nodes(e) {
-                    with_history[n].push(e);
-                }
-            }
-        }
-        let around = (model.contacts.iter())
-            .flat_map(|pair| pair.hitting.iter().map(|&n| with_history[n].clone()))
-            .collect();
         ActiveSetPredictor {
             z: vec![0.0; asm.dofs.n_total],
             trial: Evaluation::new(asm, 0),
             choice: Vec::new(),
             pair_start,
-            around,
         }
     }
 
@@ -63,9 +66,11 @@ impl ActiveSetPredictor {
     /// state changes (releases and closings predicted, taken or not).
     ///
     /// Releases come first: when any closed node's multiplier would turn negative, all such
-    /// nodes open and no node closes; but not a node the last converged state holds where
-    /// the body around it has yielded (a history scalar of an element at the node moved from
-    /// its initial zero, where J2's starts). The fuzzer's seed 342, a J2 block under a rigid
+    /// nodes open and no node closes; but not a node the last converged state (`keep_faces`)
+    /// holds where the body around it has yielded: a history scalar of an element at the
+    /// node (`around`, [`history_elements_at_hitting_nodes`]) moved from zero, where every
+    /// law's history starts ([`crate::material::MaterialLaw::history_len`]). The fuzzer's
+    /// seed 342, a J2 block under a rigid
     /// cylinder that touches two nodes, released both at every sub-increment's first step:
     /// the block unloaded elastically, and Newton took five iterations to come back to the
     /// converged states (1,106 iterations over its path; 926 with the held nodes kept).
@@ -82,7 +87,7 @@ impl ActiveSetPredictor {
         lifted: &Lifted<f64>,
         (hist, t): (&[f64], f64),
         current: &Evaluation<f64>,
-        keep_faces: &[ContactChoice],
+        (keep_faces, around): (&[ContactChoice], &[Vec<usize>]),
     ) -> Option<(String, usize)> {
         let trial = &mut self.trial;
         trial.residual.iter_mut().for_each(|r| *r = 0.0);
@@ -111,7 +116,6 @@ impl ActiveSetPredictor {
         let then = &trial.contact.choice;
         // a node the last converged state holds, on a body that has yielded around it (a
         // history scalar moved from its initial zero), is not released by the prediction
-        let around = &self.around;
         let held = |i: usize| {
             keep_faces.get(i).is_some_and(|c| !open(c))
                 && (around.get(i).into_iter().flatten())
@@ -237,7 +241,7 @@ impl Solver<'_> {
                 &self.lifted,
                 (hist, t),
                 eval,
-                &self.converged_choice,
+                (&self.converged_choice, &self.history_at_hitting),
             ) else {
                 break;
             };

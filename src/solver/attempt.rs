@@ -585,7 +585,7 @@ impl Solver<'_> {
         if st.k == 0 && st.line_search {
             let predictor = st
                 .predictor
-                .get_or_insert_with(|| ActiveSetPredictor::new(self.model, &self.assembler));
+                .get_or_insert_with(|| ActiveSetPredictor::new(&self.assembler));
             st.settle_solves =
                 self.settle_active_set((z, hist, t), &mut dz, eval, predictor, cost)?;
             record.active_set_solves += st.settle_solves;

@@ -55,6 +55,9 @@ pub struct Solver<'m> {
     /// local Newton before each evaluation: once one of its attempts has failed
     /// ([`super::limits::MODE_RELAXATION_STEPS`]).
     pub(super) relaxing_modes: bool,
+    /// Per flat hitting node, the elements at it that carry history: the active-set
+    /// predictor's test for a yielded body ([`super::active_set::ActiveSetPredictor::next`]).
+    pub(super) history_at_hitting: Vec<Vec<usize>>,
 }
 
 impl<'m> Solver<'m> {
@@ -96,6 +99,8 @@ impl<'m> Solver<'m> {
         let relaxed_elements = (modes_elements.iter().copied())
             .filter(|&e| !assembler.dofs.history(e).is_empty())
             .collect();
+        let history_at_hitting =
+            super::active_set::history_elements_at_hitting_nodes(model, &assembler);
         Ok(Solver {
             model,
             assembler,
@@ -118,6 +123,7 @@ impl<'m> Solver<'m> {
             modes_elements,
             relaxed_elements,
             relaxing_modes: false,
+            history_at_hitting,
         })
     }
 
