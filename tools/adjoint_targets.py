@@ -1,0 +1,95 @@
+#!/usr/bin/env python3
+"""Issue 28's cost targets for one response, measured in rounds taken in turns.
+
+Each round runs, one after the other with the same binary: the adjoint with every parameter
+of the scene's study, then DDM with each of those parameters alone, then DDM with all of them,
+every run with the same response and tangent. Each run's own ledger gives its primal and its
+sensitivity time (`cost: primal X s; sensitivity Y s`), so every ratio below is of two runs of
+one round, taken minutes apart at most; the machine's load moves them by tens of per cent from
+round to round, so the medians and quartiles over the rounds are what to read.
+
+Printed per round and as medians (quartiles):
+  adjoint / primal                the adjoint's sweep over the primal of its own run
+  adjoint / DDM(P)                against a DDM run with parameter P alone ("one DDM parameter")
+  adjoint / (DDM(all) / n)        against DDM's mean cost per parameter when it batches all n
+  adjoint / (DDM(all) - DDM(P))   against what the other parameters add to P's DDM run: with
+                                  two, the marginal cost of the other in a batch (the strictest)
+
+usage: tools/adjoint_targets.py [--bin target/release/fricsens] [--scene leaf-spring]
+           [--tangent last] [--response block-force] [--rounds 20]
+"""
+import argparse
+import re
+import statistics
+import subprocess
+import tempfile
+
+COST = re.compile(r"cost: primal ([0-9.eE+-]+) s; sensitivity ([0-9.eE+-]+) s")
+
+
+def run(binary, scene, out, args):
+    """One `fricsens sensitivity` run: (primal seconds, sensitivity seconds, parameters)."""
+    p = subprocess.run(
+        [binary, "sensitivity", scene, "--out", out, *args],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    text = p.stdout + p.stderr
+    m = COST.search(text)
+    if not m:
+        raise SystemExit(f"no cost line in the output of {' '.join(args)}:\n{text}")
+    params = re.search(r"parameters \[([^\]]*)\]", text)
+    names = re.findall(r'"([^"]+)"', params.group(1)) if params else []
+    return float(m.group(1)), float(m.group(2)), names
+
+
+def quartiles(v):
+    v = sorted(v)
+    n = len(v)
+    return statistics.median(v), v[n // 4], v[(3 * n) // 4]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--bin", default="target/release/fricsens")
+    ap.add_argument("--scene", default="leaf-spring")
+    ap.add_argument("--tangent", default="last")
+    ap.add_argument("--response", default="block-force")
+    ap.add_argument("--rounds", type=int, default=20)
+    a = ap.parse_args()
+    common = ["--tangent", a.tangent, "--response", a.response]
+    with tempfile.TemporaryDirectory() as out:
+        _, _, params = run(a.bin, a.scene, out, ["--method", "adjoint", *common])
+        if not params:
+            raise SystemExit("the adjoint's output names no parameters")
+        rows = []
+        for r in range(a.rounds):
+            primal, adj, _ = run(a.bin, a.scene, out, ["--method", "adjoint", *common])
+            one = {
+                p: run(a.bin, a.scene, out, ["--method", "ddm", "--param", p, *common])[1]
+                for p in params
+            }
+            batch = run(a.bin, a.scene, out, ["--method", "ddm", *common])[1]
+            row = {"adjoint / primal": adj / primal}
+            for p in params:
+                row[f"adjoint / DDM({p})"] = adj / one[p]
+            row[f"adjoint / (DDM(all) / {len(params)})"] = adj / (batch / len(params))
+            for p in params:
+                row[f"adjoint / (DDM(all) - DDM({p}))"] = adj / max(batch - one[p], 1e-12)
+            rows.append(row)
+            cells = " ".join(f"{v:.3f}" for v in row.values())
+            print(f"round {r + 1}: adjoint {adj:.3f} s, primal {primal:.3f} s, "
+                  f"DDM {' '.join(f'{p} {t:.3f} s' for p, t in one.items())}, "
+                  f"all {batch:.3f} s; ratios {cells}", flush=True)
+    print(f"\n{a.scene}, --tangent {a.tangent}, --response {a.response}, "
+          f"{a.rounds} rounds, parameters {params}:")
+    for k in rows[0]:
+        med, q1, q3 = quartiles([row[k] for row in rows])
+        under = sum(row[k] <= 1.5 for row in rows) if k != "adjoint / primal" else None
+        tail = f", {under} of {len(rows)} rounds <= 1.5" if under is not None else ""
+        print(f"  {k:42s} median {med:.3f} (quartiles {q1:.3f}, {q3:.3f}){tail}")
+
+
+if __name__ == "__main__":
+    main()
