@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
-"""Issue 28's cost targets for one response, measured in rounds taken in turns.
+"""The adjoint's cost targets for one response (the project's issue 28: at most 10 % of the
+primal and 1.5 times one DDM parameter), measured in rounds taken in turns.
 
-Each round runs, one after the other with the same binary: the adjoint with every parameter
+A first adjoint run, not timed, reads the study's parameter names. Each round then runs,
+one after the other with the same binary: the adjoint with every parameter
 of the scene's study, then DDM with each of those parameters alone, then DDM with all of them,
 every run with the same response and tangent. Each run's own ledger gives its primal and its
 sensitivity time (`cost: primal X s; sensitivity Y s`), so every ratio below is of two runs of
@@ -39,15 +41,15 @@ def run(binary, scene, out, args):
     m = COST.search(text)
     if not m:
         raise SystemExit(f"no cost line in the output of {' '.join(args)}:\n{text}")
-    params = re.search(r"parameters \[([^\]]*)\]", text)
+    # the names are quoted, and a field parameter's has brackets of its own (`upper.E[3]`)
+    params = re.search(r'parameters \[((?:"[^"]*"(?:, )?)*)\]', text)
     names = re.findall(r'"([^"]+)"', params.group(1)) if params else []
     return float(m.group(1)), float(m.group(2)), names
 
 
 def quartiles(v):
-    v = sorted(v)
-    n = len(v)
-    return statistics.median(v), v[n // 4], v[(3 * n) // 4]
+    q1, med, q3 = statistics.quantiles(v, n=4, method="inclusive")
+    return med, q1, q3
 
 
 def main():

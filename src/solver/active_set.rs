@@ -70,12 +70,12 @@ impl ActiveSetPredictor {
     /// holds where the body around it has yielded: a history scalar of an element at the
     /// node (`around`, [`history_elements_at_hitting_nodes`]) moved from zero, where every
     /// law's history starts ([`crate::material::MaterialLaw::history_len`]). The fuzzer's
-    /// seed 342, a J2 block under a rigid
-    /// cylinder that touches two nodes, released both at every sub-increment's first step:
-    /// the block unloaded elastically, and Newton took five iterations to come back to the
-    /// converged states (1,106 iterations over its path; 926 with the held nodes kept).
-    /// Otherwise, of the nodes the step would close, those whose penetration is at least
-    /// [`ACTIVE_SET_ADD_FRACTION`] of their pair's deepest close. Taking every predicted change at once cycles on nearly conforming surfaces:
+    /// seed 342, a J2 block under a rigid cylinder that touches two nodes, released both at
+    /// every sub-increment's first step: the block unloaded elastically, and Newton took
+    /// five iterations to come back to the converged states (1,106 iterations over its path;
+    /// 926 with the held nodes kept). Otherwise, of the nodes the step would close, those
+    /// whose penetration is at least [`ACTIVE_SET_ADD_FRACTION`] of their pair's deepest
+    /// close. Taking every predicted change at once cycles on nearly conforming surfaces:
     /// the leaves' whole interface closes, the glued leaves' multipliers alternate in sign,
     /// the released nodes penetrate again (the leaf spring's first step did not settle in
     /// 8 solves; on the mesh refined 3 times, 50 factorizations for the first increment
