@@ -99,6 +99,12 @@ enum Command {
         /// 2.6 times the memory; it pays where a factorization costs many solves.
         #[arg(long)]
         adjoint_krylov: bool,
+        /// DDM and the adjoint: leave out each side's derivative at the flagged
+        /// (non-differentiable) increments, the flagged points forced onto it (`one_sided` in
+        /// sensitivity.json): DDM two more solves per flagged increment, the adjoint two more
+        /// columns per response read there.
+        #[arg(long)]
+        no_one_sided: bool,
         /// SDM and SDM central: split SDM's error against DDM at every increment into the
         /// terms of the residual (elastic and plastic elements, springs, contact normal,
         /// friction, loads; each into truncation and round-off from the same term at 10
@@ -367,6 +373,7 @@ struct InlineArgs {
     tangent: TangentArg,
     krylov: bool,
     adjoint_krylov: bool,
+    one_sided: bool,
     explain: bool,
     rigid_modes: bool,
     vtk: bool,
@@ -504,6 +511,7 @@ fn sensitivity(
         tangent,
         krylov,
         adjoint_krylov,
+        one_sided,
         explain,
         rigid_modes,
         vtk,
@@ -576,6 +584,7 @@ fn sensitivity(
         probe_floor: true,
         krylov,
         adjoint_krylov,
+        one_sided,
         explain,
         beta_auto,
         // the adjoint's --vtk draws the field parameters' derivatives alone
@@ -587,6 +596,12 @@ fn sensitivity(
     if rigid_modes && !matches!(settings.method, Method::Sdm | Method::SdmCentral) {
         return Err(format!(
             "--rigid-modes refines SDM's difference: use it with --method sdm or sdm-central, not {}",
+            settings.method.name()
+        ));
+    }
+    if !one_sided && !matches!(settings.method, Method::Ddm | Method::Adjoint) {
+        return Err(format!(
+            "--no-one-sided leaves out DDM's and the adjoint's one-sided derivatives; {} gives none",
             settings.method.name()
         ));
     }
@@ -739,13 +754,19 @@ fn sensitivity(
         .iter()
         .filter(|i| !i.kinks.is_empty())
         .count();
+    let sided = sens.increments.iter().any(|i| i.one_sided.is_some());
     out!(
-        "{}: {} increments, method {}, parameters {:?}; {} increments flagged non-differentiable",
+        "{}: {} increments, method {}, parameters {:?}; {} increments flagged non-differentiable{}",
         scene.name,
         sens.increments.len(),
         settings.method.name(),
         sens.parameters,
-        flagged
+        flagged,
+        if sided {
+            " (each side's derivatives there: one_sided in sensitivity.json)"
+        } else {
+            ""
+        }
     );
     let c = &sens.cost;
     out!(
@@ -1647,6 +1668,7 @@ fn main() -> ExitCode {
             tangent,
             no_krylov,
             adjoint_krylov,
+            no_one_sided,
             explain,
             rigid_modes,
             vtk,
@@ -1664,6 +1686,7 @@ fn main() -> ExitCode {
                 tangent,
                 krylov: !no_krylov,
                 adjoint_krylov,
+                one_sided: !no_one_sided,
                 explain,
                 rigid_modes,
                 vtk,

@@ -49,7 +49,15 @@
 //! at a time). A user material or friction law gets the adjoint with no code of its own.
 //!
 //! At a flagged (non-differentiable) increment the sweep follows the converged branches, as
-//! DDM's main value does; the one-sided variants are DDM's (`--method ddm`).
+//! DDM's main value does. The one-sided derivatives there ([`OneSided`]) are columns of their
+//! own, two per response: at the flagged increment the stored state with every flagged point
+//! forced onto one side ([`force_side`], DDM's forcing), its tangent assembled and factored
+//! (GMRES preconditioned with the factorization at hand, DDM's way, took 26 and 27 steps on
+//! the two sides of the leaf spring's last increment, three times a factorization's 5 ms)
+//! and its local derivatives taken on those branches; before it, the converged branches, as
+//! DDM carries the converged branches' history derivative into its forced solves. A side the
+//! converged state is on, solved with its tangent, is the converged column itself (DDM's
+//! rule, which saves its factorization).
 
 use super::*;
 use crate::assembly::{Assembler, Evaluation, Frozen};
@@ -87,7 +95,8 @@ type Ad = DualSVec64<W>;
 /// each saved (0.13 s of a 0.45 s sweep for one response, with the exact tangent).
 const TANGENT_ROOM: usize = 1 << 30;
 
-/// One converged increment, as the backward sweep needs it.
+/// One converged increment, as the backward sweep needs it: on its converged branches, or on
+/// a one-sided column's forced ones ([`Stored::forced`]).
 struct Stored {
     index: usize,
     time: f64,
@@ -200,12 +209,29 @@ impl Stored {
         }
     }
 
-    /// The increment's converged branches and contact choices.
+    /// The increment's branches and contact choices (converged, or forced).
     fn frozen(&self) -> Frozen<'_> {
         Frozen {
             gauss: Some(&self.branches),
             contact: &self.choice,
             ..Frozen::default()
+        }
+    }
+
+    /// The increment on the branches `branches` and contact choices `choice` (a one-sided
+    /// column's, [`force_side`]): no tangent and no factorization of the converged
+    /// branches', so the sweep assembles and factors the tangent on those.
+    fn forced(&self, branches: Vec<Branch>, choice: Vec<ContactChoice>) -> Self {
+        Stored {
+            index: self.index,
+            time: self.time,
+            z: self.z.clone(),
+            hist_prev: self.hist_prev.clone(),
+            branches,
+            choice,
+            constrained: self.constrained.clone(),
+            tangent: Vec::new(),
+            factor: None,
         }
     }
 
@@ -454,21 +480,48 @@ pub(super) fn run_adjoint(
         tangent,
         settings.adjoint_reverse,
     );
+    // every response at every selected increment, then at the flagged ones the one-sided
+    // columns, the lower side's and the upper's
+    let nr = model.responses.len();
+    let columns: Vec<Column> = (sel.iter())
+        .flat_map(|&at| (0..nr).map(move |response| (at, response, None)))
+        .chain(
+            (sel.iter()
+                .filter(|&&m| settings.one_sided && !lights[m].kinks.is_empty()))
+            .flat_map(|&at| {
+                [false, true]
+                    .into_iter()
+                    .flat_map(move |upper| (0..nr).map(move |r| (at, r, Some(upper))))
+            }),
+        )
+        .map(|(at, response, side)| Column { at, response, side })
+        .collect();
     let mut cost = SensitivityCost::default();
-    let dfdb = sweep.run(&sel, &dh0, &mut cost, &mut store, |m| lights[m].time)?;
+    let kinks = |m: usize| lights[m].kinks.as_slice();
+    let times = |m: usize| lights[m].time;
+    let dfdb = sweep.run(&columns, kinks, &dh0, &mut cost, &mut store, times)?;
     out.cost = cost;
     out.cost.wall_seconds = seconds + t.elapsed().as_secs_f64();
     out.cost.stored_bytes = out.cost.stored_bytes.max(last_bytes) + store.resume_bytes;
     out.cost.checkpoints = store.segments.len() - 1;
-    let nr = model.responses.len();
-    for (q, &m) in sel.iter().enumerate() {
+    let of = |at: usize, side: Option<bool>| -> Vec<Vec<f64>> {
+        (columns.iter().zip(&dfdb))
+            .filter(|(c, _)| c.at == at && c.side == side)
+            .map(|(_, d)| d.clone())
+            .collect()
+    };
+    for &m in &sel {
         let s = &lights[m];
         out.increments.push(IncrementSensitivity {
             increment: s.index,
             time: s.time,
             values: s.values.clone(),
-            derivatives: (0..nr).map(|r| dfdb[q * nr + r].clone()).collect(),
+            derivatives: of(m, None),
             kinks: s.kinks.clone(),
+            one_sided: (settings.one_sided && !s.kinks.is_empty()).then(|| OneSided {
+                lower: of(m, Some(false)),
+                upper: of(m, Some(true)),
+            }),
             ..Default::default()
         });
     }
@@ -883,6 +936,38 @@ const CONTACT: Terms = Terms {
 /// its own index among the parameters.
 type FieldParam = (usize, usize, usize);
 
+/// One column of the sweep: response `response` read at stored increment `at`, on the
+/// converged branches there, or with the increment's flagged points forced onto one side
+/// (`side`: `Some(upper)`, [`force_side`]) for its one-sided derivative. Before `at` every
+/// column follows the converged branches.
+#[derive(Clone, Copy, Debug)]
+struct Column {
+    at: usize,
+    response: usize,
+    side: Option<bool>,
+}
+
+/// The sweep's work space, kept from one increment to the next: the tangent, the
+/// evaluations in each scalar, the solver of the transposed systems (on the forward run's
+/// symbolic analysis), and the longest tape of a task recording solids and the hitting
+/// nodes' tape at the last increment swept, the room made at once for the next
+/// ([`Sweep::record`]).
+struct Work {
+    k: SparseMatrix,
+    ev: Evaluation<f64>,
+    ev_ad: Evaluation<Ad>,
+    ev_d: Evaluation<Dual64>,
+    ev_rev: Evaluation<Rev>,
+    solver: LinearSolver,
+    tape_room: (usize, usize),
+}
+
+/// What the sweep carries per column: the history multipliers, and `df/db` so far.
+struct Multipliers<'v> {
+    mu: &'v mut [Vec<f64>],
+    dfdb: &'v mut [Vec<f64>],
+}
+
 /// The backward sweep's fixed data.
 struct Sweep<'a> {
     model: &'a Model,
@@ -1009,45 +1094,44 @@ impl<'a> Sweep<'a> {
         }
     }
 
-    /// `df/db` of every response at the stored increments `sel` (sorted):
-    /// `[q * n_responses + r][k]` for increment `sel[q]`. `dh0` is the initial history's
+    /// `df/db` of every column ([`Column`]), in their order. `kinks(m)`: the flagged points of
+    /// stored increment `m`, which a one-sided column forces. `dh0` is the initial history's
     /// derivative per parameter (`None` or absent: zero). The stored increments come from
     /// `store`, a segment at a time from the last.
-    fn run(
+    fn run<'k>(
         &self,
-        sel: &[usize],
+        columns: &[Column],
+        kinks: impl Fn(usize) -> &'k [Kink],
         dh0: &[Option<Vec<f64>>],
         cost: &mut SensitivityCost,
         store: &mut Store<'_>,
         lights_time: impl Fn(usize) -> f64,
     ) -> Result<Vec<Vec<f64>>, AnalysisError> {
         let model = self.model;
-        let out = &self.outputs;
-        let nr = model.responses.len();
-        let ns = sel.last().map_or(0, |m| m + 1);
+        let ns = columns.iter().map(|c| c.at + 1).max().unwrap_or(0);
         let np = self.params.len();
-        let n = self.asm.dofs.n_total;
         let nh = self.asm.dofs.n_history;
-        let ncol = nr * sel.len();
-        // the stored increment of column j
-        let at = |j: usize| sel[j / nr];
+        let ncol = columns.len();
         let mut dfdb = vec![vec![0.0; np]; ncol];
+        // a one-sided column whose side is the converged state's, solved with its tangent:
+        // the column on the converged branches, which it is a copy of
+        let mut copy_of: Vec<Option<usize>> = vec![None; ncol];
         // the recordings' memory, kept from one increment to the next, freed however the
         // sweep ends
         let _kept = tape::FreeKept;
         // mu per column (history multipliers carried back)
         let mut mu = vec![vec![0.0; nh]; ncol];
-        let mut k = SparseMatrix::new(self.asm.pattern.clone());
         let ne = model.mesh.n_elements();
-        let mut ev = Evaluation::<f64>::new(&self.asm, ne);
-        let mut ev_ad = Evaluation::<Ad>::new(&self.asm, ne);
-        let mut ev_d = Evaluation::<Dual64>::new(&self.asm, ne);
-        let mut ev_rev = Evaluation::<Rev>::new(&self.asm, ne);
-        // on the forward run's symbolic analysis
-        let mut solver = store.solver.linear_sibling();
-        // the longest tape of a task recording solids, and the hitting nodes' tape, at the
-        // last increment swept: room made at once for the next ([`Sweep::record`])
-        let mut tape_room = (0, 0);
+        let mut work = Work {
+            k: SparseMatrix::new(self.asm.pattern.clone()),
+            ev: Evaluation::new(&self.asm, ne),
+            ev_ad: Evaluation::new(&self.asm, ne),
+            ev_d: Evaluation::new(&self.asm, ne),
+            ev_rev: Evaluation::new(&self.asm, ne),
+            // on the forward run's symbolic analysis
+            solver: store.solver.linear_sibling(),
+            tape_room: (0, 0),
+        };
         let mut segment: Vec<Stored> = Vec::new();
         let mut seg_first = usize::MAX;
         let mut seg = store.segments.len();
@@ -1073,171 +1157,52 @@ impl<'a> Sweep<'a> {
             }
             let mut factor = segment[m - seg_first].factor.take();
             let s = &segment[m - seg_first];
-            // the columns alive at this increment: responses read here or later
-            let cols: Vec<usize> = (0..ncol).filter(|&j| at(j) >= m).collect();
-            let reads = cols.iter().any(|&j| at(j) == m);
-            let reads_reaction = (cols.iter()).any(|&j| {
-                at(j) == m && matches!(model.responses[j % nr].kind, ResponseKind::Reaction { .. })
-            });
-            // Newton's last factorization, kept, and no refinement: the transposed solve
-            // reads no tangent, so it is made only for a product with a reaction's cotangent
-            // (or should the kept factorization fail: `Transposed::unmade`), from the stored
-            // one where the forward run kept it ([`Keep`])
-            let lazy = self.tangent.choice == TangentChoice::Last
-                && factor.is_some()
-                && (!s.tangent.is_empty() || !reads_reaction);
-            let frozen = s.frozen();
-            // the converged state, where a response reads it or the tangent is read and the
-            // forward run kept none, and that tangent
-            let assemble = s.tangent.is_empty() && !lazy;
-            if reads || assemble {
-                self.assemble_at(s, assemble.then_some(&mut k), &mut ev, cost)?;
-            }
-            let mut input = reads.then(|| DualInput::new(&self.asm, &s.z, &ev));
-            let mut cots: Vec<Vec<f64>> = cols
-                .iter()
-                .map(|&j| {
-                    let mut c = vec![0.0; out.len()];
-                    if let (true, Some(input)) = (at(j) == m, input.as_mut()) {
-                        let r = &model.responses[j % nr];
-                        response_cotangent(r, &self.asm, out, input, &mut c);
-                    }
-                    for (a, b) in c[out.hist()].iter_mut().zip(&mu[j]) {
-                        *a += b;
-                    }
-                    c
-                })
+            // the columns alive at this increment on its converged branches: responses read
+            // here or later, but the one-sided columns of this increment
+            let alive = |j: usize| copy_of[j].is_none() && columns[j].at >= m;
+            let cols: Vec<usize> = (0..ncol)
+                .filter(|&j| alive(j) && (columns[j].at > m || columns[j].side.is_none()))
                 .collect();
-            let product = (cots.iter()).any(|c| c[out.res()].iter().any(|v| *v != 0.0));
-            debug_assert!(
-                !product || reads_reaction,
-                "only a reaction's cotangent is on the residual's rows before the solve"
-            );
-            if !s.tangent.is_empty() && (product || !lazy) {
-                k.values_mut().copy_from_slice(&s.tangent);
-            }
-            // d/dz [F + mu . H]
-            let mut rhs = vec![0.0; n * cols.len()];
-            let mut scratch = vec![0.0; n];
-            for (c, cot) in cots.iter().enumerate() {
-                let g = &mut rhs[c * n..(c + 1) * n];
-                // nothing on the residual's rows (no reaction read here): no product
-                if cot[out.res()].iter().all(|v| *v == 0.0) {
-                    g.copy_from_slice(&cot[out.z()]);
+            // whether the converged branches' column solved with their tangent (DDM's rule)
+            let exact = self.tangent.choice == TangentChoice::Exact || factor.is_none();
+            let mut vars = Multipliers {
+                mu: &mut mu,
+                dfdb: &mut dfdb,
+            };
+            self.increment(
+                &mut work,
+                s,
+                factor.as_mut(),
+                m,
+                columns,
+                &cols,
+                &mut vars,
+                cost,
+            )?;
+            // the one-sided columns, each side's flagged points forced, its tangent factored
+            let sides = [false, true].map(|upper| -> Vec<usize> {
+                (0..ncol)
+                    .filter(|&j| alive(j) && columns[j].at == m && columns[j].side == Some(upper))
+                    .collect()
+            });
+            for (upper, side) in [false, true].into_iter().zip(sides) {
+                if side.is_empty() {
                     continue;
                 }
-                k.mul_vec_transpose(&cot[out.res()], &mut scratch)?;
-                for ((gi, a), b) in g.iter_mut().zip(&scratch).zip(&cot[out.z()]) {
-                    *gi = a + b;
-                }
-            }
-            // the prescribed unknowns' identity rows, in place (`k` is rewritten at the next
-            // increment): the right-hand sides have read the tangent
-            if !lazy {
-                k.set_identity_rows_cols(&s.constrained)?;
-            }
-            let reverse = self.reverse(cols.len());
-            let mut factored = false;
-            let (recorded, mut state) = if reverse && self.factors_anew() {
-                // the tangent factored beside the recordings: neither reads the other, and
-                // the factorization is serial below `PAR_FACTOR_MIN_N` unknowns while the
-                // recordings keep every thread busy
-                let ls = &mut solver;
-                let before = cost.evaluation_seconds;
-                let t = Instant::now();
-                let (rec, fac) = rayon::join(
-                    || self.record(cost, s, m, &mut tape_room, &mut ev_rev),
-                    || factor_timed(ls, &k),
-                );
-                let wall = t.elapsed().as_secs_f64();
-                let fac = fac?;
-                cost.factor_seconds += fac;
-                cost.factorizations += 1;
-                cost.overlap_seconds += (cost.evaluation_seconds - before + fac - wall).max(0.0);
-                factored = true;
-                (Some(rec?), None)
-            } else if reverse {
-                (
-                    Some(self.record(cost, s, m, &mut tape_room, &mut ev_rev)?),
-                    None,
-                )
-            } else {
-                (None, Some(AdState::new(s)))
-            };
-            if let Some(recorded) = &recorded {
-                self.sweep_recorded(cost, recorded, Seeds::Z, &cots, (&mut rhs, n));
-                self.current_area_pass(s, &cots, &mut rhs);
-            } else {
-                let state = state.get_or_insert_with(|| AdState::new(s));
-                self.z_passes(cost, s, state, &cots, &mut rhs, &mut ev_ad)?;
-            }
-            // K^T lambda = rhs on the free unknowns
-            for c in 0..cols.len() {
-                for (i, fixed) in s.constrained.iter().enumerate() {
-                    if *fixed {
-                        rhs[c * n + i] = 0.0;
+                let (mut gauss, mut choice) = (s.branches.clone(), s.choice.clone());
+                force_side(kinks(m), upper, (model, &self.asm), &mut gauss, &mut choice);
+                if exact && gauss == s.branches && choice == s.choice {
+                    for &j in &side {
+                        let c = &columns[j];
+                        copy_of[j] = (0..ncol).find(|&i| {
+                            columns[i].side.is_none()
+                                && (columns[i].at, columns[i].response) == (m, c.response)
+                        });
                     }
+                    continue;
                 }
-            }
-            let transposed = Transposed {
-                k: &mut k,
-                unmade: lazy.then_some(s),
-                factor: factor.as_mut(),
-                factored,
-            };
-            // the design's partial derivatives need no multiplier of this increment: they are
-            // evaluated beside the solve (and beside its factorization where it makes one).
-            // What each column reads at this increment: its response, if it reads here, and
-            // the history multipliers carried back to here
-            let reading: Vec<(Option<&Response>, &[f64])> = (cols.iter())
-                .map(|&j| ((at(j) == m).then(|| &model.responses[j % nr]), &mu[j][..]))
-                .collect();
-            let design = || {
-                let t = Instant::now();
-                let partials = self.design_partials(s, &frozen, &reading, &mut ev_d);
-                partials.map(|p| (p, t.elapsed().as_secs_f64()))
-            };
-            let t = Instant::now();
-            let solve_before = cost.solve_seconds + cost.factor_seconds;
-            let (solved, partials) = rayon::join(
-                || self.solve_transposed(cost, transposed, &mut rhs, cols.len(), &mut solver),
-                design,
-            );
-            let wall = t.elapsed().as_secs_f64();
-            solved?;
-            let (partials, design_seconds) = partials?;
-            let solve_seconds = cost.solve_seconds + cost.factor_seconds - solve_before;
-            cost.evaluation_seconds += design_seconds;
-            cost.partial_evaluations += partials.len();
-            cost.overlap_seconds += (solve_seconds + design_seconds - wall).max(0.0);
-            for (c, cot) in cots.iter_mut().enumerate() {
-                for (r, l) in cot[out.res()].iter_mut().zip(&rhs[c * n..(c + 1) * n]) {
-                    *r -= l;
-                }
-            }
-            // mu_{n-1} = d/dh [F + mu . H - lambda . R]
-            let mut mu_prev = vec![0.0; nh * cols.len()];
-            if nh > 0 {
-                if let Some(recorded) = &recorded {
-                    self.sweep_recorded(cost, recorded, Seeds::H, &cots, (&mut mu_prev, nh));
-                } else {
-                    let state = state.get_or_insert_with(|| AdState::new(s));
-                    self.h_passes(cost, s, m, state, &cots, &mut mu_prev, &mut ev_ad)?;
-                }
-            }
-            // d/db [F + mu . H - lambda . R], prescribed unknowns moving with the design
-            self.field_passes(cost, s, &cols, &cots, &mut dfdb, &mut ev_ad)?;
-            for d in &partials {
-                for (c, &j) in cols.iter().enumerate() {
-                    let mut v = d.known[c];
-                    // -lambda . R_b (F's own reaction part is in its value above)
-                    let lam = &rhs[c * n..(c + 1) * n];
-                    v -= (d.residual.iter()).map(|(i, b)| lam[*i] * b).sum::<f64>();
-                    dfdb[j][d.p] += v;
-                }
-            }
-            for (c, &j) in cols.iter().enumerate() {
-                mu[j].copy_from_slice(&mu_prev[c * nh..(c + 1) * nh]);
+                let forced = s.forced(gauss, choice);
+                self.increment(&mut work, &forced, None, m, columns, &side, &mut vars, cost)?;
             }
         }
         // mu_0 . dh_0/db
@@ -1248,12 +1213,206 @@ impl<'a> Sweep<'a> {
                 }
             }
         }
+        for (j, of) in copy_of.iter().enumerate() {
+            if let Some(i) = of {
+                dfdb[j] = dfdb[*i].clone();
+            }
+        }
         Ok(dfdb)
+    }
+
+    /// Stored increment `m` (`s`, Newton's last factorization `factor` if kept) for the
+    /// columns `cols` of `columns`: their transposed solve, the history multipliers carried
+    /// back to the increment before (`vars.mu`), and the increment's terms of `df/db` added to
+    /// `vars.dfdb`.
+    #[allow(clippy::too_many_arguments)]
+    fn increment(
+        &self,
+        w: &mut Work,
+        s: &Stored,
+        factor: Option<&mut KeptFactor>,
+        m: usize,
+        columns: &[Column],
+        cols: &[usize],
+        vars: &mut Multipliers<'_>,
+        cost: &mut SensitivityCost,
+    ) -> Result<(), AnalysisError> {
+        let model = self.model;
+        let out = &self.outputs;
+        let n = self.asm.dofs.n_total;
+        let nh = self.asm.dofs.n_history;
+        let reads_here = |j: usize| columns[j].at == m;
+        let response = |j: usize| &model.responses[columns[j].response];
+        let reads = cols.iter().any(|&j| reads_here(j));
+        let reads_reaction = (cols.iter())
+            .any(|&j| reads_here(j) && matches!(response(j).kind, ResponseKind::Reaction { .. }));
+        // Newton's last factorization, kept, and no refinement: the transposed solve
+        // reads no tangent, so it is made only for a product with a reaction's cotangent
+        // (or should the kept factorization fail: `Transposed::unmade`), from the stored
+        // one where the forward run kept it ([`Keep`])
+        let lazy = self.tangent.choice == TangentChoice::Last
+            && factor.is_some()
+            && (!s.tangent.is_empty() || !reads_reaction);
+        let frozen = s.frozen();
+        let k = &mut w.k;
+        // the converged state, where a response reads it or the tangent is read and the
+        // forward run kept none, and that tangent
+        let assemble = s.tangent.is_empty() && !lazy;
+        if reads || assemble {
+            self.assemble_at(s, assemble.then_some(&mut *k), &mut w.ev, cost)?;
+        }
+        let mut input = reads.then(|| DualInput::new(&self.asm, &s.z, &w.ev));
+        let mut cots: Vec<Vec<f64>> = cols
+            .iter()
+            .map(|&j| {
+                let mut c = vec![0.0; out.len()];
+                if let (true, Some(input)) = (reads_here(j), input.as_mut()) {
+                    response_cotangent(response(j), &self.asm, out, input, &mut c);
+                }
+                for (a, b) in c[out.hist()].iter_mut().zip(&vars.mu[j]) {
+                    *a += b;
+                }
+                c
+            })
+            .collect();
+        let product = (cots.iter()).any(|c| c[out.res()].iter().any(|v| *v != 0.0));
+        debug_assert!(
+            !product || reads_reaction,
+            "only a reaction's cotangent is on the residual's rows before the solve"
+        );
+        if !s.tangent.is_empty() && (product || !lazy) {
+            k.values_mut().copy_from_slice(&s.tangent);
+        }
+        // d/dz [F + mu . H]
+        let mut rhs = vec![0.0; n * cols.len()];
+        let mut scratch = vec![0.0; n];
+        for (c, cot) in cots.iter().enumerate() {
+            let g = &mut rhs[c * n..(c + 1) * n];
+            // nothing on the residual's rows (no reaction read here): no product
+            if cot[out.res()].iter().all(|v| *v == 0.0) {
+                g.copy_from_slice(&cot[out.z()]);
+                continue;
+            }
+            k.mul_vec_transpose(&cot[out.res()], &mut scratch)?;
+            for ((gi, a), b) in g.iter_mut().zip(&scratch).zip(&cot[out.z()]) {
+                *gi = a + b;
+            }
+        }
+        // the prescribed unknowns' identity rows, in place (`k` is rewritten at the next
+        // increment): the right-hand sides have read the tangent
+        if !lazy {
+            k.set_identity_rows_cols(&s.constrained)?;
+        }
+        let reverse = self.reverse(cols.len());
+        let mut factored = false;
+        let tape_room = &mut w.tape_room;
+        let ev_rev = &mut w.ev_rev;
+        let (recorded, mut state) = if reverse && self.factors_anew() {
+            // the tangent factored beside the recordings: neither reads the other, and
+            // the factorization is serial below `PAR_FACTOR_MIN_N` unknowns while the
+            // recordings keep every thread busy
+            let ls = &mut w.solver;
+            let before = cost.evaluation_seconds;
+            let t = Instant::now();
+            let (rec, fac) = rayon::join(
+                || self.record(cost, s, m, tape_room, ev_rev),
+                || factor_timed(ls, k),
+            );
+            let wall = t.elapsed().as_secs_f64();
+            let fac = fac?;
+            cost.factor_seconds += fac;
+            cost.factorizations += 1;
+            cost.overlap_seconds += (cost.evaluation_seconds - before + fac - wall).max(0.0);
+            factored = true;
+            (Some(rec?), None)
+        } else if reverse {
+            (Some(self.record(cost, s, m, tape_room, ev_rev)?), None)
+        } else {
+            (None, Some(AdState::new(s)))
+        };
+        if let Some(recorded) = &recorded {
+            self.sweep_recorded(cost, recorded, Seeds::Z, &cots, (&mut rhs, n));
+            self.current_area_pass(s, &cots, &mut rhs);
+        } else {
+            let state = state.get_or_insert_with(|| AdState::new(s));
+            self.z_passes(cost, s, state, &cots, &mut rhs, &mut w.ev_ad)?;
+        }
+        // K^T lambda = rhs on the free unknowns
+        for c in 0..cols.len() {
+            for (i, fixed) in s.constrained.iter().enumerate() {
+                if *fixed {
+                    rhs[c * n + i] = 0.0;
+                }
+            }
+        }
+        let transposed = Transposed {
+            k,
+            unmade: lazy.then_some(s),
+            factor,
+            factored,
+        };
+        // the design's partial derivatives need no multiplier of this increment: they are
+        // evaluated beside the solve (and beside its factorization where it makes one).
+        // What each column reads at this increment: its response, if it reads here, and
+        // the history multipliers carried back to here
+        let reading: Vec<(Option<&Response>, &[f64])> = (cols.iter())
+            .map(|&j| (reads_here(j).then(|| response(j)), &vars.mu[j][..]))
+            .collect();
+        let ev_d = &mut w.ev_d;
+        let design = || {
+            let t = Instant::now();
+            let partials = self.design_partials(s, &frozen, &reading, ev_d);
+            partials.map(|p| (p, t.elapsed().as_secs_f64()))
+        };
+        let t = Instant::now();
+        let solve_before = cost.solve_seconds + cost.factor_seconds;
+        let solver = &mut w.solver;
+        let (solved, partials) = rayon::join(
+            || self.solve_transposed(cost, transposed, &mut rhs, cols.len(), solver),
+            design,
+        );
+        let wall = t.elapsed().as_secs_f64();
+        solved?;
+        let (partials, design_seconds) = partials?;
+        let solve_seconds = cost.solve_seconds + cost.factor_seconds - solve_before;
+        cost.evaluation_seconds += design_seconds;
+        cost.partial_evaluations += partials.len();
+        cost.overlap_seconds += (solve_seconds + design_seconds - wall).max(0.0);
+        for (c, cot) in cots.iter_mut().enumerate() {
+            for (r, l) in cot[out.res()].iter_mut().zip(&rhs[c * n..(c + 1) * n]) {
+                *r -= l;
+            }
+        }
+        // mu_{n-1} = d/dh [F + mu . H - lambda . R]
+        let mut mu_prev = vec![0.0; nh * cols.len()];
+        if nh > 0 {
+            if let Some(recorded) = &recorded {
+                self.sweep_recorded(cost, recorded, Seeds::H, &cots, (&mut mu_prev, nh));
+            } else {
+                let state = state.get_or_insert_with(|| AdState::new(s));
+                self.h_passes(cost, s, m, state, &cots, &mut mu_prev, &mut w.ev_ad)?;
+            }
+        }
+        // d/db [F + mu . H - lambda . R], prescribed unknowns moving with the design
+        self.field_passes(cost, s, cols, &cots, vars.dfdb, &mut w.ev_ad)?;
+        for d in &partials {
+            for (c, &j) in cols.iter().enumerate() {
+                let mut v = d.known[c];
+                // -lambda . R_b (F's own reaction part is in its value above)
+                let lam = &rhs[c * n..(c + 1) * n];
+                v -= (d.residual.iter()).map(|(i, b)| lam[*i] * b).sum::<f64>();
+                vars.dfdb[j][d.p] += v;
+            }
+        }
+        for (c, &j) in cols.iter().enumerate() {
+            vars.mu[j].copy_from_slice(&mu_prev[c * nh..(c + 1) * nh]);
+        }
+        Ok(())
     }
 
     /// Every non-field parameter's partial derivatives at stored increment `s`, before the
     /// increment's multipliers are known ([`DesignPartial`]): one dual evaluation each, over
-    /// what the parameter reaches, on the converged branches (`frozen`). `reading[c]`:
+    /// what the parameter reaches, on the stored branches (`frozen`: converged, or forced). `reading[c]`:
     /// column `c`'s response where it reads this increment, and its history multipliers.
     fn design_partials(
         &self,
@@ -1327,7 +1486,8 @@ impl<'a> Sweep<'a> {
             .collect()
     }
 
-    /// `K^T X = RHS` with the tangent `k` at the converged state (prescribed unknowns as
+    /// `K^T X = RHS` with the tangent `k` at the converged state, on the stored branches (a
+    /// one-sided column's forced ones: no factorization kept, factored) (prescribed unknowns as
     /// identity rows; made first from [`Transposed::unmade`] where it is not) — the
     /// transposes of what DDM solves with each tangent option:
     /// [`TangentChoice::Exact`] factored anew (already, beside the recordings, where
@@ -1416,7 +1576,7 @@ impl<'a> Sweep<'a> {
         Ok(())
     }
 
-    /// The stored increment `s` evaluated at its converged state on its converged branches
+    /// The stored increment `s` evaluated at its converged state on its stored branches
     /// into `ev`, with its tangent into `k` if given.
     fn assemble_at(
         &self,

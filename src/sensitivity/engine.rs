@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::assembly::Frozen;
-use crate::contact::{ContactChoice, ContactState};
+use crate::contact::ContactChoice;
 use crate::linalg::LinearSolver;
 use crate::material::Branch;
 use crate::model::{node_dof, DesignParam, DofMap, Lifted, Model};
@@ -403,16 +403,6 @@ impl<'a> Engine<'a> {
     pub(super) fn prescribed_derivative(&self, c: &Converged<'_>, k: usize, out: &mut [f64]) {
         prescribed_derivative(c.model, &self.params[k], c.time, out);
     }
-
-    /// Whether flat hitting node `k` belongs to a pair with friction.
-    pub(super) fn friction_at(&self, c: &Converged<'_>, k: usize) -> bool {
-        let l = &c.assembler.contact;
-        (0..l.flat.len())
-            .rev()
-            .find(|p| l.flat[*p] <= k)
-            .map(|p| c.model.contacts[p].friction.is_some())
-            .unwrap_or(false)
-    }
     /// Solve `K X = RHS` (columns stored column-major) with the chosen tangent.
     pub(super) fn solve(
         &mut self,
@@ -560,41 +550,21 @@ impl Observer for Engine<'_> {
             }
         };
         // one-sided derivatives at flagged points (DDM): force the flagged points on each branch
-        let one_sided = if !kinks.is_empty() && self.settings.method == Method::Ddm {
+        let one_sided = if !kinks.is_empty()
+            && self.settings.method == Method::Ddm
+            && self.settings.one_sided
+        {
             // whether the derivative just computed solved with the converged tangent (the
             // forced tangent of the side the converged state is on)
             let exact_solve = self.settings.tangent == TangentChoice::Exact
                 || c.last_factor.is_none()
                 || !c.factor_matches;
             let mut sides = Vec::new();
-            for side in [0, 1] {
+            for upper in [false, true] {
                 let mut gauss = c.eval.branches.clone();
                 let mut contact: Vec<ContactChoice> = c.eval.contact.choice.clone();
-                for k in &kinks {
-                    match k.kind {
-                        KinkKind::Yield => {
-                            let i = c.assembler.dofs.gauss(k.at).start + k.point;
-                            gauss[i] = [Branch::Elastic, Branch::Plastic][side];
-                        }
-                        KinkKind::Friction => {
-                            contact[k.at].state = [ContactState::Stick, ContactState::Slip][side];
-                        }
-                        KinkKind::Contact => {
-                            let closed = if c.eval.contact.choice[k.at].state == ContactState::Open
-                            {
-                                // closing: stick is the state a node enters
-                                if self.friction_at(c, k.at) {
-                                    ContactState::Stick
-                                } else {
-                                    ContactState::Closed
-                                }
-                            } else {
-                                c.eval.contact.choice[k.at].state
-                            };
-                            contact[k.at].state = [ContactState::Open, closed][side];
-                        }
-                    }
-                }
+                let at = (c.model, c.assembler);
+                force_side(&kinks, upper, at, &mut gauss, &mut contact);
                 if exact_solve && gauss == c.eval.branches && contact == c.eval.contact.choice {
                     // the converged state is on this side of every flagged point, and the
                     // derivative just computed solved with its tangent: that derivative is

@@ -2,7 +2,9 @@
 //! opening or closing, stick and slip) the derivative is one-sided, and these are flagged.
 
 use super::*;
-use crate::contact::ContactState;
+use crate::assembly::Assembler;
+use crate::contact::{ContactChoice, ContactState};
+use crate::material::Branch;
 use crate::solver::Converged;
 
 /// Significant digits a difference must keep above its noise for its finite-difference
@@ -65,6 +67,50 @@ pub struct OneSided {
     pub lower: Vec<Vec<f64>>,
     /// Plastic / slip / closed side.
     pub upper: Vec<Vec<f64>>,
+}
+
+/// Whether hitting node `k` (flat) is in a frictional pair.
+fn friction_at(model: &Model, asm: &Assembler, k: usize) -> bool {
+    let flat = &asm.contact.flat;
+    (0..flat.len())
+        .rev()
+        .find(|p| flat[*p] <= k)
+        .is_some_and(|p| model.contacts[p].friction.is_some())
+}
+
+/// Forces every flagged point of `kinks` onto one side of its transition in the converged
+/// Gauss points' branches `gauss` and hitting nodes' choices `contact`: the lower side
+/// (elastic, stick, open; `upper` false) or the upper (plastic, slip, closed). A node forced
+/// closed from open enters stick where its pair has friction. The branches the one-sided
+/// derivatives ([`OneSided`]) are taken on, by DDM and the adjoint alike.
+pub(super) fn force_side(
+    kinks: &[Kink],
+    upper: bool,
+    (model, asm): (&Model, &Assembler),
+    gauss: &mut [Branch],
+    contact: &mut [ContactChoice],
+) {
+    let side = usize::from(upper);
+    for k in kinks {
+        match k.kind {
+            KinkKind::Yield => {
+                gauss[asm.dofs.gauss(k.at).start + k.point] =
+                    [Branch::Elastic, Branch::Plastic][side];
+            }
+            KinkKind::Friction => {
+                contact[k.at].state = [ContactState::Stick, ContactState::Slip][side];
+            }
+            KinkKind::Contact => {
+                // a node is flagged once: its state here is the converged one
+                let closed = match contact[k.at].state {
+                    ContactState::Open if friction_at(model, asm, k.at) => ContactState::Stick,
+                    ContactState::Open => ContactState::Closed,
+                    converged => converged,
+                };
+                contact[k.at].state = [ContactState::Open, closed][side];
+            }
+        }
+    }
 }
 
 impl Engine<'_> {

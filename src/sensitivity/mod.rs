@@ -47,8 +47,11 @@
 //!
 //! ## Non-differentiable points
 //! A Gauss point whose trial yield ratio lies within `kink_tol` of zero sits on the
-//! elastic/plastic transition: the increment is flagged, and for DDM the derivative is also
-//! computed with that point forced onto each branch — the one-sided derivatives.
+//! elastic/plastic transition: the increment is flagged, and for DDM and the adjoint the
+//! derivative is also computed with that point forced onto each branch — the one-sided
+//! derivatives. The forcing is at the flagged increment alone: the history carried into it
+//! is the converged branches' (DDM forwards, the adjoint's one-sided columns backwards
+//! through the earlier increments on their converged branches).
 
 use crate::model::Model;
 use crate::solver::{AnalysisError, Results};
@@ -159,6 +162,10 @@ pub struct Settings {
     pub freeze_branches: bool,
     /// |trial yield ratio| below which a Gauss point is taken to sit on a transition.
     pub kink_tol: f64,
+    /// At a flagged increment, DDM and the adjoint also give each side's derivative, the
+    /// flagged points forced onto it ([`IncrementSensitivity::one_sided`]): DDM two more
+    /// solves per flagged increment, the adjoint two more columns per response read there.
+    pub one_sided: bool,
     /// Evaluate each pseudo-load (SDM's unbalance, DDM's derivative part) over only the
     /// elements the parameter reaches (forward SDM: only where they are fewer than half, as
     /// it then evaluates the nominal state over them too), and DDM's forced tangents and
@@ -246,6 +253,7 @@ impl Default for Settings {
             refine_steps: 2,
             freeze_branches: true,
             kink_tol: 1e-6,
+            one_sided: true,
             restrict: true,
             probe_floor: false,
             krylov: true,
@@ -274,7 +282,8 @@ pub struct IncrementSensitivity {
     pub derivatives: Vec<Vec<f64>>,
     /// Flagged non-differentiable points.
     pub kinks: Vec<Kink>,
-    /// One-sided derivatives where kinks were flagged (DDM).
+    /// One-sided derivatives where kinks were flagged (DDM, and the adjoint at the increments
+    /// it reads).
     pub one_sided: Option<OneSided>,
     /// Finite differences, per parameter: a rerun behind this value needed sub-increments
     /// (cutbacks) the nominal run did not take, at or before this increment. The incremental

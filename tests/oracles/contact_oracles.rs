@@ -110,6 +110,36 @@ fn klarbring_first_slip_onset_is_flagged_with_one_sided_derivatives() {
         sens.cost.factorizations,
         sens.cost.krylov_solves
     );
+    // the adjoint, backwards with the flagged points forced at that increment alone: the
+    // same sides (its main value the converged branches', DDM's)
+    let settings = Settings {
+        method: Method::Adjoint,
+        ..settings
+    };
+    let mu = Parameter::by_name(&model, "plane.mu").unwrap();
+    let (_, adj) = run_sensitivity(&model, &[mu], &settings).unwrap();
+    let a = (adj.increments.iter())
+        .find(|i| (i.time - 0.5).abs() < 1e-9)
+        .unwrap();
+    assert_eq!(a.kinks, inc.kinks, "the same flagged points");
+    let sides = a
+        .one_sided
+        .as_ref()
+        .expect("the adjoint's one-sided derivatives");
+    println!(
+        "adjoint: stick {:.3e}, slip {:.9}",
+        sides.lower[0][0], sides.upper[0][0]
+    );
+    assert!(
+        sides.lower[0][0].abs() < 1e-8,
+        "stick side {}",
+        sides.lower[0][0]
+    );
+    assert!(
+        (sides.upper[0][0] - right).abs() < 1e-6 * right.abs(),
+        "slip side {}",
+        sides.upper[0][0]
+    );
     // other increments are not flagged
     let flagged: Vec<f64> = sens
         .increments

@@ -1034,8 +1034,18 @@ fn closing_node() -> Scene {
 /// right again (the plastic return does not depend on the carried derivative of alpha).
 #[test]
 fn non_smooth_points_are_flagged_with_one_sided_derivatives() {
+    // DDM forwards, and the adjoint backwards with the forced branches at the flagged
+    // increment alone: each meets the closed forms
+    for method in [Method::Ddm, Method::Adjoint] {
+        println!("{}", method.name());
+        one_sided_meet_the_closed_forms(method);
+    }
+}
+
+/// [`non_smooth_points_are_flagged_with_one_sided_derivatives`] by `method`.
+fn one_sided_meet_the_closed_forms(method: Method) {
     let model = uniaxial_j2(Kinematics::Small, 8).build().unwrap();
-    let s = sens(&model, &["sigma_y", "H", "E"], Method::Ddm, 0.0);
+    let s = sens(&model, &["sigma_y", "H", "E"], method, 0.0);
     let flagged: Vec<f64> = s
         .increments
         .iter()
@@ -1089,7 +1099,7 @@ fn non_smooth_points_are_flagged_with_one_sided_derivatives() {
     }
 
     let model = closing_node().build().unwrap();
-    let s = sens(&model, &["load.F"], Method::Ddm, 0.0);
+    let s = sens(&model, &["load.F"], method, 0.0);
     for inc in &s.increments {
         println!(
             "closing node t = {:.1}: v {:.3}, plane force {:.3}; d/dF {:?}; kinks {:?}; one-sided {:?}",
