@@ -17,8 +17,11 @@ Printed per round and as medians (quartiles):
   adjoint / (DDM(all) - DDM(P))   against what the other parameters add to P's DDM run: with
                                   two, the marginal cost of the other in a batch (the strictest)
 
+Both methods give the one-sided derivatives at the flagged increments they read (the
+adjoint: two more columns per response at each); `--no-one-sided` leaves them out of both.
+
 usage: tools/adjoint_targets.py [--bin target/release/fricsens] [--scene leaf-spring]
-           [--tangent last] [--response block-force] [--rounds 20]
+           [--tangent last] [--response block-force] [--rounds 20] [--no-one-sided]
 """
 import argparse
 import re
@@ -59,8 +62,11 @@ def main():
     ap.add_argument("--tangent", default="last")
     ap.add_argument("--response", default="block-force")
     ap.add_argument("--rounds", type=int, default=20)
+    ap.add_argument("--no-one-sided", action="store_true")
     a = ap.parse_args()
     common = ["--tangent", a.tangent, "--response", a.response]
+    if a.no_one_sided:
+        common.append("--no-one-sided")
     with tempfile.TemporaryDirectory() as out:
         _, _, params = run(a.bin, a.scene, out, ["--method", "adjoint", *common])
         if not params:
@@ -87,7 +93,8 @@ def main():
             print(f"round {r + 1}: adjoint {adj:.3f} s, primal {primal:.3f} s, "
                   f"DDM {' '.join(f'{p} {t:.3f} s' for p, t in one.items())}, "
                   f"all {batch:.3f} s; ratios {cells}", flush=True)
-    print(f"\n{a.scene}, --tangent {a.tangent}, --response {a.response}, "
+    sided = ", --no-one-sided" if a.no_one_sided else ""
+    print(f"\n{a.scene}, --tangent {a.tangent}, --response {a.response}{sided}, "
           f"{a.rounds} rounds, parameters {params}:")
     for k in rows[0]:
         med, q1, q3 = quartiles([row[k] for row in rows])
