@@ -439,6 +439,77 @@ fn checkpointed_adjoint_is_the_stored_one_bit_for_bit() {
     }
 }
 
+/// `fricsens sensitivity --method adjoint` on the Jenkins slider (its slip onset flagged at one
+/// increment; `--at all`): the summary says where each side's derivatives are, and
+/// sensitivity.json has them at the flagged increment alone, with as many responses and
+/// parameters as the derivatives; `--no-one-sided` leaves them out, and with a method that
+/// gives none it is an error that says so.
+#[test]
+fn the_adjoints_one_sided_derivatives_reach_sensitivity_json() {
+    use crate::common::{fricsens, scratch_path};
+    let dir = scratch_path("adjoint-one-sided");
+    let run = |extra: &[&str]| {
+        let _ = std::fs::remove_dir_all(&dir);
+        let out = fricsens()
+            .args(["sensitivity", "jenkins", "--at", "all"])
+            .args(extra)
+            .arg("--out")
+            .arg(&dir)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).to_string()
+            + &String::from_utf8_lossy(&out.stderr);
+        let json = out.status.success().then(|| {
+            let file = std::fs::read_to_string(dir.join("sensitivity.json")).unwrap();
+            serde_json::from_str::<serde_json::Value>(&file).unwrap()
+        });
+        (text, json)
+    };
+    let sided = |json: &serde_json::Value| -> Vec<(bool, bool)> {
+        (json["increments"].as_array().unwrap().iter())
+            .map(|i| {
+                let flagged = !i["kinks"].as_array().unwrap().is_empty();
+                (flagged, !i["one_sided"].is_null())
+            })
+            .collect()
+    };
+    let (text, json) = run(&["--method", "adjoint"]);
+    let json = json.unwrap_or_else(|| panic!("{text}"));
+    assert!(text.contains("one_sided in sensitivity.json"), "{text}");
+    let marks = sided(&json);
+    assert!(marks.iter().any(|m| m.0), "a flagged increment");
+    assert!(
+        marks.iter().all(|(f, s)| f == s),
+        "sides where flagged alone: {marks:?}"
+    );
+    for inc in json["increments"].as_array().unwrap() {
+        if let Some(sides) = inc["one_sided"].as_object() {
+            let shape = |v: &serde_json::Value| {
+                (v.as_array().unwrap().iter())
+                    .map(|r| r.as_array().unwrap().len())
+                    .collect::<Vec<_>>()
+            };
+            let want = shape(&inc["derivatives"]);
+            assert_eq!(shape(&sides["lower"]), want);
+            assert_eq!(shape(&sides["upper"]), want);
+        }
+    }
+    let (text, json) = run(&["--method", "adjoint", "--no-one-sided"]);
+    let json = json.unwrap_or_else(|| panic!("{text}"));
+    assert!(!text.contains("one_sided in sensitivity.json"), "{text}");
+    assert!(
+        sided(&json).iter().all(|m| !m.1),
+        "none with --no-one-sided"
+    );
+    let (text, json) = run(&["--method", "sdm", "--no-one-sided"]);
+    assert!(json.is_none(), "an error");
+    assert!(
+        text.contains("--no-one-sided") && text.contains("sdm gives none"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `fricsens sensitivity --method adjoint --vtk` with field parameters draws each response's
 /// derivative in every member of a field on the mesh (`vtk/parameters_NNNN.vtu`): a material
 /// field as cell data, a friction field as point data at its hitting nodes. Read back with a
