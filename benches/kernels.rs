@@ -6,6 +6,8 @@
 //! * `f64+tangent`: residual and the hand-coded consistent tangent (one Newton iteration);
 //! * `rev/record+sweep`: one vector-Jacobian product in reverse mode (the unknowns and the
 //!   history read as inputs, one recording and one sweep), the adjoint's local derivative;
+//!   `rev/record` and `rev/sweep` its two halves (the adjoint sweeps each recording once per
+//!   column and phase);
 //! * `ad-tangent/dual64`: the tangent by forward AD, one `Dual64` pass per element unknown
 //!   (24 or 33 passes); `ad-tangent/dsvec8`: 3 or 5 passes of `DualSVec64<8>`;
 //!   `ad-tangent/dsvec24` (full, F-bar) and `ad-tangent/dsvec33` (incompatible modes): one pass.
@@ -79,7 +81,7 @@ fn vjp<M: MaterialLaw>(
     let w: Vec<f64> = (0..nd).map(|i| 1.0 + 0.1 * i as f64).collect();
     let mut el: Element<Rev> = base.lift(0);
     let mut adjoint = Vec::new();
-    let once = |el: &mut Element<Rev>, adjoint: &mut Vec<f64>, history: f64| {
+    let record = |el: &mut Element<Rev>| {
         tape::clear();
         for (d, x) in el.dofs.iter_mut().zip(&base.dofs) {
             *d = x.map(Rev::input);
@@ -88,9 +90,15 @@ fn vjp<M: MaterialLaw>(
             *h = Rev::input(*x);
         }
         el.evaluate(material, false).expect("element");
-        let seeds = (el.force.iter().zip(&w).map(|(f, w)| (*f, *w)))
-            .chain(el.hist_new.iter().map(|h| (*h, history)));
-        tape::sweep(seeds, adjoint);
+    };
+    let seeds = |el: &Element<Rev>, history: f64| -> Vec<(Rev, f64)> {
+        (el.force.iter().zip(&w).map(|(f, w)| (*f, *w)))
+            .chain(el.hist_new.iter().map(|h| (*h, history)))
+            .collect()
+    };
+    let once = |el: &mut Element<Rev>, adjoint: &mut Vec<f64>, history: f64| {
+        record(el);
+        tape::sweep(seeds(el, history), adjoint);
     };
     // the history's weights zero for the check: w^T K from the sweep against the
     // hand-coded tangent
@@ -107,6 +115,20 @@ fn vjp<M: MaterialLaw>(
         rel < 1e-8,
         "rev: w^T K differs from the hand-coded one by {rel:.2e}"
     );
+    // the halves: the recording left on the tape by the check above, swept again
+    let weights = seeds(&el, 1.0);
+    c.bench_function("rev/sweep", |b| {
+        b.iter(|| {
+            tape::sweep(weights.iter().copied(), &mut adjoint);
+            black_box(&adjoint);
+        })
+    });
+    c.bench_function("rev/record", |b| {
+        b.iter(|| {
+            record(&mut el);
+            black_box(&el.force);
+        })
+    });
     c.bench_function("rev/record+sweep", |b| {
         b.iter(|| {
             once(&mut el, &mut adjoint, 1.0);

@@ -83,7 +83,7 @@
 //! | `r`, `Fbar`, `Cbar`, `Ebar` | F-bar factor `(J0/J)^(1/3)`, modified `F`, `C`, Green strain |
 //! | `q_A`, `q0_A`, `v_a` | `F^-T g_A`, `F0^-T gbar_A`, `d ln r / dd_a` |
 use crate::material::{strain_to_voigt, stress_to_voigt, Branch, MaterialLaw, Tangent, Voigt};
-use crate::scalar::{det3, inv3, re, Scalar};
+use crate::scalar::{det3, inv3, mat_mat, mat_vec, re, tr_mat_mat, Scalar};
 use nalgebra::{Matrix3, Vector3};
 
 /// Most nodes of any registered family (hex20).
@@ -318,7 +318,21 @@ fn displacement_gradient<S: Scalar>(
     for (d, g) in dofs.iter().zip(grads).take(n_gen) {
         for i in 0..3 {
             for j in 0..3 {
-                h[(i, j)] += d[i] * g[j];
+                h[(i, j)] = h[(i, j)].add_mul(d[i], g[j]);
+            }
+        }
+    }
+    h
+}
+
+/// `sum_A d_A g_A^T` over the pairs of `dofs` and `grads` (F-bar's displacement gradients),
+/// summed as the products `d g^T` were added up.
+fn outer_sum<S: Scalar>(dofs: &[Vector3<S>], grads: &[Vector3<S>]) -> Matrix3<S> {
+    let mut h = Matrix3::<S>::zeros();
+    for (d, g) in dofs.iter().zip(grads) {
+        for j in 0..3 {
+            for i in 0..3 {
+                h[(i, j)] = h[(i, j)].add_mul(d[i], g[j]);
             }
         }
     }
@@ -330,7 +344,7 @@ fn displacement_gradient<S: Scalar>(
 fn strain_measure<S: Scalar>(h: &Matrix3<S>, large: bool) -> Matrix3<S> {
     if large {
         let f = h + Matrix3::identity();
-        (f.transpose() * f - Matrix3::identity()) * S::lift(0.5)
+        (tr_mat_mat(&f, &f) - Matrix3::identity()) * S::lift(0.5)
     } else {
         (h + h.transpose()) * S::lift(0.5)
     }
@@ -417,14 +431,14 @@ impl Solid<'_> {
         let n = self.interpolation.n_nodes;
         for (g, d) in grads.iter_mut().zip(&dn).take(n) {
             let dxi = Vector3::new(S::lift(d[0]), S::lift(d[1]), S::lift(d[2]));
-            *g = jinv_t * dxi;
+            *g = mat_vec(&jinv_t, &dxi);
         }
         if let Some((j0inv_t, j0)) = centre {
             let scale = *j0 / det;
             for k in 0..3 {
                 let mut dphi = Vector3::<S>::zeros();
                 dphi[k] = S::lift(-2.0 * xi[k]);
-                grads[n + k] = (j0inv_t * dphi) * scale;
+                grads[n + k] = mat_vec(j0inv_t, &dphi) * scale;
             }
         }
         Ok(GaussGeometry {
@@ -554,9 +568,13 @@ impl Solid<'_> {
             if without_b_rows(out) {
                 // f_Ai += w B_Ai : S = w (F S g_A)_i ((S g_A)_i for small kinematics), and
                 // sigma dv = (w F S) F^T
-                let ps = if large { f * resp.stress } else { resp.stress } * w;
+                let ps = if large {
+                    mat_mat(&f, &resp.stress)
+                } else {
+                    resp.stress
+                } * w;
                 for (a, g) in geo.grads.iter().enumerate().take(n_gen) {
-                    let fa = ps * g;
+                    let fa = mat_vec(&ps, g);
                     for i in 0..3 {
                         out.force[3 * a + i] += fa[i];
                     }
@@ -598,7 +616,7 @@ impl Solid<'_> {
             }
             if let Some(dv) = dv {
                 let sigma = if large {
-                    f * resp.stress * f.transpose() / det_f
+                    mat_mat(&mat_mat(&f, &resp.stress), &f.transpose()) / det_f
                 } else {
                     resp.stress
                 };
@@ -646,17 +664,14 @@ impl Solid<'_> {
         for gb in gbar[..nn].iter_mut() {
             *gb *= inv_v0;
         }
-        let mut h0 = Matrix3::<S>::zeros();
-        for (d, g) in input.dofs.iter().zip(&gbar[..nn]) {
-            h0 += d * g.transpose();
-        }
+        let h0 = outer_sum(input.dofs, &gbar[..nn]);
         let f0 = h0 + Matrix3::identity();
         // q0_A = F0^-T gbar_A (large), gbar_A (small); J0
         let (q0, j0) = if large {
             match inv3(&f0) {
                 Some((f0inv, j0)) if re(j0) > 0.0 => {
                     let t = f0inv.transpose();
-                    (gbar.map(|g| t * g), j0)
+                    (gbar.map(|g| mat_vec(&t, &g)), j0)
                 }
                 other => {
                     return Err(ElementFailure::Inverted {
@@ -689,10 +704,7 @@ impl Solid<'_> {
         let mut gsg = [[S::zero(); 3 * MAX_NODES]; 3];
         for (gp, (g_gp, &w)) in grads.iter().zip(weights).enumerate() {
             let g_gp = &g_gp[..nn];
-            let mut h = Matrix3::<S>::zeros();
-            for (d, g) in input.dofs.iter().zip(g_gp) {
-                h += d * g.transpose();
-            }
+            let h = outer_sum(input.dofs, g_gp);
             let f = h + Matrix3::identity();
             let det_f = det_f_of(&f, large, out);
             out.min_det_f = out.min_det_f.min(re(det_f));
@@ -709,13 +721,13 @@ impl Solid<'_> {
                 };
                 let t = finv.transpose();
                 for (qa, g) in q.iter_mut().zip(g_gp) {
-                    *qa = t * g;
+                    *qa = mat_vec(&t, g);
                 }
                 // `* recip()`, not `/`: a dual quotient multiplies by the reciprocal, and the
                 // real part of a dual evaluation must equal the f64 evaluation bit for bit
                 let r = (j0 * det.recip()).cbrt();
                 let fbar = f * r;
-                let cbar = fbar.transpose() * fbar;
+                let cbar = tr_mat_mat(&fbar, &fbar);
                 let strain = (cbar - Matrix3::identity()) * S::lift(0.5);
                 (fbar, cbar, r, strain)
             } else {
@@ -735,14 +747,14 @@ impl Solid<'_> {
             };
             // r Fbar S (large); S (small): p_a = (this g_A)_i
             let rfs = if large {
-                fbar * resp.stress * r
+                mat_mat(&fbar, &resp.stress) * r
             } else {
                 resp.stress
             };
             // without B rows: f_Ai += w B_Ai : S = w (p_Ai + v_Ai S : Cbar)
             let s_cbar = without_b_rows(out).then(|| resp.stress.component_mul(&cbar).sum());
             for (a, g) in g_gp.iter().enumerate() {
-                let pa = rfs * g;
+                let pa = mat_vec(&rfs, g);
                 for i in 0..3 {
                     v[a][i] = (q0[a][i] - q[a][i]) / 3.0;
                     p[a][i] = pa[i];

@@ -67,6 +67,15 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync + 'static {
         Self::with_parts(re, &parts[..n])
     }
 
+    /// `self + a * b`, rounded as written (a product, then a sum: no fused multiply-add),
+    /// so that every scalar's value is the `f64` one. A [`Rev`] records it as one tape entry
+    /// where a factor is a constant (the sums of products with constant coefficients of the
+    /// kinematics and of the nodal forces) instead of two, with the same adjoints to the bit.
+    #[inline]
+    fn add_mul(self, a: Self, b: Self) -> Self {
+        self + a * b
+    }
+
     /// All derivative parts, written into `out` (length `NPARTS`).
     #[inline]
     fn parts_into(&self, out: &mut [f64]) {
@@ -222,6 +231,33 @@ pub fn inv3<S: Scalar>(a: &Matrix3<S>) -> Option<(Matrix3<S>, S)> {
     // `cof` as written is already the adjugate (transpose of the cofactor matrix).
     let inv_d = d.recip();
     Some((cof * inv_d, d))
+}
+
+/// `a x`, each entry summed as nalgebra's product sums it (from the first column on), so
+/// that the values are its to the bit, through [`Scalar::add_mul`]: nalgebra's generic
+/// product of small matrices is a chain of calls that a recording's scalars ([`Rev`]) keep
+/// the compiler from inlining, and two tape entries a term.
+#[inline(always)]
+pub fn mat_vec<S: Scalar>(a: &Matrix3<S>, x: &Vector3<S>) -> Vector3<S> {
+    let row = |i: usize| {
+        (a[(i, 0)] * x[0])
+            .add_mul(a[(i, 1)], x[1])
+            .add_mul(a[(i, 2)], x[2])
+    };
+    Vector3::new(row(0), row(1), row(2))
+}
+
+/// `a b`, summed as [`mat_vec`] sums (a column at a time).
+#[inline(always)]
+pub fn mat_mat<S: Scalar>(a: &Matrix3<S>, b: &Matrix3<S>) -> Matrix3<S> {
+    let c = [0, 1, 2].map(|j| mat_vec(a, &b.column(j).into_owned()));
+    Matrix3::from_columns(&c)
+}
+
+/// `a^T b`, summed as [`mat_vec`] sums (a column at a time).
+#[inline(always)]
+pub fn tr_mat_mat<S: Scalar>(a: &Matrix3<S>, b: &Matrix3<S>) -> Matrix3<S> {
+    mat_mat(&a.transpose(), b)
 }
 
 /// The derivative parts of a vector dual as a nalgebra vector (helper for tests and the

@@ -81,10 +81,28 @@ fn with_tape<R>(f: impl FnOnce(&mut Vec<Node>) -> R) -> R {
 fn push(node: Node) -> u32 {
     with_tape(|t| {
         let i = t.len();
-        assert!(i < NONE as usize, "tape longer than u32 indices");
-        t.push(node);
+        if i == t.capacity() || i >= NONE as usize {
+            return push_growing(t, node);
+        }
+        // SAFETY: `i < capacity`, so the slot is allocated; it is written before the length
+        // takes it in
+        unsafe {
+            t.as_mut_ptr().add(i).write(node);
+            t.set_len(i + 1);
+        }
         i as u32
     })
+}
+
+/// [`push`] onto a full tape, which it grows (rarely: a recording's room is reserved ahead),
+/// or onto one as long as `u32` indices reach.
+#[cold]
+#[inline(never)]
+fn push_growing(t: &mut Vec<Node>, node: Node) -> u32 {
+    let i = t.len();
+    assert!(i < NONE as usize, "tape longer than u32 indices");
+    t.push(node);
+    i as u32
 }
 
 /// Empties this thread's tape; every `Rev` recorded before names nothing now.
@@ -708,12 +726,27 @@ impl Scalar for Rev {
     fn with_parts(re: f64, _parts: &[f64]) -> Self {
         Rev::constant(re)
     }
+    /// One entry with partials 1 and the constant factor where a factor is a constant:
+    /// the product's entry would pass its adjoint `g` on unchanged, and `b g` from it is
+    /// `b g` from this one, in the same place of the sweep, so the adjoints are those of
+    /// `self + a * b` to the bit.
+    #[inline(always)]
+    fn add_mul(self, a: Rev, b: Rev) -> Rev {
+        let v = self.v + a.v * b.v;
+        if b.i == NONE {
+            Rev::binary(v, self, 1.0, a, b.v)
+        } else if a.i == NONE {
+            Rev::binary(v, self, 1.0, b, a.v)
+        } else {
+            self + a * b
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scalar::{det3, inv3, safe_norm};
+    use crate::scalar::{det3, inv3, parts_of, safe_norm};
     use approx::assert_relative_eq;
     use nalgebra::{Matrix3, Vector3};
     use num_dual::DualSVec64;
@@ -774,6 +807,62 @@ mod tests {
         for (x, v) in xr.iter().zip(&vjp_fwd) {
             assert_relative_eq!(x.adjoint(&adj), *v, max_relative = 1e-13);
         }
+    }
+
+    /// The products of [`crate::scalar::mat_vec`], [`crate::scalar::mat_mat`] and
+    /// [`crate::scalar::tr_mat_mat`] are nalgebra's to the bit: the values in `f64` and in
+    /// dual numbers, and in reverse mode the values and the adjoints of one sweep through
+    /// them, on a tape with one entry a term fewer where a factor is constant.
+    #[test]
+    fn small_products_are_nalgebras_to_the_bit_on_a_shorter_tape() {
+        use crate::scalar::{mat_mat, mat_vec, tr_mat_mat};
+        let a0 = Matrix3::new(0.31, -1.7, 2.3e-3, 4.1, 0.52, -0.66, 1.0 / 3.0, 7.9, -2.2);
+        let b0 = Matrix3::new(-0.8, 0.13, 5.5, 0.29, -3.1, 0.47, 2.9, -1.0 / 7.0, 0.61);
+        let x0 = Vector3::new(0.17, -2.6, 1.0 / 9.0);
+        let nalgebra_f = |a: &Matrix3<f64>, b: &Matrix3<f64>, x: &Vector3<f64>| {
+            (a * x, a * b, a.transpose() * b)
+        };
+        let (v, m, t) = nalgebra_f(&a0, &b0, &x0);
+        assert_eq!((mat_vec(&a0, &x0), mat_mat(&a0, &b0)), (v, m));
+        assert_eq!(tr_mat_mat(&a0, &b0), t);
+        // dual numbers: every entry of `a` seeded
+        let ad = Matrix3::from_fn(|i, j| DualSVec64::<9>::seeded(a0[(i, j)], 3 * j + i));
+        let (bd, xd) = (b0.map(DualSVec64::<9>::from), x0.map(DualSVec64::<9>::from));
+        assert_eq!(mat_vec(&ad, &xd), ad * xd);
+        assert_eq!(mat_mat(&ad, &bd), ad * bd);
+        assert_eq!(tr_mat_mat(&ad, &bd), ad.transpose() * bd);
+        for (got, want) in mat_mat(&ad, &bd).iter().zip((ad * bd).iter()) {
+            assert_eq!(parts_of(got), parts_of(want));
+        }
+        // reverse mode: `a` and `x` inputs, `b` constant, one output of each product weighed
+        let record = |ours: bool| {
+            clear();
+            let a = a0.map(Rev::input);
+            let x = x0.map(Rev::input);
+            let b = b0.map(Rev::constant);
+            let (v, m, t) = if ours {
+                (mat_vec(&a, &x), mat_mat(&a, &b), tr_mat_mat(&a, &b))
+            } else {
+                (a * x, a * b, a.transpose() * b)
+            };
+            let entries = len();
+            let seeds = (v.iter().chain(&m).chain(&t).enumerate())
+                .map(|(k, y)| (*y, 1.0 + 0.1 * k as f64))
+                .collect::<Vec<_>>();
+            let mut adj = Vec::new();
+            sweep(seeds.iter().copied(), &mut adj);
+            let values: Vec<f64> = seeds.iter().map(|(y, _)| y.value()).collect();
+            let adjoints: Vec<f64> = (a.iter().chain(&x)).map(|z| z.adjoint(&adj)).collect();
+            (values, adjoints, entries)
+        };
+        let (ours, theirs) = (record(true), record(false));
+        assert_eq!(ours.0, theirs.0, "values");
+        assert_eq!(ours.1, theirs.1, "adjoints");
+        // 12 inputs; `a x`, both factors recorded: 3 entries of a product and two sums of
+        // a product, 15 entries either way; `a b` and `a^T b` (no zero in `b`): 9 entries
+        // of 3 terms each, the first a product, each later one a product and a sum (5
+        // tape entries an entry of the result) or one fused entry (3)
+        assert_eq!((ours.2, theirs.2), (12 + 15 + 2 * 27, 12 + 15 + 2 * 45));
     }
 
     /// A dropped recording's memory is kept and a later recording grows into it: that one

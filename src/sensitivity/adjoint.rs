@@ -27,12 +27,13 @@
 //! * **reverse mode** ([`Rev`]): every solid element whose history moves or is read is
 //!   recorded alone on the thread that evaluates it (in parallel), every colour of hitting
 //!   nodes in one evaluation, once per increment for both phases; each column is then one
-//!   backward sweep of each recording. A J2 hexahedron's recording is about 4,700 tape
-//!   entries (5,400 with incompatible modes; 8,400 and 10,200 when its force went through
-//!   the tangent's B rows, which a recording no longer forms; under large kinematics 559
-//!   fewer, 1,063 with F-bar, where no response reads its stress: the Cauchy stress's sums
-//!   and `det F` left out), and a recording and one sweep about sixteen times its `f64`
-//!   residual, four times its residual and tangent (`cargo bench --bench kernels`);
+//!   backward sweep of each recording. A J2 hexahedron's recording is about 3,800 tape
+//!   entries (4,200 with incompatible modes, 6,700 with F-bar; 8,400 and 10,200 when its
+//!   force went through the tangent's B rows, which a recording no longer forms, 4,700 and
+//!   5,400 before a sum of products with a constant factor took one entry a term,
+//!   [`Scalar::add_mul`]; fewer still where no response reads its stress: the Cauchy
+//!   stress's sums and `det F` left out), and a recording and one sweep about ten times its
+//!   `f64` residual, three times its residual and tangent (`cargo bench --bench kernels`);
 //! * **forward duals**: `DualSVec64<W>` numbers seeded over each element's local unknowns (its
 //!   degrees of freedom, then its history scalars) and each hitting node's (its block's
 //!   unknowns, then its history); the elements are coloured so that no two of a colour
@@ -1307,7 +1308,10 @@ impl<'a> Sweep<'a> {
         let mut factored = false;
         let tape_room = &mut w.tape_room;
         let ev_rev = &mut w.ev_rev;
-        let (recorded, mut state) = if reverse && self.factors_anew() {
+        // factored anew: the exact tangent's way, and any tangent's where no factorization
+        // was kept (a forced side's; one Newton's last was not on the converged branches)
+        let anew = self.factors_anew() || factor.is_none();
+        let (recorded, mut state) = if reverse && anew {
             // the tangent factored beside the recordings: neither reads the other, and
             // the factorization is serial below `PAR_FACTOR_MIN_N` unknowns while the
             // recordings keep every thread busy
