@@ -768,6 +768,14 @@ fn sensitivity(
             ""
         }
     );
+    // a one-sided side that failed: the run kept the rest, and says which side and why
+    for line in sens
+        .increments
+        .iter()
+        .flat_map(|i| (i.one_sided.iter()).flat_map(|o| o.failed.iter()))
+    {
+        out!("one-sided derivatives: {line}");
+    }
     let c = &sens.cost;
     out!(
         "cost: primal {:.3} s; sensitivity {:.3} s ({:.2} % of the primal per parameter): {} residual evaluations ({} over only the elements a parameter reaches), {} factorizations, {} GMRES solves ({} steps) instead of factorizations, {} solve columns, {} reruns",

@@ -58,7 +58,9 @@
 //! and its local derivatives taken on those branches; before it, the converged branches, as
 //! DDM carries the converged branches' history derivative into its forced solves. A side the
 //! converged state is on, solved with its tangent, is the converged column itself (DDM's
-//! rule, which saves its factorization).
+//! rule, which saves its factorization). A side whose forced increment fails (its tangent
+//! singular) is left out and says why ([`OneSided::failed`]); the other columns go on, as
+//! DDM's do.
 
 use super::*;
 use crate::assembly::{Assembler, Evaluation, Frozen};
@@ -500,7 +502,7 @@ pub(super) fn run_adjoint(
     let mut cost = SensitivityCost::default();
     let kinks = |m: usize| lights[m].kinks.as_slice();
     let times = |m: usize| lights[m].time;
-    let dfdb = sweep.run(&columns, kinks, &dh0, &mut cost, &mut store, times)?;
+    let (dfdb, failed) = sweep.run(&columns, kinks, &dh0, &mut cost, &mut store, times)?;
     out.cost = cost;
     out.cost.wall_seconds = seconds + t.elapsed().as_secs_f64();
     out.cost.stored_bytes = out.cost.stored_bytes.max(last_bytes) + store.resume_bytes;
@@ -519,15 +521,28 @@ pub(super) fn run_adjoint(
             values: s.values.clone(),
             derivatives: of(m, None),
             kinks: s.kinks.clone(),
-            one_sided: (settings.one_sided && !s.kinks.is_empty()).then(|| OneSided {
-                lower: of(m, Some(false)),
-                upper: of(m, Some(true)),
+            one_sided: (settings.one_sided && !s.kinks.is_empty()).then(|| {
+                // a failed side's columns all carry the same line
+                let why = |side: bool| {
+                    (columns.iter().zip(&failed))
+                        .find(|(c, _)| c.at == m && c.side == Some(side))
+                        .and_then(|(_, f)| f.clone())
+                };
+                let (lower, upper) = (why(false), why(true));
+                OneSided {
+                    lower: lower.is_none().then(|| of(m, Some(false))),
+                    upper: upper.is_none().then(|| of(m, Some(true))),
+                    failed: lower.into_iter().chain(upper).collect(),
+                }
             }),
             ..Default::default()
         });
     }
     Ok((res, out))
 }
+
+/// Why each column has no derivatives, where it has none ([`Sweep::run`]).
+type Failures = Vec<Option<String>>;
 
 /// One output of an evaluation: a scalar a response reads, and a row of the local
 /// Jacobians.
@@ -1095,8 +1110,10 @@ impl<'a> Sweep<'a> {
         }
     }
 
-    /// `df/db` of every column ([`Column`]), in their order. `kinks(m)`: the flagged points of
-    /// stored increment `m`, which a one-sided column forces. `dh0` is the initial history's
+    /// `df/db` of every column ([`Column`]), in their order, and why a one-sided column has
+    /// none where its forced increment failed ([`OneSided::failed`]: that side is left out,
+    /// the rest of the sweep goes on). `kinks(m)`: the flagged points of stored increment
+    /// `m`, which a one-sided column forces. `dh0` is the initial history's
     /// derivative per parameter (`None` or absent: zero). The stored increments come from
     /// `store`, a segment at a time from the last.
     fn run<'k>(
@@ -1107,7 +1124,7 @@ impl<'a> Sweep<'a> {
         cost: &mut SensitivityCost,
         store: &mut Store<'_>,
         lights_time: impl Fn(usize) -> f64,
-    ) -> Result<Vec<Vec<f64>>, AnalysisError> {
+    ) -> Result<(Vec<Vec<f64>>, Failures), AnalysisError> {
         let model = self.model;
         let ns = columns.iter().map(|c| c.at + 1).max().unwrap_or(0);
         let np = self.params.len();
@@ -1117,6 +1134,7 @@ impl<'a> Sweep<'a> {
         // a one-sided column whose side is the converged state's, solved with its tangent:
         // the column on the converged branches, which it is a copy of
         let mut copy_of: Vec<Option<usize>> = vec![None; ncol];
+        let mut failed: Failures = vec![None; ncol];
         // the recordings' memory, kept from one increment to the next, freed however the
         // sweep ends
         let _kept = tape::FreeKept;
@@ -1160,7 +1178,8 @@ impl<'a> Sweep<'a> {
             let s = &segment[m - seg_first];
             // the columns alive at this increment on its converged branches: responses read
             // here or later, but the one-sided columns of this increment
-            let alive = |j: usize| copy_of[j].is_none() && columns[j].at >= m;
+            let alive =
+                |j: usize| copy_of[j].is_none() && failed[j].is_none() && columns[j].at >= m;
             let cols: Vec<usize> = (0..ncol)
                 .filter(|&j| alive(j) && (columns[j].at > m || columns[j].side.is_none()))
                 .collect();
@@ -1203,7 +1222,14 @@ impl<'a> Sweep<'a> {
                     continue;
                 }
                 let forced = s.forced(gauss, choice);
-                self.increment(&mut work, &forced, None, m, columns, &side, &mut vars, cost)?;
+                // a side that fails (a singular forced tangent) is left out, as DDM leaves it
+                if let Err(e) =
+                    self.increment(&mut work, &forced, None, m, columns, &side, &mut vars, cost)
+                {
+                    for &j in &side {
+                        failed[j] = Some(side_failure(upper, s.index, &e));
+                    }
+                }
             }
         }
         // mu_0 . dh_0/db
@@ -1219,7 +1245,7 @@ impl<'a> Sweep<'a> {
                 dfdb[j] = dfdb[*i].clone();
             }
         }
-        Ok(dfdb)
+        Ok((dfdb, failed))
     }
 
     /// Stored increment `m` (`s`, Newton's last factorization `factor` if kept) for the

@@ -560,6 +560,7 @@ impl Observer for Engine<'_> {
                 || c.last_factor.is_none()
                 || !c.factor_matches;
             let mut sides = Vec::new();
+            let mut failed = Vec::new();
             for upper in [false, true] {
                 let mut gauss = c.eval.branches.clone();
                 let mut contact: Vec<ContactChoice> = c.eval.contact.choice.clone();
@@ -569,7 +570,7 @@ impl Observer for Engine<'_> {
                     // the converged state is on this side of every flagged point, and the
                     // derivative just computed solved with its tangent: that derivative is
                     // this side's
-                    sides.push(dresp.clone());
+                    sides.push(Some(dresp.clone()));
                     continue;
                 }
                 let frozen = Frozen {
@@ -578,14 +579,32 @@ impl Observer for Engine<'_> {
                     skip: None,
                     ..Frozen::default()
                 };
-                self.forced_tangent = Some(self.forced_tangent_at(c, &frozen)?);
-                let base = pseudo.as_ref().expect("DDM keeps its pseudo-loads");
-                let p = self.forced_pseudo_loads(c, base, &frozen)?;
-                sides.push(self.ddm(c, &frozen, &p)?.dresp);
+                let mut side = || -> Result<Vec<Vec<f64>>, AnalysisError> {
+                    self.forced_tangent = Some(self.forced_tangent_at(c, &frozen)?);
+                    let base = pseudo.as_ref().expect("DDM keeps its pseudo-loads");
+                    let p = self.forced_pseudo_loads(c, base, &frozen)?;
+                    Ok(self.ddm(c, &frozen, &p)?.dresp)
+                };
+                let side = side();
+                self.forced_tangent = None;
+                // a side that fails (a singular forced tangent: nothing resists the motion
+                // the side frees, its derivative unbounded) leaves the run and the other
+                // side as they are
+                match side {
+                    Ok(d) => sides.push(Some(d)),
+                    Err(e) => {
+                        failed.push(side_failure(upper, c.index, &e));
+                        sides.push(None);
+                    }
+                }
             }
             let upper = sides.pop().expect("two sides");
             let lower = sides.pop().expect("two sides");
-            Some(OneSided { lower, upper })
+            Some(OneSided {
+                lower,
+                upper,
+                failed,
+            })
         } else {
             None
         };

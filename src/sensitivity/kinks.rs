@@ -63,10 +63,39 @@ pub struct Kink {
 /// Derivatives `[r][p]` with every flagged point forced onto each side of its transition.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct OneSided {
-    /// Elastic / stick / open side.
-    pub lower: Vec<Vec<f64>>,
-    /// Plastic / slip / closed side.
-    pub upper: Vec<Vec<f64>>,
+    /// Elastic / stick / open side; `None` where its solve failed (`failed` says why).
+    pub lower: Option<Vec<Vec<f64>>>,
+    /// Plastic / slip / closed side; `None` where its solve failed.
+    pub upper: Option<Vec<Vec<f64>>>,
+    /// Why a side has no derivatives, one line a side that failed: a side can fail where
+    /// the rest of the run does not (its forced tangent singular where nothing resists the
+    /// motion the side frees, as a frictional node forced to slip with no elastic support
+    /// along the surface: that side's derivative is unbounded).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub failed: Vec<String>,
+}
+
+/// Derivatives `[r][p]`: response `r`, parameter `p`.
+pub type Table = [Vec<f64>];
+
+impl OneSided {
+    /// Both sides (lower, upper), where neither failed.
+    pub fn both(&self) -> Option<(&Table, &Table)> {
+        Some((self.lower.as_deref()?, self.upper.as_deref()?))
+    }
+}
+
+/// The line of [`OneSided::failed`] for side `upper` at increment `increment`.
+pub(crate) fn side_failure(upper: bool, increment: usize, e: &dyn std::fmt::Display) -> String {
+    let side = if upper {
+        "upper (plastic / slip / closed)"
+    } else {
+        "lower (elastic / stick / open)"
+    };
+    format!(
+        "increment {increment}: the {side} side's derivatives failed ({e}); the derivatives on \
+         the converged branches are kept"
+    )
 }
 
 /// Whether hitting node `k` (flat) is in a frictional pair.

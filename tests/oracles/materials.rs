@@ -334,10 +334,10 @@ fn pseudo_loads_over_only_the_elements_a_parameter_reaches_match_ddm_over_all() 
         1e-9,
         "DDM one-sided vs over all elements",
         |a, b, r, p| match (&a.one_sided, &b.one_sided) {
-            (Some(x), Some(y)) => vec![
-                (x.lower[r][p], y.lower[r][p]),
-                (x.upper[r][p], y.upper[r][p]),
-            ],
+            (Some(x), Some(y)) => {
+                let ((xl, xu), (yl, yu)) = (x.both().expect("sides"), y.both().expect("sides"));
+                vec![(xl[r][p], yl[r][p]), (xu[r][p], yu[r][p])]
+            }
             (None, None) => Vec::new(),
             _ => panic!("flagged in one run only at t = {}", a.time),
         },
@@ -398,8 +398,9 @@ fn gmres_with_newtons_factor_solves_the_converged_and_forced_tangents_as_their_f
         |a, b, r, p| {
             let mut pairs = vec![(a.derivatives[r][p], b.derivatives[r][p])];
             if let (Some(sa), Some(sb)) = (&a.one_sided, &b.one_sided) {
-                pairs.push((sa.lower[r][p], sb.lower[r][p]));
-                pairs.push((sa.upper[r][p], sb.upper[r][p]));
+                let ((al, au), (bl, bu)) = (sa.both().expect("sides"), sb.both().expect("sides"));
+                pairs.push((al[r][p], bl[r][p]));
+                pairs.push((au[r][p], bu[r][p]));
             }
             pairs
         },

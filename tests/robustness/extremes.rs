@@ -598,27 +598,16 @@ fn tiny_and_huge_increments() {
                     inc.time
                 );
                 let sides = inc.one_sided.as_ref().expect("one-sided derivatives");
+                let (lower, upper) = sides.both().expect("both sides");
                 let (_, elastic) = j2_oracle(inc.time, Some(false));
                 let (_, plastic) = j2_oracle(inc.time, Some(true));
                 println!(
                     "{per_unit} per unit, t = {}: flagged; derivatives {:?}, elastic side {:?}, plastic side {:?}",
-                    inc.time, inc.derivatives[0], sides.lower[0], sides.upper[0]
+                    inc.time, inc.derivatives[0], lower[0], upper[0]
                 );
                 for p in 0..3 {
-                    check(
-                        "elastic side",
-                        inc.time,
-                        sides.lower[0][p],
-                        elastic[p],
-                        floor[p],
-                    );
-                    check(
-                        "plastic side",
-                        inc.time,
-                        sides.upper[0][p],
-                        plastic[p],
-                        floor[p],
-                    );
+                    check("elastic side", inc.time, lower[0][p], elastic[p], floor[p]);
+                    check("plastic side", inc.time, upper[0][p], plastic[p], floor[p]);
                 }
                 continue;
             }
@@ -1060,6 +1049,7 @@ fn one_sided_meet_the_closed_forms(method: Method) {
         .iter()
         .all(|k| k.kind == fricsens::sensitivity::KinkKind::Yield));
     let sides = inc.one_sided.as_ref().expect("one-sided derivatives");
+    let (lower, upper) = sides.both().expect("both sides");
     let eps = SY / E;
     let (_, elastic) = j2_oracle(0.125, Some(false));
     let (_, plastic) = j2_oracle(0.125, Some(true));
@@ -1067,25 +1057,19 @@ fn one_sided_meet_the_closed_forms(method: Method) {
     let d_alpha = [-1.0 / (E + H), 0.0, (SY + H * eps) / ((E + H) * (E + H))];
     println!(
         "yield onset: derivatives {:?}; elastic side {:?} (oracle {elastic:?}); plastic side {:?} (oracle {plastic:?}); d alpha plastic side {:?} (oracle {d_alpha:?})",
-        inc.derivatives[0], sides.lower[0], sides.upper[0], sides.upper[2]
+        inc.derivatives[0], lower[0], upper[0], upper[2]
     );
     let scale = [1.0, SY / H, SY / E];
     for p in 0..3 {
         // one hex8 in a homogeneous state: exact to round-off
         let close = |a: f64, b: f64, s: f64| (a - b).abs() <= 1e-10 * b.abs().max(s);
+        assert!(close(lower[0][p], elastic[p], scale[p]), "elastic {p}");
+        assert!(close(upper[0][p], plastic[p], scale[p]), "plastic {p}");
+        assert!(lower[2][p] == 0.0, "alpha, elastic side {p}");
         assert!(
-            close(sides.lower[0][p], elastic[p], scale[p]),
-            "elastic {p}"
-        );
-        assert!(
-            close(sides.upper[0][p], plastic[p], scale[p]),
-            "plastic {p}"
-        );
-        assert!(sides.lower[2][p] == 0.0, "alpha, elastic side {p}");
-        assert!(
-            close(sides.upper[2][p], d_alpha[p], scale[p] / E),
+            close(upper[2][p], d_alpha[p], scale[p] / E),
             "alpha, plastic side {p}: {} vs {}",
-            sides.upper[2][p],
+            upper[2][p],
             d_alpha[p]
         );
     }
@@ -1117,7 +1101,116 @@ fn one_sided_meet_the_closed_forms(method: Method) {
         let sides = inc.one_sided.as_ref().expect("one-sided derivatives");
         let a = 0.5;
         // [response][parameter]: v, plane force
-        assert_eq!(sides.lower, vec![vec![a], vec![0.0]], "open side");
-        assert_eq!(sides.upper, vec![vec![0.0], vec![a]], "closed side");
+        assert_eq!(sides.lower, Some(vec![vec![a], vec![0.0]]), "open side");
+        assert_eq!(sides.upper, Some(vec![vec![0.0], vec![a]]), "closed side");
+    }
+}
+
+/// A side whose forced solve fails is left out, and the run keeps everything else. A free node
+/// pressed on a rigid plane (N = 1, Lagrange), held along it by friction alone (Coulomb,
+/// mu = 0.25, tangential penalty k = 1000), under a tangential load ramped to exactly mu N
+/// at t = 1 and held: from there on it sits at the onset of slip, flagged. Its stick side is
+/// the converged state's (`u = T / k`: du/dT = 1 / k, du/dmu = 0); on its slip side nothing
+/// resists sliding, the forced tangent is singular and that side's derivative unbounded.
+/// DDM and the adjoint both give the converged branches' derivatives and the stick side,
+/// and say of the slip side at each flagged increment that it failed and why.
+#[test]
+fn a_one_sided_solve_that_fails_leaves_that_side_out_and_keeps_the_run() {
+    let text = r#"
+name = "slip-onset-free-node"
+bodies = []
+[[free_nodes]]
+name = "slider"
+x = [0.0, 0.0, 0.0]
+[[springs]]
+a = "slider"
+stiffness = [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+[[loads]]
+name = "N"
+set = "slider"
+component = "y"
+value = -1.0
+amplitude = [[0.0, 1.0], [2.0, 1.0]]
+[[loads]]
+name = "T"
+set = "slider"
+component = "x"
+value = 0.25
+amplitude = [[0.0, 0.0], [1.0, 1.0], [2.0, 1.0]]
+[[contacts]]
+name = "plane"
+hitting = "slider"
+tangential_stiffness = 1000.0
+constraint_scale = 1.0
+[contacts.target.rigid]
+motion = []
+[contacts.target.rigid.surface]
+shape = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+[contacts.normal]
+law = "lagrange"
+[contacts.friction]
+law = "coulomb"
+mu = 0.25
+[[steps]]
+end = 2.0
+increments = 4
+[[responses]]
+kind = "displacement"
+name = "slider-u"
+set = "slider"
+component = "x"
+"#;
+    let model = Scene::from_toml(text, "slip-onset-free-node.toml")
+        .unwrap()
+        .build()
+        .unwrap();
+    let k = 1000.0;
+    for method in [Method::Ddm, Method::Adjoint] {
+        let s = sens(&model, &["mu", "load.T"], method, 0.0);
+        assert_eq!(s.increments.len(), 4, "{method:?}: every increment");
+        for inc in &s.increments {
+            println!(
+                "{method:?} t = {}: u {:.6e}, d/d(mu, T) {:?}; one-sided {:?}",
+                inc.time, inc.values[0], inc.derivatives[0], inc.one_sided
+            );
+            let t = inc.time.min(1.0);
+            assert!((inc.values[0] - 0.25 * t / k).abs() <= 1e-12 / k, "u");
+            // the converged branches' derivatives, exact: the stick state's
+            let want = [0.0, t / k];
+            for (got, want) in inc.derivatives[0].iter().zip(want) {
+                assert!(
+                    (got - want).abs() <= 1e-12 / k,
+                    "{method:?} t = {}",
+                    inc.time
+                );
+            }
+            if inc.time < 1.0 {
+                assert!(inc.kinks.is_empty() && inc.one_sided.is_none());
+                continue;
+            }
+            assert!(
+                !inc.kinks.is_empty(),
+                "{method:?} t = {}: flagged",
+                inc.time
+            );
+            let sides = inc.one_sided.as_ref().expect("one-sided derivatives");
+            // the stick side is the converged state's, solved with its tangent: the same
+            assert_eq!(
+                sides.lower.as_deref(),
+                Some(&inc.derivatives[..]),
+                "stick side"
+            );
+            assert_eq!(sides.upper, None, "{method:?}: the slip side is unbounded");
+            assert_eq!(sides.failed.len(), 1, "{:?}", sides.failed);
+            let why = &sides.failed[0];
+            assert!(
+                why.contains(&format!("increment {}", inc.increment))
+                    && why.contains("upper (plastic / slip / closed)")
+                    && why.contains("singular"),
+                "{why}"
+            );
+        }
     }
 }
