@@ -132,7 +132,8 @@ class Sensitivity:
     kinks: List[List[Kink]]
     """Per increment, the flagged non-differentiable points."""
     one_sided: List[Optional[dict]]
-    """Per increment (DDM at flagged increments): ``{"lower": [[..]], "upper": [[..]]}``."""
+    """Per increment (DDM at flagged increments): ``{"lower": [[..]], "upper": [[..]]}``, a
+    side ``None`` where its solve failed, with ``"failed"``: why, one line a failed side."""
     cost: Cost
     displacement_derivatives: Optional[np.ndarray] = None
     """``fields=True``: (n_increments, n_parameters, n_nodes, 3)."""

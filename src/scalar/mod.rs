@@ -70,7 +70,9 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync + 'static {
     /// `self + a * b`, rounded as written (a product, then a sum: no fused multiply-add),
     /// so that every scalar's value is the `f64` one. A [`Rev`] records it as one tape entry
     /// where a factor is a constant (the sums of products with constant coefficients of the
-    /// kinematics and of the nodal forces) instead of two, with the same adjoints to the bit.
+    /// kinematics and of the nodal forces) instead of two, with the same adjoints to the bit
+    /// (the product's entry would have passed its adjoint on, in the same place of the
+    /// sweep).
     #[inline]
     fn add_mul(self, a: Self, b: Self) -> Self {
         self + a * b
@@ -233,28 +235,31 @@ pub fn inv3<S: Scalar>(a: &Matrix3<S>) -> Option<(Matrix3<S>, S)> {
     Some((cof * inv_d, d))
 }
 
-/// `a x`, each entry summed as nalgebra's product sums it (from the first column on), so
-/// that the values are its to the bit, through [`Scalar::add_mul`]: nalgebra's generic
-/// product of small matrices is a chain of calls that a recording's scalars ([`Rev`]) keep
-/// the compiler from inlining, and two tape entries a term.
+/// `a x` as nalgebra's product makes it, a column of `a` at a time (every row's first term,
+/// then every row's second, ...), through [`Scalar::add_mul`]: the same values (and, for a
+/// [`Rev`], the same tape order, so the same adjoints) to the bit, but the derivative parts
+/// of a [`Dual64`], whose zeros may keep a sign nalgebra's `1 * a` turns to `+0`. nalgebra's
+/// generic product of small matrices is a chain of calls that a recording's scalars keep the
+/// compiler from inlining, and two tape entries a term where one entry does.
 #[inline(always)]
 pub fn mat_vec<S: Scalar>(a: &Matrix3<S>, x: &Vector3<S>) -> Vector3<S> {
-    let row = |i: usize| {
-        (a[(i, 0)] * x[0])
-            .add_mul(a[(i, 1)], x[1])
-            .add_mul(a[(i, 2)], x[2])
-    };
-    Vector3::new(row(0), row(1), row(2))
+    let mut y = Vector3::new(a[(0, 0)] * x[0], a[(1, 0)] * x[0], a[(2, 0)] * x[0]);
+    for j in 1..3 {
+        for i in 0..3 {
+            y[i] = y[i].add_mul(a[(i, j)], x[j]);
+        }
+    }
+    y
 }
 
-/// `a b`, summed as [`mat_vec`] sums (a column at a time).
+/// `a b`, a column at a time as nalgebra makes it, each by [`mat_vec`].
 #[inline(always)]
 pub fn mat_mat<S: Scalar>(a: &Matrix3<S>, b: &Matrix3<S>) -> Matrix3<S> {
     let c = [0, 1, 2].map(|j| mat_vec(a, &b.column(j).into_owned()));
     Matrix3::from_columns(&c)
 }
 
-/// `a^T b`, summed as [`mat_vec`] sums (a column at a time).
+/// `a^T b`, as [`mat_mat`] of the transpose.
 #[inline(always)]
 pub fn tr_mat_mat<S: Scalar>(a: &Matrix3<S>, b: &Matrix3<S>) -> Matrix3<S> {
     mat_mat(&a.transpose(), b)

@@ -81,28 +81,19 @@ fn with_tape<R>(f: impl FnOnce(&mut Vec<Node>) -> R) -> R {
 fn push(node: Node) -> u32 {
     with_tape(|t| {
         let i = t.len();
-        if i == t.capacity() || i >= NONE as usize {
-            return push_growing(t, node);
+        if i >= NONE as usize {
+            too_long();
         }
-        // SAFETY: `i < capacity`, so the slot is allocated; it is written before the length
-        // takes it in
-        unsafe {
-            t.as_mut_ptr().add(i).write(node);
-            t.set_len(i + 1);
-        }
+        t.push(node);
         i as u32
     })
 }
 
-/// [`push`] onto a full tape, which it grows (rarely: a recording's room is reserved ahead),
-/// or onto one as long as `u32` indices reach.
+/// A tape as long as `u32` indices reach: out of the hot path of [`push`].
 #[cold]
 #[inline(never)]
-fn push_growing(t: &mut Vec<Node>, node: Node) -> u32 {
-    let i = t.len();
-    assert!(i < NONE as usize, "tape longer than u32 indices");
-    t.push(node);
-    i as u32
+fn too_long() -> ! {
+    panic!("tape longer than u32 indices");
 }
 
 /// Empties this thread's tape; every `Rev` recorded before names nothing now.
@@ -834,25 +825,40 @@ mod tests {
         for (got, want) in mat_mat(&ad, &bd).iter().zip((ad * bd).iter()) {
             assert_eq!(parts_of(got), parts_of(want));
         }
-        // reverse mode: `a` and `x` inputs, `b` constant, one output of each product weighed
+        // a deformation gradient of a simple shear, its first row (1, 0, c) exactly: products
+        // of ones and zeros share their factors' entries, so that the tape's order decides
+        // the order of the additions into an input's adjoint
+        let f0 = Matrix3::new(1.0, 0.0, 0.37, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+        // reverse mode: `a`, `x` and `f` inputs, `b` constant, every output weighed
         let record = |ours: bool| {
             clear();
             let a = a0.map(Rev::input);
             let x = x0.map(Rev::input);
+            let f = f0.map(Rev::input);
             let b = b0.map(Rev::constant);
             let (v, m, t) = if ours {
                 (mat_vec(&a, &x), mat_mat(&a, &b), tr_mat_mat(&a, &b))
             } else {
                 (a * x, a * b, a.transpose() * b)
             };
-            let entries = len();
-            let seeds = (v.iter().chain(&m).chain(&t).enumerate())
+            let entries = len() - 9;
+            let (c, g) = if ours {
+                (
+                    tr_mat_mat(&f, &f),
+                    mat_mat(&mat_mat(&f, &m), &f.transpose()),
+                )
+            } else {
+                (f.transpose() * f, f * m * f.transpose())
+            };
+            let seeds = (v.iter().chain(&m).chain(&t).chain(&c).chain(&g).enumerate())
                 .map(|(k, y)| (*y, 1.0 + 0.1 * k as f64))
                 .collect::<Vec<_>>();
             let mut adj = Vec::new();
             sweep(seeds.iter().copied(), &mut adj);
             let values: Vec<f64> = seeds.iter().map(|(y, _)| y.value()).collect();
-            let adjoints: Vec<f64> = (a.iter().chain(&x)).map(|z| z.adjoint(&adj)).collect();
+            let adjoints: Vec<f64> = (a.iter().chain(&x).chain(&f))
+                .map(|z| z.adjoint(&adj))
+                .collect();
             (values, adjoints, entries)
         };
         let (ours, theirs) = (record(true), record(false));

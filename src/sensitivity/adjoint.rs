@@ -28,11 +28,10 @@
 //!   recorded alone on the thread that evaluates it (in parallel), every colour of hitting
 //!   nodes in one evaluation, once per increment for both phases; each column is then one
 //!   backward sweep of each recording. A J2 hexahedron's recording is about 3,800 tape
-//!   entries (4,200 with incompatible modes, 6,700 with F-bar; 8,400 and 10,200 when its
-//!   force went through the tangent's B rows, which a recording no longer forms, 4,700 and
-//!   5,400 before a sum of products with a constant factor took one entry a term,
-//!   [`Scalar::add_mul`]; fewer still where no response reads its stress: the Cauchy
-//!   stress's sums and `det F` left out), and a recording and one sweep about ten times its
+//!   entries (4,200 with incompatible modes, 6,700 with F-bar; fewer where no response reads
+//!   its stress: the Cauchy stress's sums and `det F` left out), its force summed from the
+//!   stress without the tangent's B rows and a sum of products with a constant factor one
+//!   entry a term ([`Scalar::add_mul`]); a recording and one sweep cost about ten times its
 //!   `f64` residual, three times its residual and tangent (`cargo bench --bench kernels`);
 //! * **forward duals**: `DualSVec64<W>` numbers seeded over each element's local unknowns (its
 //!   degrees of freedom, then its history scalars) and each hitting node's (its block's
@@ -59,8 +58,8 @@
 //! DDM carries the converged branches' history derivative into its forced solves. A side the
 //! converged state is on, solved with its tangent, is the converged column itself (DDM's
 //! rule, which saves its factorization). A side whose forced increment fails (its tangent
-//! singular) is left out and says why ([`OneSided::failed`]); the other columns go on, as
-//! DDM's do.
+//! singular, for one) is left out and says why ([`OneSided::failed`]); the other columns go
+//! on, as DDM's do.
 
 use super::*;
 use crate::assembly::{Assembler, Evaluation, Frozen};
@@ -1222,7 +1221,8 @@ impl<'a> Sweep<'a> {
                     continue;
                 }
                 let forced = s.forced(gauss, choice);
-                // a side that fails (a singular forced tangent) is left out, as DDM leaves it
+                // a side that fails (a singular forced tangent, for one) is left out, as DDM
+                // leaves it
                 if let Err(e) =
                     self.increment(&mut work, &forced, None, m, columns, &side, &mut vars, cost)
                 {
@@ -1243,6 +1243,12 @@ impl<'a> Sweep<'a> {
         for (j, of) in copy_of.iter().enumerate() {
             if let Some(i) = of {
                 dfdb[j] = dfdb[*i].clone();
+            }
+        }
+        // a failed side's columns stopped part-way: nothing of them is an answer
+        for (row, why) in dfdb.iter_mut().zip(&failed) {
+            if why.is_some() {
+                row.fill(f64::NAN);
             }
         }
         Ok((dfdb, failed))

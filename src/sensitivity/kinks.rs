@@ -68,19 +68,19 @@ pub struct OneSided {
     /// Plastic / slip / closed side; `None` where its solve failed.
     pub upper: Option<Vec<Vec<f64>>>,
     /// Why a side has no derivatives, one line a side that failed: a side can fail where
-    /// the rest of the run does not (its forced tangent singular where nothing resists the
-    /// motion the side frees, as a frictional node forced to slip with no elastic support
-    /// along the surface: that side's derivative is unbounded).
+    /// the rest of the run does not (for one, its forced tangent singular where nothing
+    /// resists the motion the side frees, as a frictional node forced to slip with no
+    /// elastic support along the surface: that side's derivative is unbounded).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub failed: Vec<String>,
 }
 
 /// Derivatives `[r][p]`: response `r`, parameter `p`.
-pub type Table = [Vec<f64>];
+pub type DerivativeTable = [Vec<f64>];
 
 impl OneSided {
     /// Both sides (lower, upper), where neither failed.
-    pub fn both(&self) -> Option<(&Table, &Table)> {
+    pub fn both(&self) -> Option<(&DerivativeTable, &DerivativeTable)> {
         Some((self.lower.as_deref()?, self.upper.as_deref()?))
     }
 }
