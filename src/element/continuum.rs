@@ -307,31 +307,16 @@ pub(crate) struct Solid<'t> {
     pub(crate) fbar: bool,
 }
 
-/// `H = grad_X u` at a Gauss point from the generalised displacements (the enhanced part
-/// included).
-fn displacement_gradient<S: Scalar>(
-    dofs: &[Vector3<S>],
-    grads: &[Vector3<S>; MAX_GEN],
-    n_gen: usize,
-) -> Matrix3<S> {
-    let mut h = Matrix3::<S>::zeros();
-    for (d, g) in dofs.iter().zip(grads).take(n_gen) {
-        for i in 0..3 {
-            for j in 0..3 {
-                h[(i, j)] = h[(i, j)].add_mul(d[i], g[j]);
-            }
-        }
-    }
-    h
-}
-
-/// `sum_A d_A g_A^T` over the pairs of `dofs` and `grads` (F-bar's displacement gradients),
-/// summed as the products `d g^T` were added up.
-fn outer_sum<S: Scalar>(dofs: &[Vector3<S>], grads: &[Vector3<S>]) -> Matrix3<S> {
+/// `H = grad_X u = sum_A d_A g_A^T` at a Gauss point over the pairs of generalised
+/// displacements `dofs` and gradients `grads` (the enhanced part included where given; F-bar's
+/// element average too). Each entry is its own sum in the pairs' order, so the order of the
+/// entries changes no value, and a recording's adjoints neither: each input's contributions
+/// come in the same order.
+fn displacement_gradient<S: Scalar>(dofs: &[Vector3<S>], grads: &[Vector3<S>]) -> Matrix3<S> {
     let mut h = Matrix3::<S>::zeros();
     for (d, g) in dofs.iter().zip(grads) {
-        for j in 0..3 {
-            for i in 0..3 {
+        for i in 0..3 {
+            for j in 0..3 {
                 h[(i, j)] = h[(i, j)].add_mul(d[i], g[j]);
             }
         }
@@ -465,7 +450,7 @@ impl Solid<'_> {
         let n_gen = self.generalised_nodes();
         for (gp, e) in out.iter_mut().enumerate().take(self.rule.len()) {
             let geo = self.reference_geometry(x_ref, gp, &centre)?;
-            let h = displacement_gradient(dofs, &geo.grads, n_gen);
+            let h = displacement_gradient(dofs, &geo.grads[..n_gen]);
             *e = strain_measure(&h, kinematics == Kinematics::Large);
         }
         Ok(true)
@@ -548,7 +533,7 @@ impl Solid<'_> {
         let mut b = [[Voigt::<S>::zeros(); 3]; MAX_GEN];
         for gp in 0..self.rule.len() {
             let geo = self.reference_geometry(x_ref, gp, &centre)?;
-            let h = displacement_gradient(input.dofs, &geo.grads, n_gen);
+            let h = displacement_gradient(input.dofs, &geo.grads[..n_gen]);
             let f = h + Matrix3::identity();
             let det_f = det_f_of(&f, large, out);
             out.min_det_f = out.min_det_f.min(re(det_f));
@@ -664,7 +649,7 @@ impl Solid<'_> {
         for gb in gbar[..nn].iter_mut() {
             *gb *= inv_v0;
         }
-        let h0 = outer_sum(input.dofs, &gbar[..nn]);
+        let h0 = displacement_gradient(input.dofs, &gbar[..nn]);
         let f0 = h0 + Matrix3::identity();
         // q0_A = F0^-T gbar_A (large), gbar_A (small); J0
         let (q0, j0) = if large {
@@ -704,7 +689,7 @@ impl Solid<'_> {
         let mut gsg = [[S::zero(); 3 * MAX_NODES]; 3];
         for (gp, (g_gp, &w)) in grads.iter().zip(weights).enumerate() {
             let g_gp = &g_gp[..nn];
-            let h = outer_sum(input.dofs, g_gp);
+            let h = displacement_gradient(input.dofs, g_gp);
             let f = h + Matrix3::identity();
             let det_f = det_f_of(&f, large, out);
             out.min_det_f = out.min_det_f.min(re(det_f));

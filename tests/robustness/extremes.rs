@@ -1213,4 +1213,46 @@ component = "x"
             );
         }
     }
+    // from the command line, with default settings: the run succeeds, its summary says which
+    // side failed where, and sensitivity.json has that side null and the other's numbers
+    let dir = scratch_path("one-sided-failure");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("slip-onset-free-node.toml");
+    std::fs::write(&file, text).unwrap();
+    for (method, at) in [("ddm", &[][..]), ("adjoint", &["--at", "all"][..])] {
+        let out = fricsens()
+            .args([
+                "sensitivity",
+                &file.display().to_string(),
+                "--method",
+                method,
+            ])
+            .args(["--param", "mu"])
+            .args(at)
+            .arg("--out")
+            .arg(dir.join(method))
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let lines = (stdout.lines())
+            .filter(|l| l.starts_with("one-sided derivatives: increment"))
+            .count();
+        assert_eq!(lines, 3, "{method}: one line a flagged increment\n{stdout}");
+        let json = std::fs::read_to_string(dir.join(method).join("sensitivity.json")).unwrap();
+        let json: serde_json::Value = serde_json::from_str(&json).unwrap();
+        let last = &json["increments"][3]["one_sided"];
+        assert!(last["upper"].is_null(), "{method}: {last}");
+        assert_eq!(
+            last["lower"],
+            serde_json::json!([[0.0]]),
+            "{method}: {last}"
+        );
+        assert_eq!(last["failed"].as_array().map(Vec::len), Some(1), "{method}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
