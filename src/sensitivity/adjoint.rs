@@ -1221,13 +1221,14 @@ impl<'a> Sweep<'a> {
                     continue;
                 }
                 let forced = s.forced(gauss, choice);
-                // a side that fails (a singular forced tangent, for one) is left out, as DDM
-                // leaves it
+                // a side whose forced tangent is singular is left out, as DDM leaves it;
+                // any other error stops the sweep (`side_failure`)
                 if let Err(e) =
                     self.increment(&mut work, &forced, None, m, columns, &side, &mut vars, cost)
                 {
+                    let line = side_failure(upper, s.index, e)?;
                     for &j in &side {
-                        failed[j] = Some(side_failure(upper, s.index, &e));
+                        failed[j] = Some(line.clone());
                     }
                 }
             }

@@ -587,13 +587,13 @@ impl Observer for Engine<'_> {
                 };
                 let side = side();
                 self.forced_tangent = None;
-                // a side that fails (a singular forced tangent: nothing resists the motion
-                // the side frees, its derivative unbounded) leaves the run and the other
-                // side as they are
+                // a side whose forced tangent is singular (nothing resists the motion the
+                // side frees, its derivative unbounded) leaves the run and the other side as
+                // they are; any other error stops the run (`side_failure`)
                 match side {
                     Ok(d) => sides.push(Some(d)),
                     Err(e) => {
-                        failed.push(side_failure(upper, c.index, &e));
+                        failed.push(side_failure(upper, c.index, e)?);
                         sides.push(None);
                     }
                 }

@@ -85,17 +85,34 @@ impl OneSided {
     }
 }
 
-/// The line of [`OneSided::failed`] for side `upper` at increment `increment`.
-pub(crate) fn side_failure(upper: bool, increment: usize, e: &dyn std::fmt::Display) -> String {
+/// The line of [`OneSided::failed`] for side `upper` at increment `increment`, whose solve
+/// failed with `e`, where that failure is the side's own: its forced tangent singular (no
+/// pivot, or not positive definite), which nothing else in the run shares. Any other error
+/// (an evaluation, a pattern, a model) is returned as it is, for the run to stop on: the
+/// converged branches' solve at that increment would meet it too, or it is a bug.
+pub(crate) fn side_failure(
+    upper: bool,
+    increment: usize,
+    e: AnalysisError,
+) -> Result<String, AnalysisError> {
+    use crate::linalg::LinalgError;
+    if !matches!(
+        e,
+        AnalysisError::Linalg(
+            LinalgError::Singular { .. } | LinalgError::NotPositiveDefinite { .. }
+        )
+    ) {
+        return Err(e);
+    }
     let side = if upper {
         "upper (plastic / slip / closed)"
     } else {
         "lower (elastic / stick / open)"
     };
-    format!(
+    Ok(format!(
         "increment {increment}: the {side} side's derivatives failed ({e}); the derivatives on \
          the converged branches are kept"
-    )
+    ))
 }
 
 /// Whether hitting node `k` (flat) is in a frictional pair.
@@ -193,5 +210,33 @@ impl Engine<'_> {
             }
         }
         v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linalg::LinalgError;
+
+    /// A forced side leaves the run only on its own tangent's singularity; an error any
+    /// solve of the increment would meet, or a bug, still stops the run.
+    #[test]
+    fn only_a_singular_forced_tangent_fails_a_side_alone() {
+        let singular = AnalysisError::Linalg(LinalgError::Singular { index: Some(3) });
+        let line = side_failure(true, 7, singular).expect("a side's own failure");
+        assert!(line.starts_with("increment 7: the upper"), "{line}");
+        assert!(line.contains("singular matrix"), "{line}");
+        let spd = AnalysisError::Linalg(LinalgError::NotPositiveDefinite { index: 0 });
+        let line = side_failure(false, 2, spd).expect("a side's own failure");
+        assert!(line.starts_with("increment 2: the lower"), "{line}");
+        for shared in [
+            AnalysisError::Linalg(LinalgError::PatternMismatch),
+            AnalysisError::Linalg(LinalgError::NotFactored),
+            AnalysisError::Linalg(LinalgError::Faer("out of memory".into())),
+        ] {
+            let text = shared.to_string();
+            let back = side_failure(false, 1, shared).expect_err("not a side's own");
+            assert_eq!(back.to_string(), text);
+        }
     }
 }
