@@ -425,22 +425,21 @@ impl<'a> Engine<'a> {
                 None => converged_k(),
             };
             let cost = &mut self.results.cost;
-            // the factor closest to `k` at hand: the converged tangent's (a forced tangent
-            // after the converged one was factored at this increment), else Newton's last.
-            // (A forced tangent that is singular, e.g. a rigid mode left by a node forced
-            // open, factors as singular; GMRES may instead return one of its solutions.)
+            // GMRES preconditioned with the factor closest to `k` at hand: the converged
+            // tangent's where it was factored at this increment, else Newton's last. A
+            // forced tangent (a one-sided derivative's side) is factored instead, as the
+            // adjoint factors it: it may be singular (nothing resists the motion its side
+            // frees, e.g. a node forced to slip or open), which the factorization reports
+            // and GMRES need not (it may return one of the solutions); and the factor at
+            // hand is of other branches, far from it (on the leaf spring, 25 GMRES steps
+            // a side, slower than factoring it)
             let at_hand = if self.exact_holds == Some(c.index) {
                 self.exact.as_ref()
             } else {
                 c.last_factor
             };
-            if let (true, Some(m)) = (self.settings.krylov, at_hand) {
-                let what = if forced {
-                    "forced tangent"
-                } else {
-                    "converged tangent"
-                };
-                if krylov_refined(m, &k, false, rhs, ncols, cost, what)? {
+            if let (true, false, Some(m)) = (self.settings.krylov, forced, at_hand) {
+                if krylov_refined(m, &k, false, rhs, ncols, cost, "converged tangent")? {
                     return Ok(());
                 }
             }
