@@ -88,8 +88,8 @@ enum Command {
         #[arg(long, default_value = "exact")]
         tangent: TangentArg,
         /// Factor the converged tangent (exact, or where Newton's last factor is on other
-        /// branches) and DDM's forced tangents, instead of solving with GMRES preconditioned
-        /// with the factor at hand.
+        /// branches) instead of solving with GMRES preconditioned with the factor at hand.
+        /// (A forced tangent, a one-sided derivative's side, is factored always.)
         #[arg(long)]
         no_krylov: bool,
         /// The adjoint with --tangent exact: the transposed solves by GMRES preconditioned

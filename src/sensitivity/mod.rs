@@ -42,8 +42,9 @@
 //! * `refined`: the last factorization plus `Settings::refine_steps` steps of iterative
 //!   refinement against the converged tangent (between the two in cost and accuracy).
 //!
-//! DDM's one-sided derivatives solve with forced tangents the same way (preconditioned with
-//! the converged tangent's factorization where one was made at that increment).
+//! DDM's one-sided derivatives factor each forced tangent, as the adjoint does, whatever the
+//! option: a side may be singular (nothing resists the motion it frees), which a
+//! factorization reports and GMRES need not.
 //!
 //! ## Non-differentiable points
 //! A Gauss point whose trial yield ratio lies within `kink_tol` of zero sits on the
