@@ -5,7 +5,7 @@ use fricsens::output;
 use fricsens::scene::{builtin_list, Scene};
 use fricsens::solver::{AnalysisError, Converged, Observer, RunOptions, Solver};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// `println!` that ends the program quietly when stdout is closed (e.g. piped into `head`)
@@ -285,7 +285,7 @@ enum Command {
         /// First seed.
         #[arg(long, default_value_t = 0)]
         start: u64,
-        /// Output directory (fuzz.md, fuzz.json).
+        /// Output directory (fuzz.md, fuzz.json; with --methods, methods.md and methods.json).
         #[arg(long, default_value = "validation/robustness")]
         out: PathBuf,
         /// Write every failing scene as TOML into this directory.
@@ -310,6 +310,14 @@ enum Command {
         /// Markdown appended to the report section (what changed, what is left).
         #[arg(long)]
         notes: Option<PathBuf>,
+        /// Instead of the physics checks: DDM against the adjoint on each scene, every
+        /// derivative at every increment for the parameters the scene declares, each method
+        /// with its default settings (`fricsens::studies::fuzz_methods`; no time limit);
+        /// writes methods.md and methods.json, and exits 1 if on any scene the two disagree:
+        /// a derivative off by more than 1e-10 of its scale, a method failing where the other
+        /// does not, or tables that differ in what they hold.
+        #[arg(long, conflicts_with_all = ["corpus", "time_limit", "before", "notes"])]
+        methods: bool,
     },
     /// The mesh readers' fuzzer: mutants of a block of hex8, hex20 and tet10 elements written
     /// as MSH 4.1 ASCII, binary and .inp, and of any --file, read and imported; none may panic, and every refusal must name
@@ -1419,7 +1427,7 @@ fn fuzz(
     before: Option<PathBuf>,
     notes: Option<PathBuf>,
 ) -> Result<(), String> {
-    use fricsens::studies::fuzz::{generate, report_section, run_case, Summary};
+    use fricsens::studies::fuzz::{report_section, run_case, Summary};
     let read =
         |p: &PathBuf| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
     let before: Option<Summary> = match &before {
@@ -1438,33 +1446,18 @@ fn fuzz(
         None => String::new(),
     };
     use rayon::prelude::*;
-    let given: Vec<Scene> = scenes
-        .iter()
-        .map(|s| Scene::load(s).map_err(|e| e.to_string()))
-        .collect::<Result<_, _>>()?;
-    let seeds: Vec<u64> = if given.is_empty() {
-        seeds
-    } else {
-        (0..given.len() as u64).collect()
-    };
-    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let fs = FuzzScenes::new(seeds, &scenes, &out)?;
     if let Some(c) = &corpus {
         std::fs::create_dir_all(c).map_err(|e| format!("{}: {e}", c.display()))?;
     }
-    let pb = progress(seeds.len());
-    pb.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} scenes {msg} [{elapsed}]")
-            .expect("valid template"),
-    );
+    let pb = &fs.pb;
     let failed = std::sync::atomic::AtomicUsize::new(0);
-    let outcomes: Vec<_> = seeds
+    let outcomes: Vec<_> = fs
+        .seeds
         .par_iter()
         .with_max_len(1)
         .map(|&seed| {
-            let scene = match given.get(seed as usize) {
-                Some(s) => s.clone(),
-                None => generate(seed),
-            };
+            let scene = fs.scene(seed);
             let o = run_case(seed, &scene, Some(time_limit));
             if !o.passed {
                 let n = failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -1538,6 +1531,85 @@ fn fuzz(
     Ok(())
 }
 
+/// The fuzzer's scenes: the seeds' generated scenes, or the `scenes` given (built-in names or
+/// files), numbered from 0; the output directory made; a progress bar over them.
+struct FuzzScenes {
+    seeds: Vec<u64>,
+    given: Vec<Scene>,
+    pb: ProgressBar,
+}
+
+impl FuzzScenes {
+    fn new(seeds: Vec<u64>, scenes: &[String], out: &Path) -> Result<Self, String> {
+        let given: Vec<Scene> = scenes
+            .iter()
+            .map(|s| Scene::load(s).map_err(|e| e.to_string()))
+            .collect::<Result<_, _>>()?;
+        let seeds: Vec<u64> = if given.is_empty() {
+            seeds
+        } else {
+            (0..given.len() as u64).collect()
+        };
+        std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+        let pb = progress(seeds.len());
+        pb.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} scenes {msg} [{elapsed}]")
+                .expect("valid template"),
+        );
+        Ok(FuzzScenes { seeds, given, pb })
+    }
+
+    /// Scene `seed`: the given one of that number, else the generated one.
+    fn scene(&self, seed: u64) -> Scene {
+        match self.given.get(seed as usize) {
+            Some(s) => s.clone(),
+            None => fricsens::studies::fuzz::generate(seed),
+        }
+    }
+}
+
+/// `fricsens fuzz --methods`: DDM against the adjoint on generated scenes (or `scenes`).
+fn fuzz_methods(seeds: Vec<u64>, scenes: Vec<String>, out: PathBuf) -> Result<(), String> {
+    use fricsens::studies::fuzz_methods::{check, Campaign};
+    use rayon::prelude::*;
+    let fs = FuzzScenes::new(seeds, &scenes, &out)?;
+    let pb = &fs.pb;
+    let disagreeing = std::sync::atomic::AtomicUsize::new(0);
+    let checks: Vec<_> = fs
+        .seeds
+        .par_iter()
+        .with_max_len(1)
+        .map(|&seed| {
+            let scene = fs.scene(seed);
+            let c = check(seed, &scene);
+            if !c.agrees() {
+                let n = disagreeing.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                pb.set_message(format!("{n} disagree"));
+                pb.suspend(|| {
+                    eprintln!("{}: {}", scene.name, c.disagreements.join("; "));
+                });
+            }
+            pb.inc(1);
+            c
+        })
+        .collect();
+    pb.finish_and_clear();
+    let campaign = Campaign::of(checks);
+    let md = campaign.markdown();
+    std::fs::write(out.join("methods.md"), &md).map_err(|e| e.to_string())?;
+    let json = serde_json::to_string_pretty(&campaign).map_err(|e| e.to_string())?;
+    std::fs::write(out.join("methods.json"), json).map_err(|e| e.to_string())?;
+    outp!("{md}");
+    out!("written to {}", out.display());
+    if campaign.disagreeing > 0 {
+        return Err(format!(
+            "{} scene(s) where DDM and the adjoint disagree",
+            campaign.disagreeing
+        ));
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -1572,13 +1644,18 @@ fn main() -> ExitCode {
             show: None,
             before,
             notes,
+            methods,
         } => {
             let list = if only.is_empty() {
                 (start..start + seeds).collect()
             } else {
                 only
             };
-            fuzz(list, scenes, out, corpus, time_limit, before, notes)
+            if methods {
+                fuzz_methods(list, scenes, out)
+            } else {
+                fuzz(list, scenes, out, corpus, time_limit, before, notes)
+            }
         }
         Command::FuzzMeshes {
             mutants,

@@ -177,14 +177,13 @@ pub struct Settings {
     /// method's own wall time.
     pub probe_floor: bool,
     /// Solve with the converged tangent (`TangentChoice::Exact`, or Newton's last factor on
-    /// other branches) or a forced one (DDM's one-sided derivatives: the flagged points forced
-    /// onto one branch) by GMRES preconditioned with a factorization at hand instead of
+    /// other branches) by GMRES preconditioned with a factorization at hand instead of
     /// factoring it: Newton's last factor differs from the converged tangent by Newton's last
-    /// correction and a few switched branches, the forced tangent from the converged one by a
-    /// few rows, so GMRES converges in a few solves. A factorization is the fallback when
-    /// GMRES does not reach [`KRYLOV_TOL`] (or a direct solve's backward error) in
-    /// [`KRYLOV_MAX_ITER`] steps, and the only way
-    /// when this is off.
+    /// correction and a few switched branches, so GMRES converges in a few solves. A
+    /// factorization is the fallback when GMRES does not reach [`KRYLOV_TOL`] (or a direct
+    /// solve's backward error) in [`KRYLOV_MAX_ITER`] steps, and the only way when this is
+    /// off. A forced tangent (DDM's one-sided derivatives: the flagged points forced onto one
+    /// branch) is factored either way: it may be singular, which GMRES need not report.
     pub krylov: bool,
     /// SDM and SDM central: split the error against DDM at every increment into the terms
     /// of the residual, the response's own difference and what the history carries in
@@ -336,8 +335,9 @@ pub struct SensitivityCost {
     pub partial_evaluations: usize,
     /// Factorizations beyond Newton's (the converged tangent, forced branches).
     pub factorizations: usize,
-    /// Solves with the converged or a forced tangent done by GMRES instead of a
-    /// factorization (`Settings::krylov`); their solve columns are in `solve_columns`.
+    /// Solves with the converged tangent done by GMRES instead of a factorization
+    /// (`Settings::krylov`; a forced tangent is always factored); their solve columns are in
+    /// `solve_columns`.
     pub krylov_solves: usize,
     /// GMRES steps over all `krylov_solves`.
     pub krylov_iterations: usize,

@@ -10,6 +10,7 @@
 //! * [`ccx`] — the comparison with CalculiX;
 //! * [`scaling`] — cost and memory against mesh size;
 //! * [`fuzz`] — the physics fuzzer: random valid contact scenes run with default settings;
+//! * [`fuzz_methods`] — DDM against the adjoint on the fuzzer's scenes;
 //! * [`mesh_fuzz`] — the mesh readers' fuzzer: mutated Gmsh and Abaqus files, none may panic;
 //! * [`plot`] — the SVG figures they draw.
 //!
@@ -19,6 +20,7 @@ pub mod adjoint_study;
 pub mod ccx;
 pub mod compare_laws;
 pub mod fuzz;
+pub mod fuzz_methods;
 pub mod mesh_fuzz;
 pub mod plot;
 pub mod scaling;
