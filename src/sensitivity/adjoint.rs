@@ -57,9 +57,8 @@
 //! and its local derivatives taken on those branches; before it, the converged branches, as
 //! DDM carries the converged branches' history derivative into its forced solves. A side the
 //! converged state is on, solved with its tangent, is the converged column itself (DDM's
-//! rule, which saves its factorization). A side whose forced increment fails (its tangent
-//! singular, for one) is left out and says why ([`OneSided::failed`]); the other columns go
-//! on, as DDM's do.
+//! rule, which saves its factorization). A side whose forced tangent is singular is left out
+//! and says why ([`OneSided::failed`]); the other columns go on, as DDM's do.
 
 use super::*;
 use crate::assembly::{Assembler, Evaluation, Frozen};

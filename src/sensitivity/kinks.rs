@@ -67,10 +67,10 @@ pub struct OneSided {
     pub lower: Option<Vec<Vec<f64>>>,
     /// Plastic / slip / closed side; `None` where its solve failed.
     pub upper: Option<Vec<Vec<f64>>>,
-    /// Why a side has no derivatives, one line a side that failed: a side can fail where
-    /// the rest of the run does not (for one, its forced tangent singular where nothing
-    /// resists the motion the side frees, as a frictional node forced to slip with no
-    /// elastic support along the surface: that side's derivative is unbounded).
+    /// Why a side has no derivatives, one line a side that failed: a side fails alone where
+    /// its forced tangent is singular (no pivot, or not positive definite): nothing resists
+    /// the motion the side frees, as a frictional node forced to slip with no elastic support
+    /// along the surface, and that side's derivative is unbounded.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub failed: Vec<String>,
 }
