@@ -260,8 +260,8 @@ enum Command {
         /// Seconds one measurement may take before a method's larger counts are extrapolated.
         #[arg(long, default_value_t = 60.0)]
         budget_s: f64,
-        /// Also every element's E and sigma_y of the leaf spring refined by this factor
-        /// (6: 4,944 elements, 9,888 parameters), its first six increments.
+        /// Also every element's E, sigma_y and H of the leaf spring refined by this factor
+        /// (6: 4,944 elements, 14,832 parameters), over its whole path.
         #[arg(long)]
         large: Option<f64>,
     },

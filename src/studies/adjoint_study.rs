@@ -14,12 +14,13 @@
 //!   each element)` and `d/d(E of each element)` by the adjoint, written as cell data
 //!   (`map.vtu`) and drawn (`map-sigma_y.svg`, `map-E.svg`), spot-checked by DDM at the five
 //!   elements where `|d/d sigma_y|` is largest.
-//! * **Many parameters.** Every element's `E` and `sigma_y` on the leaf spring refined
-//!   (`--large`): about 10,000 parameters, the adjoint's cost against one primal analysis.
+//! * **Many parameters.** Every element's `E`, `sigma_y` and `H` on the leaf spring refined
+//!   (`--large`; 6: 14,832 parameters) over its whole path, the adjoint's cost against one
+//!   primal analysis.
 
 use crate::model::Model;
 use crate::output::{write_vtu, ExtraFields, OutputError};
-use crate::scene::{Scene, SceneError, StepSpec};
+use crate::scene::{Scene, SceneError};
 use crate::sensitivity::{run_sensitivity, Method, Parameter, Settings};
 use crate::solver::AnalysisError;
 use crate::studies::plot::{write_svg_stack, Figure, PlotError, Style};
@@ -116,6 +117,9 @@ pub struct SpotCheck {
     pub difference: f64,
 }
 
+/// The many-parameter run's element-wise fields.
+const LARGE_FIELDS: [&str; 3] = ["E", "sigma_y", "H"];
+
 /// The many-parameter run.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Large {
@@ -125,7 +129,7 @@ pub struct Large {
     pub elements: usize,
     /// Parameters.
     pub parameters: usize,
-    /// Increments of the path run.
+    /// Increments converged along the path (sub-increments of cutbacks included).
     pub increments: usize,
     /// Primal seconds.
     pub primal_seconds: f64,
@@ -136,6 +140,12 @@ pub struct Large {
     pub evaluation_seconds: f64,
     /// Of which solves and factorizations.
     pub solve_seconds: f64,
+    /// Responses differentiated (the functional: each at the path's end).
+    pub responses: usize,
+    /// Bytes the forward run kept for the sweep (its states, tangents or factors).
+    pub stored_bytes: usize,
+    /// DDM at the element of each field where the block force's derivative is largest.
+    pub spot_checks: Vec<SpotCheck>,
 }
 
 /// The study's results.
@@ -352,23 +362,54 @@ fn map(
     let picked: Vec<usize> = (order.iter().take(5))
         .flat_map(|&k| [k, k + per_quantity])
         .collect();
-    let spot: Vec<Parameter> = picked.iter().map(|&k| ps[k].clone()).collect();
-    let (_, ddm) = run_sensitivity(&model, &spot, &settings(&model, Method::Ddm))?;
-    let ddm_last = ddm.increment_at(last.time).expect("the same path");
-    for (i, &k) in picked.iter().enumerate() {
-        let q = k / per_quantity;
-        let scale = (q * per_quantity..(q + 1) * per_quantity)
-            .map(|j| last.derivatives[r][j].abs())
-            .fold(0.0, f64::max);
-        let (a, d) = (last.derivatives[r][k], ddm_last.derivatives[r][i]);
-        study.spot_checks.push(SpotCheck {
-            param: ps[k].name.clone(),
-            adjoint: a,
-            ddm: d,
-            difference: (a - d).abs() / scale.max(f64::MIN_POSITIVE),
-        });
-    }
+    study.spot_checks = ddm_spot_checks(&model, &ps, per_quantity, last, r, &picked)?;
     Ok(())
+}
+
+/// DDM at the parameters `picked` of `ps` (fields of `per_quantity` members each, one after
+/// the other) against the adjoint's derivatives of response `r` at increment `last`, each
+/// difference relative to the largest adjoint derivative in its field.
+fn ddm_spot_checks(
+    model: &Model,
+    ps: &[Parameter],
+    per_quantity: usize,
+    last: &crate::sensitivity::IncrementSensitivity,
+    r: usize,
+    picked: &[usize],
+) -> Result<Vec<SpotCheck>, AdjointStudyError> {
+    let spot: Vec<Parameter> = picked.iter().map(|&k| ps[k].clone()).collect();
+    let (_, ddm) = run_sensitivity(model, &spot, &settings(model, Method::Ddm))?;
+    let ddm_last = ddm.increment_at(last.time).expect("the same path");
+    Ok((picked.iter().enumerate())
+        .map(|(i, &k)| {
+            let q = k / per_quantity;
+            let scale = (q * per_quantity..(q + 1) * per_quantity)
+                .map(|j| last.derivatives[r][j].abs())
+                .fold(0.0, f64::max);
+            let (a, d) = (last.derivatives[r][k], ddm_last.derivatives[r][i]);
+            SpotCheck {
+                param: ps[k].name.clone(),
+                adjoint: a,
+                ddm: d,
+                difference: (a - d).abs() / scale.max(f64::MIN_POSITIVE),
+            }
+        })
+        .collect())
+}
+
+/// The spot checks' table.
+fn spot_table(s: &mut String, checks: &[SpotCheck]) {
+    let _ = writeln!(
+        s,
+        "| parameter | adjoint | DDM | difference |\n|---|---|---|---|"
+    );
+    for c in checks {
+        let _ = writeln!(
+            s,
+            "| {} | {:.9e} | {:.9e} | {:.1e} |",
+            c.param, c.adjoint, c.ddm, c.difference
+        );
+    }
 }
 
 /// An SVG of a cell field over the mesh seen along z (each element's face of least z), the
@@ -455,34 +496,50 @@ fn map_svg(model: &Model, v: &[f64], title: &str) -> String {
     s
 }
 
-/// The many-parameter run: every element's `E` and `sigma_y` of the leaf spring refined by
-/// `refinement`, over its first six loading increments (12 mm of the 30 mm stroke).
+/// The many-parameter run: every element's `E`, `sigma_y` and `H` of the leaf spring refined
+/// by `refinement` (three element-wise fields: 10,000 parameters and more from a refinement
+/// of 6), over its whole path (loading, unloading, reloading), the gradient of one response
+/// at its end.
 fn large(refinement: f64, study: &mut AdjointStudy) -> Result<(), AdjointStudyError> {
     use crate::studies::scaling::ScalingScene;
-    let mut scene = ScalingScene::LeafSpring.scene(refinement)?;
-    let loading = crate::scene::LeafSpringSpec::default().load_increments;
-    let increments = 6;
-    scene.steps = vec![StepSpec {
-        end: increments as f64 / loading as f64,
-        increments,
-    }];
-    let model = scene.build()?;
+    let spec = ScalingScene::LeafSpring.leaf_spec(refinement)?;
+    let model = crate::scene::leaf_spring(&spec).build()?;
     let mut ps = Vec::new();
-    for q in ["E", "sigma_y"] {
+    for q in LARGE_FIELDS {
         for body in &model.bodies {
             ps.extend(Parameter::expand(&model, &format!("{}.{q}[*]", body.name))?);
         }
     }
     let (res, adj) = run_sensitivity(&model, &ps, &settings(&model, Method::Adjoint))?;
+    // DDM at the element of each field where the block force's derivative is largest
+    let last = adj.increments.last().expect("a converged increment");
+    let r = (model.responses.iter())
+        .position(|r| r.name == "block-force")
+        .unwrap_or(0);
+    let per_quantity = ps.len() / LARGE_FIELDS.len();
+    let picked: Vec<usize> = (0..LARGE_FIELDS.len())
+        .filter_map(|q| {
+            (q * per_quantity..(q + 1) * per_quantity).max_by(|a, b| {
+                last.derivatives[r][*a]
+                    .abs()
+                    .total_cmp(&last.derivatives[r][*b].abs())
+            })
+        })
+        .collect();
+    let spot_checks = ddm_spot_checks(&model, &ps, per_quantity, last, r, &picked)?;
     study.large = Some(Large {
         refinement,
         elements: model.mesh.n_elements(),
         parameters: ps.len(),
-        increments: res.times.len(),
+        // the first of the times is the initial state's
+        increments: res.times.len() - 1,
         primal_seconds: adj.primal_seconds,
         adjoint_seconds: adj.cost.wall_seconds,
         evaluation_seconds: adj.cost.evaluation_seconds,
         solve_seconds: adj.cost.solve_seconds + adj.cost.factor_seconds,
+        responses: adj.responses.len(),
+        stored_bytes: adj.cost.stored_bytes,
+        spot_checks,
     });
     Ok(())
 }
@@ -609,32 +666,27 @@ fn markdown(study: &AdjointStudy) -> String {
         "![map-sigma_y.svg](map-sigma_y.svg)\n\n![map-E.svg](map-E.svg)\n"
     );
     let _ = writeln!(s, "DDM at the five elements of largest `|d/d sigma_y|` (difference relative to the map's largest derivative in that parameter):\n");
-    let _ = writeln!(
-        s,
-        "| parameter | adjoint | DDM | difference |\n|---|---|---|---|"
-    );
-    for c in &study.spot_checks {
-        let _ = writeln!(
-            s,
-            "| {} | {:.9e} | {:.9e} | {:.1e} |",
-            c.param, c.adjoint, c.ddm, c.difference
-        );
-    }
+    spot_table(&mut s, &study.spot_checks);
     if let Some(l) = &study.large {
         let _ = writeln!(s, "\n### Many parameters\n");
         let _ = writeln!(
             s,
-            "The leaf spring refined {} times ({} elements), its first {} increments: every element's `E` and `sigma_y`, {} parameters. Primal {:.1} s; the adjoint's sweep {:.1} s ({:.2} primals: evaluations {:.1} s, solves {:.1} s).\n",
+            "The leaf spring refined {} times ({} elements), its whole path ({} converged increments): every element's `{}`, {} parameters, the gradient of each of its {} responses at the end. Primal {:.1} s; the adjoint's sweep {:.1} s ({:.2} primals: evaluations {:.1} s, solves {:.1} s), {:.0} MiB kept by the forward run for it.\n",
             l.refinement,
             l.elements,
             l.increments,
+            LARGE_FIELDS.join("`, `"),
             l.parameters,
+            l.responses,
             l.primal_seconds,
             l.adjoint_seconds,
             l.adjoint_seconds / l.primal_seconds,
             l.evaluation_seconds,
-            l.solve_seconds
+            l.solve_seconds,
+            l.stored_bytes as f64 / (1024.0 * 1024.0)
         );
+        let _ = writeln!(s, "DDM at the element of each field where `|d(block-force)/d(...)|` is largest (difference relative to that largest derivative):\n");
+        spot_table(&mut s, &l.spot_checks);
     }
     s
 }

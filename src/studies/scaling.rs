@@ -217,30 +217,7 @@ impl ScalingScene {
                 Ok(s)
             }
             ScalingScene::LeafSpring | ScalingScene::LeafSpring3d => {
-                if !(refinement.is_finite()
-                    && refinement > 0.0
-                    && refinement <= MAX_LEAF_REFINEMENT)
-                {
-                    return Err(ScalingError::Refinement {
-                        scene: self.name(),
-                        refinement,
-                        max: MAX_LEAF_REFINEMENT,
-                    });
-                }
-                let base = LeafSpringSpec::default();
-                let scale =
-                    |n: usize, min: usize| ((n as f64 * refinement).round() as usize).max(min);
-                let spec = LeafSpringSpec {
-                    elements_along: scale(base.elements_along, 1),
-                    elements_through: scale(base.elements_through, 2),
-                    elements_across: if self == ScalingScene::LeafSpring3d {
-                        scale(base.elements_across, 1)
-                    } else {
-                        base.elements_across
-                    },
-                    search_along: base.search_along / refinement,
-                    ..base
-                };
+                let spec = self.leaf_spec(refinement)?;
                 let mut s = leaf_spring(&spec);
                 let (n, _) = self.increments();
                 s.steps = vec![StepSpec {
@@ -250,6 +227,31 @@ impl ScalingScene {
                 Ok(s)
             }
         }
+    }
+
+    /// The leaf spring's mesh refined by `refinement` (along and through the leaves; across
+    /// them too in 3D), with the built-in scene's whole load path.
+    pub(crate) fn leaf_spec(self, refinement: f64) -> Result<LeafSpringSpec, ScalingError> {
+        if !(refinement.is_finite() && refinement > 0.0 && refinement <= MAX_LEAF_REFINEMENT) {
+            return Err(ScalingError::Refinement {
+                scene: self.name(),
+                refinement,
+                max: MAX_LEAF_REFINEMENT,
+            });
+        }
+        let base = LeafSpringSpec::default();
+        let scale = |n: usize, min: usize| ((n as f64 * refinement).round() as usize).max(min);
+        Ok(LeafSpringSpec {
+            elements_along: scale(base.elements_along, 1),
+            elements_through: scale(base.elements_through, 2),
+            elements_across: if self == ScalingScene::LeafSpring3d {
+                scale(base.elements_across, 1)
+            } else {
+                base.elements_across
+            },
+            search_along: base.search_along / refinement,
+            ..base
+        })
     }
 }
 

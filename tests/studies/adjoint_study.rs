@@ -1,7 +1,8 @@
 //! The adjoint's study (issue 28), its reduced path end to end: the coarse leaf spring's
 //! crossover (every method measured while a measurement takes at most 2 s, the rest
-//! extrapolated), its sensitivity map and the map's DDM spot checks. The study itself is
-//! `fricsens adjoint-study` (minutes).
+//! extrapolated), its sensitivity map and the map's DDM spot checks, and the many-parameter
+//! run on the leaf spring coarsened by half (its whole path, three fields). The study itself
+//! is `fricsens adjoint-study --large 6` (minutes).
 
 use fricsens::studies::adjoint_study::{run_study, StudyOptions};
 use std::path::PathBuf;
@@ -14,7 +15,7 @@ fn quick_study_writes_the_crossover_and_a_map_that_ddm_confirms() {
         out: dir.clone(),
         quick: true,
         budget_seconds: 2.0,
-        large: None,
+        large: Some(0.5),
     })
     .unwrap();
     for f in [
@@ -44,4 +45,15 @@ fn quick_study_writes_the_crossover_and_a_map_that_ddm_confirms() {
     // one crossover per other method (their values are timings: the study reports them,
     // no test asserts them)
     assert_eq!(study.crossovers.len(), 3);
+    // the many-parameter run: every element's E, sigma_y and H over the built-in scene's
+    // whole path (15 loading increments, 10 unloading, 10 reloading), DDM at the largest
+    // derivative of each field
+    let large = study.large.expect("the many-parameter run");
+    assert_eq!(large.parameters, 3 * large.elements);
+    assert!(large.increments >= 35, "{large:?}");
+    assert_eq!(large.spot_checks.len(), 3);
+    for c in &large.spot_checks {
+        assert!(c.difference < 1e-10, "{c:?}");
+        assert!(c.adjoint != 0.0, "{c:?}");
+    }
 }
