@@ -291,7 +291,8 @@ enum Command {
         /// Write every failing scene as TOML into this directory.
         #[arg(long)]
         corpus: Option<PathBuf>,
-        /// Wall-time limit of one scene, seconds.
+        /// Wall-time limit of one scene, seconds (with --methods: of each method's primal
+        /// analysis).
         #[arg(long, default_value_t = 120.0)]
         time_limit: f64,
         /// Run only these seeds (repeat), e.g. to rerun failures.
@@ -312,11 +313,12 @@ enum Command {
         notes: Option<PathBuf>,
         /// Instead of the physics checks: DDM against the adjoint on each scene, every
         /// derivative at every increment for the parameters the scene declares, each method
-        /// with its default settings (`fricsens::studies::fuzz_methods`; no time limit);
-        /// writes methods.md and methods.json, and exits 1 if on any scene the two disagree:
-        /// a derivative off by more than 1e-10 of its scale, a method failing where the other
-        /// does not, or tables that differ in what they hold.
-        #[arg(long, conflicts_with_all = ["corpus", "time_limit", "before", "notes"])]
+        /// with its default settings (`fricsens::studies::fuzz_methods`); writes methods.md
+        /// and methods.json, and exits 1 if on any scene the two disagree: a derivative off
+        /// by more than 1e-10 of its scale, a method failing where the other does not, or
+        /// tables that differ in what they hold. A scene either method runs out of
+        /// --time-limit on is skipped.
+        #[arg(long, conflicts_with_all = ["corpus", "before", "notes"])]
         methods: bool,
     },
     /// The mesh readers' fuzzer: mutants of a block of hex8, hex20 and tet10 elements written
@@ -1569,7 +1571,12 @@ impl FuzzScenes {
 }
 
 /// `fricsens fuzz --methods`: DDM against the adjoint on generated scenes (or `scenes`).
-fn fuzz_methods(seeds: Vec<u64>, scenes: Vec<String>, out: PathBuf) -> Result<(), String> {
+fn fuzz_methods(
+    seeds: Vec<u64>,
+    scenes: Vec<String>,
+    out: PathBuf,
+    time_limit: f64,
+) -> Result<(), String> {
     use fricsens::studies::fuzz_methods::{check, Campaign};
     use rayon::prelude::*;
     let fs = FuzzScenes::new(seeds, &scenes, &out)?;
@@ -1581,7 +1588,7 @@ fn fuzz_methods(seeds: Vec<u64>, scenes: Vec<String>, out: PathBuf) -> Result<()
         .with_max_len(1)
         .map(|&seed| {
             let scene = fs.scene(seed);
-            let c = check(seed, &scene);
+            let c = check(seed, &scene, Some(time_limit));
             if !c.agrees() {
                 let n = disagreeing.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 pb.set_message(format!("{n} disagree"));
@@ -1594,7 +1601,7 @@ fn fuzz_methods(seeds: Vec<u64>, scenes: Vec<String>, out: PathBuf) -> Result<()
         })
         .collect();
     pb.finish_and_clear();
-    let campaign = Campaign::of(checks);
+    let campaign = Campaign::of(checks, Some(time_limit));
     let md = campaign.markdown();
     std::fs::write(out.join("methods.md"), &md).map_err(|e| e.to_string())?;
     let json = serde_json::to_string_pretty(&campaign).map_err(|e| e.to_string())?;
@@ -1652,7 +1659,7 @@ fn main() -> ExitCode {
                 only
             };
             if methods {
-                fuzz_methods(list, scenes, out)
+                fuzz_methods(list, scenes, out, time_limit)
             } else {
                 fuzz(list, scenes, out, corpus, time_limit, before, notes)
             }

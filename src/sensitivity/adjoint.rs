@@ -419,7 +419,7 @@ pub(super) fn run_adjoint(
     // checkpointed, the primal's results keep no state per increment either
     let opts = RunOptions {
         keep_states: every == 0,
-        time_limit: None,
+        time_limit: settings.time_limit,
     };
     let mut resumes = Vec::new();
     let res = solver.run_span(&span, &opts, &mut rec, &mut resumes)?;

@@ -133,7 +133,14 @@ pub(super) fn inline_sweep(
         errors: settings.iter().map(|_| None).collect(),
     };
     let mut solver = Solver::new(model)?;
-    let res = solver.run(&RunOptions::default(), &mut Watched(&mut engines, watch))?;
+    // one run for every setting: the shortest limit asked
+    let opts = RunOptions {
+        time_limit: (settings.iter())
+            .filter_map(|s| s.time_limit)
+            .reduce(f64::min),
+        ..RunOptions::default()
+    };
+    let res = solver.run(&opts, &mut Watched(&mut engines, watch))?;
     // the engines' own work and their floor probes are not the primal run's
     let inline: f64 = engines
         .engines
@@ -171,8 +178,11 @@ pub fn run_inline_keeping(
     watch: &mut dyn FnMut(&Converged<'_>),
 ) -> Result<(Results, SensitivityResults), Box<(AnalysisError, SensitivityResults)>> {
     let mut engine = Engine::new(model, params, settings.clone());
-    let run = Solver::new(model)
-        .and_then(|mut s| s.run(&RunOptions::default(), &mut Watched(&mut engine, watch)));
+    let opts = RunOptions {
+        time_limit: settings.time_limit,
+        ..RunOptions::default()
+    };
+    let run = Solver::new(model).and_then(|mut s| s.run(&opts, &mut Watched(&mut engine, watch)));
     let mut sens = engine.results;
     let primal = |wall: f64, s: &SensitivityResults| wall - own_seconds(s);
     match run {
@@ -206,7 +216,7 @@ pub fn run_fdm_sweep(
     betas: &[f64],
     central: bool,
 ) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
-    fdm_sweep(model, params, betas, central, false, &mut |_| {})
+    fdm_sweep(model, params, betas, central, false, None, &mut |_| {})
 }
 
 /// An observer followed by a look at each converged increment (a progress display).
@@ -227,9 +237,10 @@ pub(super) fn fdm_sweep(
     betas: &[f64],
     central: bool,
     fields: bool,
+    time_limit: Option<f64>,
     watch: &mut dyn FnMut(&Converged<'_>),
 ) -> Result<(Results, Vec<SensitivityResults>), AnalysisError> {
-    let (nominal, base) = fdm_nominal(model, watch)?;
+    let (nominal, base) = fdm_nominal(model, time_limit, watch)?;
     let base_fields = if fields {
         let t = Instant::now();
         let f = fields_at_times(model, &nominal, &base.times)?;
@@ -238,7 +249,7 @@ pub(super) fn fdm_sweep(
         (Vec::new(), 0.0)
     };
     let jobs = fdm_jobs(params.len(), betas.len(), central);
-    let runs = run_reruns(model, params, betas, &base.times, &jobs, fields);
+    let runs = run_reruns(model, params, betas, &base.times, &jobs, fields, time_limit);
     let out = assemble(
         model,
         params,
@@ -270,6 +281,7 @@ pub fn fdm_auto(
     model: &Model,
     params: &[Parameter],
     central: bool,
+    time_limit: Option<f64>,
     watch: &mut dyn FnMut(&Converged<'_>),
 ) -> Result<(Results, SensitivityResults), AnalysisError> {
     let ladder: &[f64] = if central {
@@ -277,9 +289,9 @@ pub fn fdm_auto(
     } else {
         &FDM_FORWARD_LADDER
     };
-    let (nominal, base) = fdm_nominal(model, watch)?;
+    let (nominal, base) = fdm_nominal(model, time_limit, watch)?;
     let jobs = fdm_jobs(params.len(), ladder.len(), central);
-    let runs = run_reruns(model, params, ladder, &base.times, &jobs, false);
+    let runs = run_reruns(model, params, ladder, &base.times, &jobs, false, time_limit);
     // reached[b][k][side]
     let (np, nb, nr, ni) = (
         params.len(),
@@ -528,11 +540,16 @@ fn states_at(res: &Results, times: &[f64]) -> Vec<u64> {
 
 fn fdm_nominal(
     model: &Model,
+    time_limit: Option<f64>,
     watch: &mut dyn FnMut(&Converged<'_>),
 ) -> Result<(Results, FdmBase), AnalysisError> {
     let t0 = Instant::now();
     let mut solver = Solver::new(model)?;
-    let nominal = solver.run(&RunOptions::default(), &mut Watched(&mut NoObserver, watch))?;
+    let opts = RunOptions {
+        time_limit,
+        ..RunOptions::default()
+    };
+    let nominal = solver.run(&opts, &mut Watched(&mut NoObserver, watch))?;
     let primal_seconds = t0.elapsed().as_secs_f64();
     let times: Vec<f64> = nominal.times[1..].to_vec();
     let values = responses_at(model, &nominal, &times)?;
@@ -568,6 +585,7 @@ fn run_reruns(
     times: &[f64],
     jobs: &[(usize, usize, f64)],
     fields: bool,
+    time_limit: Option<f64>,
 ) -> Vec<Result<Rerun, String>> {
     use rayon::prelude::*;
     // the reruns follow the nominal run's increments, cut-back ones included, so that every
@@ -581,7 +599,11 @@ fn run_reruns(
             let p = &params[k];
             let run = || -> Result<Rerun, AnalysisError> {
                 let m = perturbed_model(model, p, sign * p.step(betas[b]));
-                let r = Solver::new(&m)?.run(&RunOptions::default(), &mut NoObserver)?;
+                let opts = RunOptions {
+                    time_limit,
+                    ..RunOptions::default()
+                };
+                let r = Solver::new(&m)?.run(&opts, &mut NoObserver)?;
                 // the first time the rerun needed a sub-increment the nominal run did not take
                 let substep_from = r.times[1..]
                     .iter()
@@ -669,11 +691,11 @@ pub fn run_fdm_shard(
     central: bool,
     shard: Shard,
 ) -> Result<FdmPartial, AnalysisError> {
-    let (_, base) = fdm_nominal(model, &mut |_| {})?;
+    let (_, base) = fdm_nominal(model, None, &mut |_| {})?;
     let all = fdm_jobs(params.len(), betas.len(), central);
     let mine: Vec<usize> = (0..all.len()).filter(|j| shard.takes(*j)).collect();
     let jobs: Vec<_> = mine.iter().map(|j| all[*j]).collect();
-    let runs = run_reruns(model, params, betas, &base.times, &jobs, false);
+    let runs = run_reruns(model, params, betas, &base.times, &jobs, false, None);
     Ok(FdmPartial {
         shard,
         params: params.iter().map(|p| p.name.clone()).collect(),

@@ -232,6 +232,12 @@ pub struct Settings {
     /// large element rotations. Costs one product with the converged tangent per moving
     /// parameter and increment.
     pub rigid_modes: bool,
+    /// Seconds of wall time the primal analysis may take (the forward run of the in-line
+    /// methods and of the adjoint, FDM's nominal run and each of its reruns), checked at
+    /// every Newton iteration ([`RunOptions::time_limit`](crate::solver::RunOptions)): past
+    /// it the run stops with [`AnalysisError::TimeLimit`] (an FDM rerun fails its own
+    /// differences alone). `None` (the default): no limit.
+    pub time_limit: Option<f64>,
 }
 
 /// Relative residual `|b - K x| / |b|` GMRES must reach (every column, recomputed from the
@@ -265,6 +271,7 @@ impl Default for Settings {
             adjoint_reverse: None,
             adjoint_krylov: false,
             rigid_modes: false,
+            time_limit: None,
         }
     }
 }
@@ -497,7 +504,7 @@ pub fn run_sensitivity_watched(
         (res, out)
     } else if settings.beta_auto {
         let central = settings.method == Method::FdmCentral;
-        let (res, s) = fdm_auto(model, params, central, watch)?;
+        let (res, s) = fdm_auto(model, params, central, settings.time_limit, watch)?;
         (res, vec![s])
     } else {
         let central = settings.method == Method::FdmCentral;
@@ -507,6 +514,7 @@ pub fn run_sensitivity_watched(
             &[settings.beta],
             central,
             settings.fields,
+            settings.time_limit,
             watch,
         )?
     };

@@ -83,8 +83,8 @@ pub struct MethodsCheck {
     pub worst_at: String,
     /// Every derivative off by more than [`TOLERANCE`] of its scale, one line each.
     pub disagreements: Vec<String>,
-    /// Both methods failed alike (the primal analysis): why. Not a disagreement: the
-    /// fuzzer's own campaign counts those.
+    /// Both methods failed alike (the primal analysis), or one ran out of time: why. Not a
+    /// disagreement: the fuzzer's own campaign counts those.
     pub skipped: Option<String>,
 }
 
@@ -99,9 +99,11 @@ fn run(
     model: &Model,
     params: &[Parameter],
     method: Method,
+    time_limit: Option<f64>,
 ) -> Result<SensitivityResults, AnalysisError> {
     let settings = Settings {
         method,
+        time_limit,
         ..Settings::default()
     };
     run_sensitivity(model, params, &settings).map(|r| r.1)
@@ -126,10 +128,11 @@ fn primal_failure(e: &AnalysisError) -> bool {
 /// alone), and at least [`FLOOR`] times that kind's largest value over the parameter's value
 /// (taken as 1 where it is smaller, as [`SensitivityResults::sensitive_scale`] does: `mu = 0`).
 /// Skipped only where both methods fail in the primal analysis (Newton, a time limit, a
-/// pre-check); a scene with nothing to compare, a method failing alone or otherwise, or
-/// tables that differ in their shape, increments, flagged points, one-sided sides or values
-/// disagree.
-pub fn check(seed: u64, scene: &Scene) -> MethodsCheck {
+/// pre-check), or where either runs out of `time_limit` (each method's primal analysis may
+/// take that long: the two carry different work per increment, so one may pass it alone);
+/// a scene with nothing to compare, a method failing alone or otherwise, or tables that
+/// differ in their shape, increments, flagged points, one-sided sides or values disagree.
+pub fn check(seed: u64, scene: &Scene, time_limit: Option<f64>) -> MethodsCheck {
     let mut out = MethodsCheck {
         seed,
         parameters: design_parameters(scene),
@@ -158,12 +161,20 @@ pub fn check(seed: u64, scene: &Scene) -> MethodsCheck {
         }
     };
     let (ddm, adj) = match (
-        run(&model, &params, Method::Ddm),
-        run(&model, &params, Method::Adjoint),
+        run(&model, &params, Method::Ddm, time_limit),
+        run(&model, &params, Method::Adjoint, time_limit),
     ) {
         (Ok(d), Ok(a)) => (d, a),
         (Err(d), Err(a)) if primal_failure(&d) && primal_failure(&a) => {
             out.skipped = Some(d.to_string());
+            return out;
+        }
+        (Err(e @ AnalysisError::TimeLimit { .. }), _) => {
+            out.skipped = Some(format!("DDM: {e}"));
+            return out;
+        }
+        (_, Err(e @ AnalysisError::TimeLimit { .. })) => {
+            out.skipped = Some(format!("adjoint: {e}"));
             return out;
         }
         (d, a) => {
@@ -313,8 +324,10 @@ pub struct Campaign {
     pub scenes: usize,
     /// Scenes compared (neither skipped).
     pub compared: usize,
-    /// Scenes both methods failed on alike (the primal analysis).
+    /// Scenes both methods failed on alike (the primal analysis), or one ran out of time on.
     pub skipped: usize,
+    /// Seconds each method's primal analysis was allowed (`None`: no limit).
+    pub time_limit: Option<f64>,
     /// Scenes with a derivative off by more than [`TOLERANCE`] of its scale.
     pub disagreeing: usize,
     /// Derivatives compared over all scenes.
@@ -331,13 +344,14 @@ pub struct Campaign {
 
 impl Campaign {
     /// The campaign of `checks`.
-    pub fn of(checks: Vec<MethodsCheck>) -> Self {
+    pub fn of(checks: Vec<MethodsCheck>, time_limit: Option<f64>) -> Self {
         let compared: Vec<&MethodsCheck> = checks.iter().filter(|c| c.skipped.is_none()).collect();
         let worst = (compared.iter()).max_by(|a, b| a.worst.total_cmp(&b.worst));
         Campaign {
             scenes: checks.len(),
             compared: compared.len(),
             skipped: checks.len() - compared.len(),
+            time_limit,
             disagreeing: checks.iter().filter(|c| !c.agrees()).count(),
             derivatives: compared.iter().map(|c| c.derivatives).sum(),
             worst: worst.map_or(0.0, |c| c.worst),
@@ -356,12 +370,16 @@ impl Campaign {
             ),
             None => "nothing compared".to_string(),
         };
+        let limit = match self.time_limit {
+            Some(s) => format!(", or one ran out of its {s} s"),
+            None => String::new(),
+        };
         let mut s = format!(
             "DDM against the adjoint on {} scenes (`fricsens fuzz --methods`, each method with \
              its default settings): {} compared, {} skipped (both methods failed in the primal \
-             analysis), {} derivatives at every increment, the flagged ones' one-sided sides \
-             included; {worst}; {} scene(s) disagree (over {TOLERANCE:e} of the scale, or in \
-             what the two tables hold).\n",
+             analysis{limit}), {} derivatives at every increment, the flagged ones' one-sided \
+             sides included; {worst}; {} scene(s) disagree (over {TOLERANCE:e} of the scale, or \
+             in what the two tables hold).\n",
             self.scenes, self.compared, self.skipped, self.derivatives, self.disagreeing,
         );
         for c in self.checks.iter().filter(|c| !c.agrees()) {
@@ -373,5 +391,26 @@ impl Campaign {
         }
         s.push('\n');
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scene the methods run out of time on is skipped, not counted as a disagreement,
+    /// and the campaign's summary says what the limit was.
+    #[test]
+    fn a_scene_out_of_time_is_skipped_not_a_disagreement() {
+        let c = check(0, &crate::studies::fuzz::generate(0), Some(0.0));
+        assert!(c.agrees(), "{:?}", c.disagreements);
+        let why = c.skipped.clone().expect("skipped");
+        assert!(why.contains("time limit"), "{why}");
+        let campaign = Campaign::of(vec![c], Some(0.0));
+        assert_eq!(
+            (campaign.compared, campaign.skipped, campaign.disagreeing),
+            (0, 1, 0)
+        );
+        assert!(campaign.markdown().contains("ran out of its 0 s"));
     }
 }

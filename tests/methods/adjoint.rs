@@ -889,9 +889,9 @@ fn the_last_factor_sweep_keeps_a_tangent_only_where_it_reads_one() {
 fn the_adjoint_equals_ddm_on_generated_scenes() {
     use fricsens::studies::{fuzz, fuzz_methods};
     let checks: Vec<fuzz_methods::MethodsCheck> = (0..16)
-        .map(|seed| fuzz_methods::check(seed, &fuzz::generate(seed)))
+        .map(|seed| fuzz_methods::check(seed, &fuzz::generate(seed), None))
         .collect();
-    let campaign = fuzz_methods::Campaign::of(checks);
+    let campaign = fuzz_methods::Campaign::of(checks, None);
     println!("{}", campaign.markdown());
     assert_eq!(campaign.disagreeing, 0, "{}", campaign.markdown());
     // a scene is skipped only where both methods fail in the primal analysis; the physics

@@ -346,3 +346,40 @@ fn the_command_line_takes_the_study_and_writes_vtk_as_asked() {
     assert_eq!(files, ["step_0000.vtu", "step_0003.vtu", "step_0004.vtu"]);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `Settings::time_limit` reaches every method's primal analysis: with a limit of zero each
+/// stops at its first Newton iteration with `AnalysisError::TimeLimit` (the in-line methods,
+/// the adjoint's forward run, FDM's nominal run, with a fixed step and with `--beta auto`),
+/// and without a limit the same runs complete.
+#[test]
+fn every_method_stops_at_its_time_limit() {
+    use fricsens::solver::AnalysisError;
+    let model = j2_beam().build().unwrap();
+    let ps = params(&model, &["sigma_y"]);
+    for (method, beta_auto) in [
+        (Method::Ddm, false),
+        (Method::Sdm, false),
+        (Method::Adjoint, false),
+        (Method::Fdm, false),
+        (Method::FdmCentral, true),
+    ] {
+        let settings = Settings {
+            method,
+            beta_auto,
+            time_limit: Some(0.0),
+            ..Settings::default()
+        };
+        match run_sensitivity(&model, &ps, &settings) {
+            Err(AnalysisError::TimeLimit {
+                increment, seconds, ..
+            }) => assert_eq!((increment, seconds), (1, 0.0), "{method:?}"),
+            Err(e) => panic!("{method:?}: {e}"),
+            Ok(_) => panic!("{method:?}: no time limit"),
+        }
+        let free = Settings {
+            time_limit: None,
+            ..settings
+        };
+        assert!(run_sensitivity(&model, &ps, &free).is_ok(), "{method:?}");
+    }
+}
