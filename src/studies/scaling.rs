@@ -230,7 +230,10 @@ impl ScalingScene {
     }
 
     /// The leaf spring's mesh refined by `refinement` (along and through the leaves; across
-    /// them too in 3D), with the built-in scene's whole load path.
+    /// them too in 3D), with the built-in scene's whole load path, and the leaf-leaf search
+    /// reaching `10 / r` mm along the leaves ([`ScalingScene::scene`]): enough for the scaling
+    /// study's two increments; a whole path needs at least the millimetre or so the leaves
+    /// slide on each other.
     pub(crate) fn leaf_spec(self, refinement: f64) -> Result<LeafSpringSpec, ScalingError> {
         if !(refinement.is_finite() && refinement > 0.0 && refinement <= MAX_LEAF_REFINEMENT) {
             return Err(ScalingError::Refinement {
