@@ -147,6 +147,12 @@ enum Command {
         /// backward sweep each), the other methods' hardly.
         #[arg(long, value_name = "NAME")]
         response: Vec<String>,
+        /// Seconds of wall time the primal analysis may take, the in-line methods' work after
+        /// each increment included (FDM: the nominal run and each rerun; the adjoint: its
+        /// forward run, not the backward sweep), before the run stops with an error naming
+        /// the increment.
+        #[arg(long, value_name = "SECONDS", conflicts_with = "shard")]
+        time_limit: Option<f64>,
         /// Output directory (default: out/SCENE).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -313,7 +319,7 @@ enum Command {
         notes: Option<PathBuf>,
         /// Instead of the physics checks: DDM against the adjoint on each scene, every
         /// derivative at every increment for the parameters the scene declares, each method
-        /// with its default settings (`fricsens::studies::fuzz_methods`); writes methods.md
+        /// with its default settings and --time-limit (`fricsens::studies::fuzz_methods`); writes methods.md
         /// and methods.json, and exits 1 if on any scene the two disagree: a derivative off
         /// by more than 1e-10 of its scale, a method failing where the other does not, or
         /// tables that differ in what they hold. A scene either method runs out of
@@ -358,6 +364,11 @@ enum Command {
         /// Write the VTK file of every N-th converged increment (and of the last one).
         #[arg(long, default_value_t = 1, conflicts_with = "no_vtk")]
         vtk_every: usize,
+        /// Stop once the analysis has taken this many seconds of wall time (checked at every
+        /// Newton iteration) with an error naming the increment; the results up to the last
+        /// converged increment are written.
+        #[arg(long, value_name = "SECONDS")]
+        time_limit: Option<f64>,
     },
 }
 
@@ -391,6 +402,17 @@ struct InlineArgs {
     at: Vec<String>,
     checkpoint: Option<usize>,
     responses: Vec<String>,
+    time_limit: Option<f64>,
+}
+
+/// A `--time-limit`: seconds, at least 0.
+fn time_limit_arg(seconds: Option<f64>) -> Result<Option<f64>, String> {
+    match seconds {
+        Some(s) if s.is_nan() || s < 0.0 => {
+            Err(format!("--time-limit must be at least 0 s, got {s}"))
+        }
+        s => Ok(s),
+    }
 }
 
 /// `fricsens merge`: the shares of one FDM sweep into the unsharded run's outputs.
@@ -529,7 +551,9 @@ fn sensitivity(
         at,
         checkpoint,
         responses,
+        time_limit,
     } = inline;
+    let time_limit = time_limit_arg(time_limit)?;
     use fricsens::sensitivity::{
         run_sensitivity_watched, Method, Parameter, Settings, TangentChoice,
     };
@@ -601,6 +625,7 @@ fn sensitivity(
         fields: vtk && !matches!(method, MethodArg::Adjoint),
         adjoint_checkpoint: checkpoint.unwrap_or(0),
         rigid_modes,
+        time_limit,
         ..Settings::default()
     };
     if rigid_modes && !matches!(settings.method, Method::Sdm | Method::SdmCentral) {
@@ -1022,7 +1047,13 @@ fn print_defaults(scene_name: &str) -> Result<(), String> {
     Ok(())
 }
 
-fn run(scene_name: &str, out: Option<PathBuf>, vtk: output::VtkOutput) -> Result<(), String> {
+fn run(
+    scene_name: &str,
+    out: Option<PathBuf>,
+    vtk: output::VtkOutput,
+    time_limit: Option<f64>,
+) -> Result<(), String> {
+    let time_limit = time_limit_arg(time_limit)?;
     let scene = Scene::load(scene_name).map_err(|e| e.to_string())?;
     print_defaults(scene_name)?;
     let model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
@@ -1035,7 +1066,11 @@ fn run(scene_name: &str, out: Option<PathBuf>, vtk: output::VtkOutput) -> Result
         eprintln!("warning: {w}");
     }
     let mut obs = Progress(progress(model.times.len()));
-    let result = solver.run(&RunOptions::default(), &mut obs);
+    let opts = RunOptions {
+        time_limit,
+        ..RunOptions::default()
+    };
+    let result = solver.run(&opts, &mut obs);
     obs.0.finish_and_clear();
     let res = match result {
         Ok(r) => r,
@@ -1658,7 +1693,9 @@ fn main() -> ExitCode {
             } else {
                 only
             };
-            if methods {
+            if let Err(e) = time_limit_arg(Some(time_limit)) {
+                Err(e)
+            } else if methods {
                 fuzz_methods(list, scenes, out, time_limit)
             } else {
                 fuzz(list, scenes, out, corpus, time_limit, before, notes)
@@ -1677,6 +1714,7 @@ fn main() -> ExitCode {
             out,
             no_vtk,
             vtk_every,
+            time_limit,
         } => {
             if vtk_every == 0 {
                 Err("--vtk-every must be at least 1".to_string())
@@ -1686,7 +1724,7 @@ fn main() -> ExitCode {
                 } else {
                     output::VtkOutput::Every(vtk_every)
                 };
-                run(&scene, out, vtk)
+                run(&scene, out, vtk, time_limit)
             }
         }
         Command::Ccx {
@@ -1768,6 +1806,7 @@ fn main() -> ExitCode {
             at,
             checkpoint,
             response,
+            time_limit,
             out,
         } => sensitivity(
             &scene,
@@ -1786,6 +1825,7 @@ fn main() -> ExitCode {
                 at,
                 checkpoint,
                 responses: response,
+                time_limit,
             },
             out,
         ),

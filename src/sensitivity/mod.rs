@@ -236,7 +236,12 @@ pub struct Settings {
     /// methods and of the adjoint, FDM's nominal run and each of its reruns), checked at
     /// every Newton iteration ([`RunOptions::time_limit`](crate::solver::RunOptions)): past
     /// it the run stops with [`AnalysisError::TimeLimit`] (an FDM rerun fails its own
-    /// differences alone). `None` (the default): no limit.
+    /// differences alone). The clock runs from the primal's start and counts the work done
+    /// beside it: the in-line methods' after each converged increment, and the adjoint's
+    /// recordings for its sweep; the adjoint's backward sweep (and its recomputation of
+    /// checkpointed segments) comes after the forward run and is not limited. An in-line
+    /// sweep of several settings runs one primal with the shortest of their limits.
+    /// `None` (the default): no limit.
     pub time_limit: Option<f64>,
 }
 

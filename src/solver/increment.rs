@@ -93,9 +93,7 @@ impl Solver<'_> {
     /// A run set up to go on from resume point `r`.
     fn resume(&mut self, r: &Resume, opts: &RunOptions) -> Result<Run, AnalysisError> {
         let start = Instant::now();
-        self.deadline = opts
-            .time_limit
-            .map(|s| start + std::time::Duration::from_secs_f64(s.max(0.0)));
+        self.deadline = opts.deadline(start);
         self.force_history = r.force_history;
         self.converged_choice.clone_from(&r.converged_choice);
         match &r.factored {
@@ -134,9 +132,7 @@ impl Solver<'_> {
     /// states, and the results' entries of the initial state.
     fn begin(&mut self, opts: &RunOptions) -> Result<Run, AnalysisError> {
         let start = Instant::now();
-        self.deadline = opts
-            .time_limit
-            .map(|s| start + std::time::Duration::from_secs_f64(s.max(0.0)));
+        self.deadline = opts.deadline(start);
         self.force_history = (0.0, 0);
         self.relaxing_modes = false;
         let model = self.model;

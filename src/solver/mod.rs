@@ -368,3 +368,41 @@ impl Default for RunOptions {
         }
     }
 }
+
+impl RunOptions {
+    /// When a run started at `start` must stop: none without a limit or with one too large
+    /// for a `Duration` (infinite), at once with a negative or NaN one.
+    pub(crate) fn deadline(&self, start: std::time::Instant) -> Option<std::time::Instant> {
+        let limit = self.time_limit?;
+        let limit = if limit.is_nan() { 0.0 } else { limit.max(0.0) };
+        let d = std::time::Duration::try_from_secs_f64(limit).ok()?;
+        start.checked_add(d)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::RunOptions;
+    use std::time::{Duration, Instant};
+
+    /// A time limit gives a deadline that far from the start; one no `Duration` holds
+    /// (infinite) gives none, and a negative or NaN one the start itself (the run stops at
+    /// its first Newton iteration) rather than a panic.
+    #[test]
+    fn a_time_limit_of_any_value_gives_a_deadline_or_none() {
+        let start = Instant::now();
+        let at = |limit: Option<f64>| {
+            RunOptions {
+                time_limit: limit,
+                ..RunOptions::default()
+            }
+            .deadline(start)
+        };
+        assert_eq!(at(None), None);
+        assert_eq!(at(Some(1.5)), Some(start + Duration::from_millis(1500)));
+        assert_eq!(at(Some(f64::INFINITY)), None);
+        assert_eq!(at(Some(1e300)), None);
+        assert_eq!(at(Some(-1.0)), Some(start));
+        assert_eq!(at(Some(f64::NAN)), Some(start));
+    }
+}

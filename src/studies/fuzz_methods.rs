@@ -160,37 +160,59 @@ pub fn check(seed: u64, scene: &Scene, time_limit: Option<f64>) -> MethodsCheck 
             return out;
         }
     };
-    let (ddm, adj) = match (
-        run(&model, &params, Method::Ddm, time_limit),
-        run(&model, &params, Method::Adjoint, time_limit),
-    ) {
-        (Ok(d), Ok(a)) => (d, a),
+    let ddm = run(&model, &params, Method::Ddm, time_limit);
+    match verdict(ddm, || run(&model, &params, Method::Adjoint, time_limit)) {
+        Verdict::Compare(ddm, adj) => {
+            if let Err(why) = compare(&model, &params, &ddm, &adj, &mut out) {
+                out.disagreements.push(why);
+            }
+        }
+        Verdict::Skip(why) => out.skipped = Some(why),
+        Verdict::Disagree(why) => out.disagreements.push(why),
+    }
+    out
+}
+
+/// What the two runs' outcomes make of a scene ([`verdict`]).
+#[derive(Debug)]
+enum Verdict {
+    /// Both ran: compare them.
+    Compare(Box<SensitivityResults>, Box<SensitivityResults>),
+    /// Skipped: why.
+    Skip(String),
+    /// A disagreement before any comparison: why.
+    Disagree(String),
+}
+
+/// The verdict on DDM's outcome and the adjoint's (run by `adjoint`, and not at all where
+/// DDM ran out of time: the scene is skipped whatever the adjoint would do). Skipped where
+/// both fail in the primal analysis, or where the adjoint runs out of time and DDM ran or
+/// failed in the primal; any other failure, of either, disagrees.
+fn verdict(
+    ddm: Result<SensitivityResults, AnalysisError>,
+    adjoint: impl FnOnce() -> Result<SensitivityResults, AnalysisError>,
+) -> Verdict {
+    if let Err(e @ AnalysisError::TimeLimit { .. }) = &ddm {
+        return Verdict::Skip(format!("DDM: {e}"));
+    }
+    match (ddm, adjoint()) {
+        (Ok(d), Ok(a)) => Verdict::Compare(Box::new(d), Box::new(a)),
         (Err(d), Err(a)) if primal_failure(&d) && primal_failure(&a) => {
-            out.skipped = Some(d.to_string());
-            return out;
+            Verdict::Skip(d.to_string())
         }
-        (Err(e @ AnalysisError::TimeLimit { .. }), _) => {
-            out.skipped = Some(format!("DDM: {e}"));
-            return out;
-        }
-        (_, Err(e @ AnalysisError::TimeLimit { .. })) => {
-            out.skipped = Some(format!("adjoint: {e}"));
-            return out;
+        (d, Err(a @ AnalysisError::TimeLimit { .. }))
+            if d.as_ref().err().is_none_or(primal_failure) =>
+        {
+            Verdict::Skip(format!("adjoint: {a}"))
         }
         (d, a) => {
             let why = |r: &Result<SensitivityResults, AnalysisError>| match r {
                 Ok(_) => "ran".to_string(),
                 Err(e) => e.to_string(),
             };
-            out.disagreements
-                .push(format!("DDM {}; adjoint {}", why(&d), why(&a)));
-            return out;
+            Verdict::Disagree(format!("DDM {}; adjoint {}", why(&d), why(&a)))
         }
-    };
-    if let Err(why) = compare(&model, &params, &ddm, &adj, &mut out) {
-        out.disagreements.push(why);
     }
-    out
 }
 
 /// The comparison of [`check`], into `out`; `Err` where the two results differ in their
@@ -371,13 +393,17 @@ impl Campaign {
             None => "nothing compared".to_string(),
         };
         let limit = match self.time_limit {
-            Some(s) => format!(", or one ran out of its {s} s"),
+            Some(s) => format!(" and a time limit of {s} s on its primal analysis"),
             None => String::new(),
+        };
+        let out_of_time = match self.time_limit {
+            Some(_) => ", or one ran out of time",
+            None => "",
         };
         let mut s = format!(
             "DDM against the adjoint on {} scenes (`fricsens fuzz --methods`, each method with \
-             its default settings): {} compared, {} skipped (both methods failed in the primal \
-             analysis{limit}), {} derivatives at every increment, the flagged ones' one-sided \
+             its default settings{limit}): {} compared, {} skipped (both methods failed in the primal \
+             analysis{out_of_time}), {} derivatives at every increment, the flagged ones' one-sided \
              sides included; {worst}; {} scene(s) disagree (over {TOLERANCE:e} of the scale, or \
              in what the two tables hold).\n",
             self.scenes, self.compared, self.skipped, self.derivatives, self.disagreeing,
@@ -397,6 +423,62 @@ impl Campaign {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sensitivity::SensitivityError;
+    use crate::solver::Results;
+
+    fn out_of_time() -> AnalysisError {
+        AnalysisError::TimeLimit {
+            increment: 3,
+            time: 0.5,
+            seconds: 120.0,
+            partial: Box::new(Results::default()),
+        }
+    }
+
+    /// A failure of a sensitivity method (not of the primal analysis).
+    fn method_failure() -> AnalysisError {
+        SensitivityError::NoIncrementAt { time: 0.5 }.into()
+    }
+
+    fn ran() -> Result<SensitivityResults, AnalysisError> {
+        Ok(SensitivityResults::default())
+    }
+
+    /// DDM out of time: skipped without running the adjoint. The adjoint out of time: skipped
+    /// where DDM ran or failed in the primal analysis (both out of time, for one), a
+    /// disagreement where DDM failed otherwise. Both ran: compared.
+    #[test]
+    fn a_method_out_of_time_skips_the_scene_unless_the_other_failed_otherwise() {
+        let skip = |v: Verdict| match v {
+            Verdict::Skip(why) => why,
+            other => panic!("not skipped: {other:?}"),
+        };
+        let why = skip(verdict(Err(out_of_time()), || -> Result<_, _> {
+            panic!("the adjoint runs after DDM ran out of time")
+        }));
+        assert!(
+            why.starts_with("DDM: ") && why.contains("time limit"),
+            "{why}"
+        );
+        let why = skip(verdict(ran(), || Err(out_of_time())));
+        assert!(
+            why.starts_with("adjoint: ") && why.contains("time limit"),
+            "{why}"
+        );
+        assert!(matches!(
+            verdict(Err(method_failure()), || Err(out_of_time())),
+            Verdict::Disagree(_)
+        ));
+        assert!(matches!(
+            verdict(ran(), || Err(method_failure())),
+            Verdict::Disagree(_)
+        ));
+        assert!(matches!(
+            verdict(Err(method_failure()), ran),
+            Verdict::Disagree(_)
+        ));
+        assert!(matches!(verdict(ran(), ran), Verdict::Compare(..)));
+    }
 
     /// A scene the methods run out of time on is skipped, not counted as a disagreement,
     /// and the campaign's summary says what the limit was.
@@ -405,12 +487,19 @@ mod tests {
         let c = check(0, &crate::studies::fuzz::generate(0), Some(0.0));
         assert!(c.agrees(), "{:?}", c.disagreements);
         let why = c.skipped.clone().expect("skipped");
-        assert!(why.contains("time limit"), "{why}");
+        assert!(
+            why.starts_with("DDM: ") && why.contains("time limit"),
+            "{why}"
+        );
         let campaign = Campaign::of(vec![c], Some(0.0));
         assert_eq!(
             (campaign.compared, campaign.skipped, campaign.disagreeing),
             (0, 1, 0)
         );
-        assert!(campaign.markdown().contains("ran out of its 0 s"));
+        let md = campaign.markdown();
+        assert!(
+            md.contains("a time limit of 0 s") && md.contains("or one ran out of time"),
+            "{md}"
+        );
     }
 }
