@@ -147,11 +147,13 @@ enum Command {
         /// backward sweep each), the other methods' hardly.
         #[arg(long, value_name = "NAME")]
         response: Vec<String>,
-        /// Seconds of wall time the primal analysis may take, the in-line methods' work after
-        /// each increment included (FDM: the nominal run and each rerun; the adjoint: its
-        /// forward run, not the backward sweep), before the run stops with an error naming
-        /// the increment.
-        #[arg(long, value_name = "SECONDS", conflicts_with = "shard")]
+        /// Seconds of wall time (at least 0) the primal analysis may take, the in-line
+        /// methods' work after each increment included (the adjoint: its forward run, not the
+        /// backward sweep), before the run stops with an error naming the increment. FDM: the
+        /// nominal run stops so; each rerun has the limit on its own clock, and one out of
+        /// time leaves its parameter's differences empty.
+        #[arg(long, value_name = "SECONDS", conflicts_with = "shard",
+              value_parser = parse_time_limit, allow_negative_numbers = true)]
         time_limit: Option<f64>,
         /// Output directory (default: out/SCENE).
         #[arg(long)]
@@ -297,9 +299,10 @@ enum Command {
         /// Write every failing scene as TOML into this directory.
         #[arg(long)]
         corpus: Option<PathBuf>,
-        /// Wall-time limit of one scene, seconds (with --methods: of each method's primal
-        /// analysis).
-        #[arg(long, default_value_t = 120.0)]
+        /// Wall-time limit of one scene, seconds, at least 0 (with --methods: of each
+        /// method's primal analysis).
+        #[arg(long, default_value_t = 120.0, value_parser = parse_time_limit,
+              allow_negative_numbers = true)]
         time_limit: f64,
         /// Run only these seeds (repeat), e.g. to rerun failures.
         #[arg(long = "seed")]
@@ -322,8 +325,9 @@ enum Command {
         /// with its default settings and --time-limit (`fricsens::studies::fuzz_methods`); writes methods.md
         /// and methods.json, and exits 1 if on any scene the two disagree: a derivative off
         /// by more than 1e-10 of its scale, a method failing where the other does not, or
-        /// tables that differ in what they hold. A scene either method runs out of
-        /// --time-limit on is skipped.
+        /// tables that differ in what they hold. A scene DDM runs out of --time-limit on is
+        /// skipped (the adjoint is not run), and one the adjoint runs out of it on where DDM
+        /// ran or failed in the primal analysis.
         #[arg(long, conflicts_with_all = ["corpus", "before", "notes"])]
         methods: bool,
     },
@@ -364,10 +368,11 @@ enum Command {
         /// Write the VTK file of every N-th converged increment (and of the last one).
         #[arg(long, default_value_t = 1, conflicts_with = "no_vtk")]
         vtk_every: usize,
-        /// Stop once the analysis has taken this many seconds of wall time (checked at every
-        /// Newton iteration) with an error naming the increment; the results up to the last
-        /// converged increment are written.
-        #[arg(long, value_name = "SECONDS")]
+        /// Stop once the analysis has taken this many seconds of wall time (at least 0;
+        /// checked at every Newton iteration) with an error naming the increment; the results
+        /// up to the last converged increment are written.
+        #[arg(long, value_name = "SECONDS", value_parser = parse_time_limit,
+              allow_negative_numbers = true)]
         time_limit: Option<f64>,
     },
 }
@@ -405,14 +410,13 @@ struct InlineArgs {
     time_limit: Option<f64>,
 }
 
-/// A `--time-limit`: seconds, at least 0.
-fn time_limit_arg(seconds: Option<f64>) -> Result<Option<f64>, String> {
-    match seconds {
-        Some(s) if s.is_nan() || s < 0.0 => {
-            Err(format!("--time-limit must be at least 0 s, got {s}"))
-        }
-        s => Ok(s),
+/// A `--time-limit`: seconds, at least 0 (`inf`: none).
+fn parse_time_limit(s: &str) -> Result<f64, String> {
+    let v: f64 = (s.parse()).map_err(|_| format!("seconds expected, got `{s}`"))?;
+    if v.is_nan() || v < 0.0 {
+        return Err(format!("must be at least 0 s, got {s}"));
     }
+    Ok(v)
 }
 
 /// `fricsens merge`: the shares of one FDM sweep into the unsharded run's outputs.
@@ -553,7 +557,6 @@ fn sensitivity(
         responses,
         time_limit,
     } = inline;
-    let time_limit = time_limit_arg(time_limit)?;
     use fricsens::sensitivity::{
         run_sensitivity_watched, Method, Parameter, Settings, TangentChoice,
     };
@@ -1053,7 +1056,6 @@ fn run(
     vtk: output::VtkOutput,
     time_limit: Option<f64>,
 ) -> Result<(), String> {
-    let time_limit = time_limit_arg(time_limit)?;
     let scene = Scene::load(scene_name).map_err(|e| e.to_string())?;
     print_defaults(scene_name)?;
     let model = scene.build().map_err(|e| format!("{scene_name}: {e}"))?;
@@ -1076,11 +1078,15 @@ fn run(
         Ok(r) => r,
         Err(e) => {
             if let Some(partial) = e.partial() {
-                let _ = output::write_run(&dir, &model, partial, vtk);
-                eprintln!(
-                    "results up to the last converged increment written to {}",
-                    dir.display()
-                );
+                match output::write_run(&dir, &model, partial, vtk) {
+                    Ok(()) => eprintln!(
+                        "results up to the last converged increment written to {}",
+                        dir.display()
+                    ),
+                    Err(w) => {
+                        eprintln!("results up to the last converged increment not written: {w}")
+                    }
+                }
             }
             return Err(e.to_string());
         }
@@ -1693,9 +1699,7 @@ fn main() -> ExitCode {
             } else {
                 only
             };
-            if let Err(e) = time_limit_arg(Some(time_limit)) {
-                Err(e)
-            } else if methods {
+            if methods {
                 fuzz_methods(list, scenes, out, time_limit)
             } else {
                 fuzz(list, scenes, out, corpus, time_limit, before, notes)

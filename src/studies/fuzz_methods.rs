@@ -127,11 +127,12 @@ fn primal_failure(e: &AnalysisError) -> bool {
 /// components of a target's force: a component zero by symmetry has derivatives of round-off
 /// alone), and at least [`FLOOR`] times that kind's largest value over the parameter's value
 /// (taken as 1 where it is smaller, as [`SensitivityResults::sensitive_scale`] does: `mu = 0`).
-/// Skipped only where both methods fail in the primal analysis (Newton, a time limit, a
-/// pre-check), or where either runs out of `time_limit` (each method's primal analysis may
-/// take that long: the two carry different work per increment, so one may pass it alone);
-/// a scene with nothing to compare, a method failing alone or otherwise, or tables that
-/// differ in their shape, increments, flagged points, one-sided sides or values disagree.
+/// Each method's primal analysis may take `time_limit` (the two carry different work per
+/// increment, so one may pass it alone). Skipped only where both methods fail in the primal
+/// analysis (Newton, a time limit, a pre-check), where DDM runs out of time (the adjoint is
+/// not run), or where the adjoint does and DDM ran or failed in the primal; a
+/// scene with nothing to compare, a method failing alone or otherwise, or tables that differ
+/// in their shape, increments, flagged points, one-sided sides or values disagree.
 pub fn check(seed: u64, scene: &Scene, time_limit: Option<f64>) -> MethodsCheck {
     let mut out = MethodsCheck {
         seed,
@@ -186,8 +187,9 @@ enum Verdict {
 
 /// The verdict on DDM's outcome and the adjoint's (run by `adjoint`, and not at all where
 /// DDM ran out of time: the scene is skipped whatever the adjoint would do). Skipped where
-/// both fail in the primal analysis, or where the adjoint runs out of time and DDM ran or
-/// failed in the primal; any other failure, of either, disagrees.
+/// both fail in the primal analysis (the adjoint's time-out is one: DDM's failure is then
+/// the reason given), or where the adjoint runs out of time and DDM ran; any other failure,
+/// of either, disagrees.
 fn verdict(
     ddm: Result<SensitivityResults, AnalysisError>,
     adjoint: impl FnOnce() -> Result<SensitivityResults, AnalysisError>,
@@ -200,11 +202,7 @@ fn verdict(
         (Err(d), Err(a)) if primal_failure(&d) && primal_failure(&a) => {
             Verdict::Skip(d.to_string())
         }
-        (d, Err(a @ AnalysisError::TimeLimit { .. }))
-            if d.as_ref().err().is_none_or(primal_failure) =>
-        {
-            Verdict::Skip(format!("adjoint: {a}"))
-        }
+        (Ok(_), Err(a @ AnalysisError::TimeLimit { .. })) => Verdict::Skip(format!("adjoint: {a}")),
         (d, a) => {
             let why = |r: &Result<SensitivityResults, AnalysisError>| match r {
                 Ok(_) => "ran".to_string(),
@@ -440,13 +438,27 @@ mod tests {
         SensitivityError::NoIncrementAt { time: 0.5 }.into()
     }
 
+    /// A Newton failure of the primal analysis.
+    fn diverged() -> AnalysisError {
+        AnalysisError::Diverged {
+            increment: 3,
+            time: 0.5,
+            step: 0.125,
+            cutbacks: 10,
+            residuals: vec![1.0, 2.0],
+            reason: "iteration limit".to_string(),
+            partial: Box::new(Results::default()),
+        }
+    }
+
     fn ran() -> Result<SensitivityResults, AnalysisError> {
         Ok(SensitivityResults::default())
     }
 
     /// DDM out of time: skipped without running the adjoint. The adjoint out of time: skipped
-    /// where DDM ran or failed in the primal analysis (both out of time, for one), a
-    /// disagreement where DDM failed otherwise. Both ran: compared.
+    /// where DDM ran or failed in the primal analysis (DDM's failure the reason then), a
+    /// disagreement where DDM failed otherwise. Both failed in the primal: skipped; one of
+    /// them alone, or either otherwise: a disagreement. Both ran: compared.
     #[test]
     fn a_method_out_of_time_skips_the_scene_unless_the_other_failed_otherwise() {
         let skip = |v: Verdict| match v {
@@ -465,6 +477,18 @@ mod tests {
             why.starts_with("adjoint: ") && why.contains("time limit"),
             "{why}"
         );
+        let why = skip(verdict(Err(diverged()), || Err(out_of_time())));
+        assert!(why.contains("iteration limit"), "{why}");
+        let why = skip(verdict(Err(diverged()), || Err(diverged())));
+        assert!(why.contains("iteration limit"), "{why}");
+        assert!(matches!(
+            verdict(Err(diverged()), ran),
+            Verdict::Disagree(_)
+        ));
+        assert!(matches!(
+            verdict(ran(), || Err(diverged())),
+            Verdict::Disagree(_)
+        ));
         assert!(matches!(
             verdict(Err(method_failure()), || Err(out_of_time())),
             Verdict::Disagree(_)

@@ -1096,9 +1096,11 @@ fn run_sizes(
                     r,
                     (opts.time_budget_seconds.is_finite() && opts.time_budget_seconds > 0.0).then(
                         || {
-                            std::time::Duration::from_secs_f64(
+                            // a product no Duration holds is no limit
+                            std::time::Duration::try_from_secs_f64(
                                 CHILD_TIMEOUT_FACTOR * opts.time_budget_seconds,
                             )
+                            .unwrap_or(std::time::Duration::MAX)
                         },
                     ),
                 ),

@@ -370,9 +370,9 @@ fn every_method_stops_at_its_time_limit() {
             ..Settings::default()
         };
         match run_sensitivity(&model, &ps, &settings) {
-            Err(AnalysisError::TimeLimit { increment, .. }) => {
-                assert_eq!(increment, 1, "{method:?}")
-            }
+            Err(AnalysisError::TimeLimit {
+                increment, seconds, ..
+            }) => assert_eq!((increment, seconds), (1, 0.0), "{method:?}"),
             Err(e) => panic!("{method:?}: {e}"),
             Ok(_) => panic!("{method:?}: no time limit"),
         }
@@ -386,7 +386,8 @@ fn every_method_stops_at_its_time_limit() {
 
 /// `--time-limit` on the command line: `fricsens run` stops with an error naming the
 /// increment and the limit, and still writes the results it has (the initial state's row of
-/// history.csv); `fricsens sensitivity` stops alike; a negative limit is refused by name.
+/// history.csv); `fricsens sensitivity` stops alike; a negative limit is refused by name,
+/// given as `--time-limit=-1` or as `--time-limit -1`.
 #[test]
 fn the_command_line_stops_at_its_time_limit() {
     let dir = scratch_path("cli-time-limit");
@@ -425,7 +426,12 @@ fn the_command_line_stops_at_its_time_limit() {
         &sens.display().to_string(),
     ]);
     assert!(err.contains("time limit of 0 s"), "{err}");
-    let err = failing(&["run", "uniaxial-j2", "--time-limit=-1"]);
-    assert!(err.contains("--time-limit must be at least 0 s"), "{err}");
+    for limit in [["--time-limit=-1"].as_slice(), &["--time-limit", "-1"]] {
+        let err = failing(&[&["run", "uniaxial-j2"], limit].concat());
+        assert!(
+            err.contains("--time-limit") && err.contains("must be at least 0 s"),
+            "{err}"
+        );
+    }
     std::fs::remove_dir_all(&dir).ok();
 }
