@@ -1068,11 +1068,7 @@ fn run(
         eprintln!("warning: {w}");
     }
     let mut obs = Progress(progress(model.times.len()));
-    let opts = RunOptions {
-        time_limit,
-        ..RunOptions::default()
-    };
-    let result = solver.run(&opts, &mut obs);
+    let result = solver.run(&RunOptions::limited(time_limit), &mut obs);
     obs.0.finish_and_clear();
     let res = match result {
         Ok(r) => r,

@@ -134,12 +134,11 @@ pub(super) fn inline_sweep(
     };
     let mut solver = Solver::new(model)?;
     // one run for every setting: the shortest limit asked
-    let opts = RunOptions {
-        time_limit: (settings.iter())
+    let opts = RunOptions::limited(
+        (settings.iter())
             .filter_map(|s| s.time_limit)
             .reduce(f64::min),
-        ..RunOptions::default()
-    };
+    );
     let res = solver.run(&opts, &mut Watched(&mut engines, watch))?;
     // the engines' own work and their floor probes are not the primal run's
     let inline: f64 = engines
@@ -178,10 +177,7 @@ pub fn run_inline_keeping(
     watch: &mut dyn FnMut(&Converged<'_>),
 ) -> Result<(Results, SensitivityResults), Box<(AnalysisError, SensitivityResults)>> {
     let mut engine = Engine::new(model, params, settings.clone());
-    let opts = RunOptions {
-        time_limit: settings.time_limit,
-        ..RunOptions::default()
-    };
+    let opts = RunOptions::limited(settings.time_limit);
     let run = Solver::new(model).and_then(|mut s| s.run(&opts, &mut Watched(&mut engine, watch)));
     let mut sens = engine.results;
     let primal = |wall: f64, s: &SensitivityResults| wall - own_seconds(s);
@@ -545,10 +541,7 @@ fn fdm_nominal(
 ) -> Result<(Results, FdmBase), AnalysisError> {
     let t0 = Instant::now();
     let mut solver = Solver::new(model)?;
-    let opts = RunOptions {
-        time_limit,
-        ..RunOptions::default()
-    };
+    let opts = RunOptions::limited(time_limit);
     let nominal = solver.run(&opts, &mut Watched(&mut NoObserver, watch))?;
     let primal_seconds = t0.elapsed().as_secs_f64();
     let times: Vec<f64> = nominal.times[1..].to_vec();
@@ -599,11 +592,7 @@ fn run_reruns(
             let p = &params[k];
             let run = || -> Result<Rerun, AnalysisError> {
                 let m = perturbed_model(model, p, sign * p.step(betas[b]));
-                let opts = RunOptions {
-                    time_limit,
-                    ..RunOptions::default()
-                };
-                let r = Solver::new(&m)?.run(&opts, &mut NoObserver)?;
+                let r = Solver::new(&m)?.run(&RunOptions::limited(time_limit), &mut NoObserver)?;
                 // the first time the rerun needed a sub-increment the nominal run did not take
                 let substep_from = r.times[1..]
                     .iter()

@@ -370,14 +370,30 @@ impl Default for RunOptions {
 }
 
 impl RunOptions {
+    /// The default options with a time limit (`None`: none).
+    pub fn limited(time_limit: Option<f64>) -> Self {
+        RunOptions {
+            time_limit,
+            ..RunOptions::default()
+        }
+    }
+
     /// When a run started at `start` must stop: none without a limit or with one too large
     /// for a `Duration` (infinite), at once with a negative or NaN one.
     pub(crate) fn deadline(&self, start: std::time::Instant) -> Option<std::time::Instant> {
-        let limit = self.time_limit?;
-        let limit = if limit.is_nan() { 0.0 } else { limit.max(0.0) };
-        let d = std::time::Duration::try_from_secs_f64(limit).ok()?;
-        start.checked_add(d)
+        start.checked_add(saturating_duration(self.time_limit?))
     }
+}
+
+/// `seconds` as a `Duration`: zero for a negative or NaN number, `Duration::MAX` for one no
+/// `Duration` holds (infinite), where `Duration::from_secs_f64` would panic.
+pub(crate) fn saturating_duration(seconds: f64) -> std::time::Duration {
+    let s = if seconds.is_nan() {
+        0.0
+    } else {
+        seconds.max(0.0)
+    };
+    std::time::Duration::try_from_secs_f64(s).unwrap_or(std::time::Duration::MAX)
 }
 
 #[cfg(test)]
@@ -391,13 +407,7 @@ mod tests {
     #[test]
     fn a_time_limit_of_any_value_gives_a_deadline_or_none() {
         let start = Instant::now();
-        let at = |limit: Option<f64>| {
-            RunOptions {
-                time_limit: limit,
-                ..RunOptions::default()
-            }
-            .deadline(start)
-        };
+        let at = |limit: Option<f64>| RunOptions::limited(limit).deadline(start);
         assert_eq!(at(None), None);
         assert_eq!(at(Some(1.5)), Some(start + Duration::from_millis(1500)));
         assert_eq!(at(Some(f64::INFINITY)), None);

@@ -307,15 +307,8 @@ fn map(
 ) -> Result<(), AdjointStudyError> {
     let model = Scene::load(scene)?.build()?;
     let quantities = ["sigma_y", "E"];
-    let mut ps = Vec::new();
-    for q in quantities {
-        for body in &model.bodies {
-            ps.extend(Parameter::expand(&model, &format!("{}.{q}[*]", body.name))?);
-        }
-    }
-    let r = (model.responses.iter())
-        .position(|r| r.name == "block-force")
-        .unwrap_or(0);
+    let ps = element_fields(&model, &quantities)?;
+    let r = block_force(&model);
     let t = Instant::now();
     let (res, adj) = run_sensitivity(&model, &ps, &settings(&model, Method::Adjoint))?;
     study.map_seconds = t.elapsed().as_secs_f64();
@@ -371,6 +364,25 @@ fn map(
         .collect();
     study.spot_checks = ddm_spot_checks(&model, &ps, per_quantity, last, r, &picked)?;
     Ok(())
+}
+
+/// Every element's material parameter of each of `fields`, one field after the other
+/// (each over every body's elements).
+fn element_fields(model: &Model, fields: &[&str]) -> Result<Vec<Parameter>, AdjointStudyError> {
+    let mut ps = Vec::new();
+    for q in fields {
+        for body in &model.bodies {
+            ps.extend(Parameter::expand(model, &format!("{}.{q}[*]", body.name))?);
+        }
+    }
+    Ok(ps)
+}
+
+/// The leaf spring's block force among the responses (the first response elsewhere).
+fn block_force(model: &Model) -> usize {
+    (model.responses.iter())
+        .position(|r| r.name == "block-force")
+        .unwrap_or(0)
 }
 
 /// DDM at the parameters `picked` of `ps` (fields of `per_quantity` members each, one after
@@ -514,18 +526,11 @@ fn large(refinement: f64, study: &mut AdjointStudy) -> Result<(), AdjointStudyEr
     // over the whole path the leaves slide about 1 mm on each other
     spec.search_along = spec.search_along.max(LARGE_MIN_REACH);
     let model = crate::scene::leaf_spring(&spec).build()?;
-    let mut ps = Vec::new();
-    for q in LARGE_FIELDS {
-        for body in &model.bodies {
-            ps.extend(Parameter::expand(&model, &format!("{}.{q}[*]", body.name))?);
-        }
-    }
+    let ps = element_fields(&model, &LARGE_FIELDS)?;
     let (res, adj) = run_sensitivity(&model, &ps, &settings(&model, Method::Adjoint))?;
     // DDM at the element of each field where the block force's derivative is largest
     let last = adj.increments.last().expect("a converged increment");
-    let r = (model.responses.iter())
-        .position(|r| r.name == "block-force")
-        .unwrap_or(0);
+    let r = block_force(&model);
     // every field has a member per element
     debug_assert_eq!(ps.len(), LARGE_FIELDS.len() * model.mesh.n_elements());
     let per_quantity = ps.len() / LARGE_FIELDS.len();

@@ -1647,12 +1647,9 @@ pub fn compare(model: &Model, name: &str, opts: &CompareOptions) -> Result<Compa
     // CalculiX: nominal and the two reruns
     let deck = export(model, &opts.export)?;
     // a negative or NaN limit stops at once, one no Duration holds never
-    let limit = std::time::Duration::try_from_secs_f64(
-        (opts.time_limit)
-            .unwrap_or_else(|| (100.0 * sens.primal_seconds).max(600.0))
-            .max(0.0),
-    )
-    .unwrap_or(std::time::Duration::MAX);
+    let limit = crate::solver::saturating_duration(
+        (opts.time_limit).unwrap_or_else(|| (100.0 * sens.primal_seconds).max(600.0)),
+    );
     let nominal = run_ccx(
         &opts.ccx,
         &deck,

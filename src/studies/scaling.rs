@@ -1097,10 +1097,9 @@ fn run_sizes(
                     (opts.time_budget_seconds.is_finite() && opts.time_budget_seconds > 0.0).then(
                         || {
                             // a product no Duration holds is no limit
-                            std::time::Duration::try_from_secs_f64(
+                            crate::solver::saturating_duration(
                                 CHILD_TIMEOUT_FACTOR * opts.time_budget_seconds,
                             )
-                            .unwrap_or(std::time::Duration::MAX)
                         },
                     ),
                 ),
