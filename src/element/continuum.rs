@@ -341,11 +341,9 @@ impl Solid<'_> {
         self.interpolation.n_nodes + if self.enhanced { 3 } else { 0 }
     }
 
-    /// The element's reference nodes, checked against the interpolation's count.
-    fn nodes<'x, S: Scalar>(
-        &self,
-        x: &'x [Vector3<S>],
-    ) -> Result<&'x [Vector3<S>], ElementFailure> {
+    /// The element's reference nodes, checked against the interpolation's count, with their
+    /// values in `f64` where none carries a derivative.
+    fn nodes<'x, S: Scalar>(&self, x: &'x [Vector3<S>]) -> Result<RefNodes<'x, S>, ElementFailure> {
         if x.len() != self.interpolation.n_nodes {
             return Err(ElementFailure::Layout {
                 what: "nodes",
@@ -353,18 +351,26 @@ impl Solid<'_> {
                 got: x.len(),
             });
         }
-        Ok(x)
+        let plain =
+            (S::DIFFERENTIATES && x.iter().all(|p| p.iter().all(S::is_constant))).then(|| {
+                let mut plain = [Vector3::<f64>::zeros(); MAX_NODES];
+                for (p, v) in plain.iter_mut().zip(x) {
+                    *p = v.map(re);
+                }
+                plain
+            });
+        Ok(RefNodes { x, plain })
     }
 
     /// The centre Jacobian's inverse transpose and determinant (incompatible modes only).
     fn centre<S: Scalar>(
         &self,
-        x_ref: &[Vector3<S>],
+        x_ref: &RefNodes<'_, S>,
     ) -> Result<Option<(Matrix3<S>, S)>, ElementFailure> {
         if !self.enhanced {
             return Ok(None);
         }
-        let jac = self.jacobian(x_ref, [0.0; 3]).0;
+        let jac = self.jacobian(x_ref.x, [0.0; 3]).0;
         match inv3(&jac) {
             Some((inv, det)) if re(det) > 0.0 => Ok(Some((inv.transpose(), det))),
             other => Err(ElementFailure::BadReferenceGeometry {
@@ -392,13 +398,57 @@ impl Solid<'_> {
         (jac, dn)
     }
 
-    /// Reference geometry at Gauss point `gp`: generalised gradients and the volume weight.
+    /// Reference geometry at Gauss point `gp`, written into `geo`: the nodes' gradients, the
+    /// incompatible modes' after them where `centre` is given (the rest are left as they
+    /// were), and the volume weight.
+    ///
+    /// Where the reference nodes carry no derivative (every use but a shape parameter's:
+    /// [`RefNodes::plain`]), the nodal part is computed in `f64` and lifted
+    /// ([`Solid::nodal_geometry`]): the same
+    /// values to the bit, without the Jacobian, its inverse and the gradients costing dual
+    /// or recorded arithmetic on constants (a fifth of a J2 hex8's recording in reverse
+    /// mode). The incompatible modes' part stays in `S`: its ratio `j0 / det` is rounded as
+    /// each scalar divides (a dual number by the reciprocal).
     fn reference_geometry<S: Scalar>(
+        &self,
+        x_ref: &RefNodes<'_, S>,
+        gp: usize,
+        centre: &Option<(Matrix3<S>, S)>,
+        geo: &mut GaussGeometry<S>,
+    ) -> Result<(), ElementFailure> {
+        let n = self.interpolation.n_nodes;
+        let det = match &x_ref.plain {
+            Some(plain) => {
+                let mut g = GaussGeometry::<f64>::default();
+                let det = self.nodal_geometry(&plain[..n], gp, &mut g)?;
+                for (o, v) in geo.grads.iter_mut().zip(&g.grads).take(n) {
+                    *o = v.map(S::lift);
+                }
+                geo.weight = S::lift(g.weight);
+                S::lift(det)
+            }
+            None => self.nodal_geometry(x_ref.x, gp, geo)?,
+        };
+        if let Some((j0inv_t, j0)) = centre {
+            let xi = self.rule.points[gp];
+            let scale = *j0 / det;
+            for k in 0..3 {
+                let mut dphi = Vector3::<S>::zeros();
+                dphi[k] = S::lift(-2.0 * xi[k]);
+                geo.grads[n + k] = mat_vec(j0inv_t, &dphi) * scale;
+            }
+        }
+        Ok(())
+    }
+
+    /// The nodal part of [`Solid::reference_geometry`]: the nodes' gradients and the volume
+    /// weight written into `geo`, and the Jacobian's determinant returned.
+    fn nodal_geometry<S: Scalar>(
         &self,
         x_ref: &[Vector3<S>],
         gp: usize,
-        centre: &Option<(Matrix3<S>, S)>,
-    ) -> Result<GaussGeometry<S>, ElementFailure> {
+        geo: &mut GaussGeometry<S>,
+    ) -> Result<S, ElementFailure> {
         let xi = self.rule.points[gp];
         let (jac, dn) = self.jacobian(x_ref, xi);
         let (jinv, det) = match inv3(&jac) {
@@ -410,26 +460,15 @@ impl Solid<'_> {
                 })
             }
         };
-        let mut grads = [Vector3::<S>::zeros(); MAX_GEN];
         // grad_X N = J^-T dN/dxi
         let jinv_t = jinv.transpose();
         let n = self.interpolation.n_nodes;
-        for (g, d) in grads.iter_mut().zip(&dn).take(n) {
+        for (g, d) in geo.grads.iter_mut().zip(&dn).take(n) {
             let dxi = Vector3::new(S::lift(d[0]), S::lift(d[1]), S::lift(d[2]));
             *g = mat_vec(&jinv_t, &dxi);
         }
-        if let Some((j0inv_t, j0)) = centre {
-            let scale = *j0 / det;
-            for k in 0..3 {
-                let mut dphi = Vector3::<S>::zeros();
-                dphi[k] = S::lift(-2.0 * xi[k]);
-                grads[n + k] = mat_vec(j0inv_t, &dphi) * scale;
-            }
-        }
-        Ok(GaussGeometry {
-            grads,
-            weight: det * self.rule.weights[gp],
-        })
+        geo.weight = det * self.rule.weights[gp];
+        Ok(det)
     }
 
     /// The strain each Gauss point's material sees for the generalised displacements `dofs`
@@ -445,11 +484,12 @@ impl Solid<'_> {
         if self.fbar {
             return Ok(false);
         }
-        let x_ref = self.nodes(x_ref)?;
+        let x_ref = &self.nodes(x_ref)?;
         let centre = self.centre(x_ref)?;
         let n_gen = self.generalised_nodes();
+        let mut geo = GaussGeometry::default();
         for (gp, e) in out.iter_mut().enumerate().take(self.rule.len()) {
-            let geo = self.reference_geometry(x_ref, gp, &centre)?;
+            self.reference_geometry(x_ref, gp, &centre, &mut geo)?;
             let h = displacement_gradient(dofs, &geo.grads[..n_gen]);
             *e = strain_measure(&h, kinematics == Kinematics::Large);
         }
@@ -462,11 +502,15 @@ impl Solid<'_> {
         &self,
         x_ref: &[Vector3<f64>],
     ) -> Result<Vec<([f64; MAX_NODES], f64)>, ElementFailure> {
-        let x_ref = self.nodes(x_ref)?;
+        let x_ref = &self.nodes(x_ref)?;
+        let mut geo = GaussGeometry::default();
         (0..self.rule.len())
             .map(|gp| {
-                let w = self.reference_geometry(x_ref, gp, &None)?.weight;
-                Ok(((self.interpolation.values)(self.rule.points[gp]), w))
+                self.reference_geometry(x_ref, gp, &None, &mut geo)?;
+                Ok((
+                    (self.interpolation.values)(self.rule.points[gp]),
+                    geo.weight,
+                ))
             })
             .collect()
     }
@@ -476,10 +520,12 @@ impl Solid<'_> {
         &self,
         x_ref: &[Vector3<S>],
     ) -> Result<S, ElementFailure> {
-        let x_ref = self.nodes(x_ref)?;
+        let x_ref = &self.nodes(x_ref)?;
         let mut v = S::zero();
+        let mut geo = GaussGeometry::default();
         for gp in 0..self.rule.len() {
-            v += self.reference_geometry(x_ref, gp, &None)?.weight;
+            self.reference_geometry(x_ref, gp, &None, &mut geo)?;
+            v += geo.weight;
         }
         Ok(v)
     }
@@ -491,7 +537,7 @@ impl Solid<'_> {
         input: &ElementInput<'_, S, M>,
         out: &mut ElementOutput<'_, S>,
     ) -> Result<(), ElementFailure> {
-        let x_ref = self.nodes(input.x_ref)?;
+        let x_ref = &self.nodes(input.x_ref)?;
         let ng = self.rule.len();
         if let Some(f) = input.frozen.filter(|f| f.len() != ng) {
             return Err(ElementFailure::Layout {
@@ -518,7 +564,7 @@ impl Solid<'_> {
     /// The standard displacement formulation (with incompatible modes if enhanced).
     fn evaluate_standard<S: Scalar, M: MaterialLaw>(
         &self,
-        x_ref: &[Vector3<S>],
+        x_ref: &RefNodes<'_, S>,
         input: &ElementInput<'_, S, M>,
         out: &mut ElementOutput<'_, S>,
     ) -> Result<(), ElementFailure> {
@@ -531,10 +577,37 @@ impl Solid<'_> {
         let mut volume = S::zero();
         out.min_det_f = f64::INFINITY;
         let mut b = [[Voigt::<S>::zeros(); 3]; MAX_GEN];
+        let mut geo = GaussGeometry::default();
+        // with constant displacements and reference nodes (a recording's element whose
+        // history alone is an input; a dual pseudo-load in a material or friction
+        // parameter), the kinematics in `f64`, the same values to the bit
+        let plain = (x_ref.plain.is_some()
+            && (input.dofs.iter()).all(|v| v.iter().all(S::is_constant)))
+        .then(|| {
+            let mut d = [Vector3::<f64>::zeros(); MAX_GEN];
+            for (p, v) in d.iter_mut().zip(input.dofs) {
+                *p = v.map(re);
+            }
+            d
+        });
         for gp in 0..self.rule.len() {
-            let geo = self.reference_geometry(x_ref, gp, &centre)?;
-            let h = displacement_gradient(input.dofs, &geo.grads[..n_gen]);
-            let f = h + Matrix3::identity();
+            self.reference_geometry(x_ref, gp, &centre, &mut geo)?;
+            let (f, strain) = match &plain {
+                Some(dofs) => {
+                    let mut grads = [Vector3::<f64>::zeros(); MAX_GEN];
+                    for (p, g) in grads.iter_mut().zip(&geo.grads[..n_gen]) {
+                        *p = g.map(re);
+                    }
+                    let h = displacement_gradient(&dofs[..n_gen], &grads[..n_gen]);
+                    let f = h + Matrix3::identity();
+                    let strain = strain_measure(&h, large);
+                    (f.map(S::lift), strain.map(S::lift))
+                }
+                None => {
+                    let h = displacement_gradient(input.dofs, &geo.grads[..n_gen]);
+                    (h + Matrix3::identity(), strain_measure(&h, large))
+                }
+            };
             let det_f = det_f_of(&f, large, out);
             out.min_det_f = out.min_det_f.min(re(det_f));
             if large && re(det_f) <= 0.0 {
@@ -543,7 +616,6 @@ impl Solid<'_> {
                     det_f: re(det_f),
                 });
             }
-            let strain = strain_measure(&h, large);
             let resp = material_point(input, out, gp, &strain)?;
             let w = geo.weight;
             let dv = out.want_cauchy.then(|| if large { w * det_f } else { w });
@@ -619,7 +691,7 @@ impl Solid<'_> {
     /// The F-bar variant of [`Solid::evaluate`] (see the module docs for the formulas).
     fn evaluate_fbar<S: Scalar, M: MaterialLaw>(
         &self,
-        x_ref: &[Vector3<S>],
+        x_ref: &RefNodes<'_, S>,
         input: &ElementInput<'_, S, M>,
         out: &mut ElementOutput<'_, S>,
     ) -> Result<(), ElementFailure> {
@@ -631,8 +703,9 @@ impl Solid<'_> {
         // reference geometry of every Gauss point, and the element averages
         let mut grads = [[Vector3::<S>::zeros(); MAX_NODES]; MAX_GAUSS];
         let mut weights = [S::zero(); MAX_GAUSS];
+        let mut geo = GaussGeometry::default();
         for gp in 0..ng {
-            let geo = self.reference_geometry(x_ref, gp, &None)?;
+            self.reference_geometry(x_ref, gp, &None, &mut geo)?;
             grads[gp][..nn].copy_from_slice(&geo.grads[..nn]);
             weights[gp] = geo.weight;
         }
@@ -853,10 +926,26 @@ fn without_b_rows<S: Scalar>(out: &ElementOutput<'_, S>) -> bool {
     S::RECORDS && out.tangent.is_none()
 }
 
+/// An element's reference nodes ([`Solid::nodes`]).
+struct RefNodes<'x, S: Scalar> {
+    x: &'x [Vector3<S>],
+    /// Their values, where none carries a derivative (never for `f64`, which needs no copy).
+    plain: Option<[Vector3<f64>; MAX_NODES]>,
+}
+
 /// Reference geometry at one Gauss point: generalised gradients and the volume weight.
 struct GaussGeometry<S: Scalar> {
     grads: [Vector3<S>; MAX_GEN],
     weight: S,
+}
+
+impl<S: Scalar> Default for GaussGeometry<S> {
+    fn default() -> Self {
+        GaussGeometry {
+            grads: [Vector3::zeros(); MAX_GEN],
+            weight: S::zero(),
+        }
+    }
 }
 
 /// The material update at Gauss point `gp` (branch frozen if asked), with its bookkeeping:

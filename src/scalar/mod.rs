@@ -42,6 +42,14 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync + 'static {
     /// The real part (value).
     fn value(&self) -> f64;
 
+    /// Whether the number depends on nothing differentiated: every forward part zero, no
+    /// tape entry. A kernel may then compute with its value in `f64` and lift the result:
+    /// the same value to the bit where the `f64` operations round as the scalar's do (sums,
+    /// differences, products, `recip`; not a quotient of two scalars, which the dual
+    /// numbers and [`Rev`] take as a product by the reciprocal), no tape entry either way,
+    /// and derivative parts of `+0` where the scalar's arithmetic may have left a `-0`.
+    fn is_constant(&self) -> bool;
+
     /// Derivative part number `k` (`k < NPARTS`); `0.0` when out of range.
     fn part(&self, k: usize) -> f64;
 
@@ -94,6 +102,10 @@ impl Scalar for f64 {
         *self
     }
     #[inline]
+    fn is_constant(&self) -> bool {
+        true
+    }
+    #[inline]
     fn part(&self, _k: usize) -> f64 {
         0.0
     }
@@ -108,6 +120,10 @@ impl Scalar for Dual64 {
     #[inline]
     fn value(&self) -> f64 {
         self.re
+    }
+    #[inline]
+    fn is_constant(&self) -> bool {
+        self.eps == 0.0
     }
     #[inline]
     fn part(&self, k: usize) -> f64 {
@@ -128,6 +144,13 @@ impl<const N: usize> Scalar for DualSVec64<N> {
     #[inline]
     fn value(&self) -> f64 {
         self.re
+    }
+    #[inline]
+    fn is_constant(&self) -> bool {
+        self.eps
+            .0
+            .as_ref()
+            .is_none_or(|m| m.iter().all(|p| *p == 0.0))
     }
     #[inline]
     fn part(&self, k: usize) -> f64 {

@@ -709,6 +709,10 @@ impl Scalar for Rev {
         self.v
     }
     #[inline]
+    fn is_constant(&self) -> bool {
+        self.i == NONE
+    }
+    #[inline]
     fn part(&self, _k: usize) -> f64 {
         0.0
     }

@@ -15,8 +15,8 @@ use fricsens::material::{Branch, J2Plasticity, MaterialLaw, NeoHookean, StVenant
 use fricsens::mesh::Mesh;
 use fricsens::model::{Amplitude, Material};
 use fricsens::scalar::{tape, Rev, Scalar};
-use nalgebra::{Matrix3, Rotation3, Vector3};
-use num_dual::Dual64;
+use nalgebra::{Matrix3, Rotation3, SVector, Vector3};
+use num_dual::{Derivative, Dual64, DualSVec64};
 use proptest::prelude::*;
 
 #[test]
@@ -81,11 +81,24 @@ fn evaluate<S: Scalar, M: MaterialLaw>(
     want_tangent: bool,
     want_cauchy: bool,
 ) -> Evaluated<S> {
+    let hist_old = vec![S::zero(); family.n_gauss() * material.history_len()];
+    let a = (kinematics, want_tangent, want_cauchy);
+    evaluate_from(family, x, dofs, &hist_old, material, a)
+}
+
+/// [`evaluate`] from the history `hist_old`.
+fn evaluate_from<S: Scalar, M: MaterialLaw>(
+    family: ElementFamily,
+    x: &[Vector3<S>],
+    dofs: &[Vector3<S>],
+    hist_old: &[S],
+    material: &M,
+    (kinematics, want_tangent, want_cauchy): (Kinematics, bool, bool),
+) -> Evaluated<S> {
     let nd = 3 * dofs.len();
     let ng = family.n_gauss();
     let params: Vec<S> = material.params().iter().map(|p| S::lift(*p)).collect();
-    let hist_old = vec![S::zero(); ng * material.history_len()];
-    let mut hist_new = hist_old.clone();
+    let mut hist_new = hist_old.to_vec();
     let mut force = vec![S::zero(); nd];
     let mut tangent = vec![S::zero(); if want_tangent { nd * nd } else { 0 }];
     let mut branches = vec![Branch::Elastic; ng];
@@ -96,7 +109,7 @@ fn evaluate<S: Scalar, M: MaterialLaw>(
         kinematics,
         material,
         params: &params,
-        hist_old: &hist_old,
+        hist_old,
         frozen: None,
     };
     let mut out = ElementOutput {
@@ -310,6 +323,114 @@ fn recording_is_the_force_and_its_derivative<M: MaterialLaw>(
         );
     }
     tape::clear();
+}
+
+/// Where the reference nodes carry no derivative, an evaluation computes the geometry in
+/// `f64` and lifts it; where the displacements carry none either, the kinematics too (not
+/// F-bar's). Neither shortcut may change a value or an adjoint: from a plastic history,
+/// every family's J2 evaluation in `Dual64` gives the same force, history and stress real
+/// parts to the bit with its history seeded alone (both shortcuts), with a displacement
+/// seeded too (the geometry's alone) and with a node's coordinate seeded too (neither); so
+/// does one in `DualSVec64<2>` whose nodes and displacements hold derivative parts that are
+/// all zero (constants, both shortcuts); and a recording with the displacements constant
+/// (an element whose history alone is an input, as the adjoint records an elastic element
+/// that was plastic before) gives the same force, history, stress and history adjoints to
+/// the bit as one with them as inputs, and as one with the nodes' coordinates inputs too.
+fn constants_in_f64_change_nothing(family: ElementFamily, kinematics: Kinematics, size: f64) {
+    let j2 = J2Plasticity::new(1000.0, 0.3, 1.0, Hardening::Linear { h: 50.0 });
+    let name = family.name();
+    let x: Vec<Vector3<f64>> = (distorted_element(family.shape()).iter())
+        .map(|p| p * size)
+        .collect();
+    let n_gen = family.n_dofs() / 3;
+    let d = displacements(&x, n_gen, 1.0);
+    let half: Vec<Vector3<f64>> = d.iter().map(|v| v * 0.5).collect();
+    let (.., branches, hist) = evaluate(family, &x, &half, kinematics, &j2, false, false);
+    assert!(
+        branches.contains(&Branch::Plastic) && hist.iter().any(|h| *h != 0.0),
+        "{name} {kinematics:?}: the history is meant to be plastic"
+    );
+    let a = (kinematics, false, true);
+    // Dual64: the history's first scalar seeded; then a displacement; then a coordinate
+    let lift = |v: &Vector3<f64>| v.map(Dual64::from);
+    let h: Vec<Dual64> = (hist.iter().enumerate())
+        .map(|(i, v)| Dual64::new(*v, if i == 0 { 1.0 } else { 0.0 }))
+        .collect();
+    let (xd, dd): (Vec<_>, Vec<_>) = (x.iter().map(lift).collect(), d.iter().map(lift).collect());
+    let mut dd_seeded = dd.clone();
+    dd_seeded[0][1].eps = 1.0;
+    let mut xd_seeded = xd.clone();
+    xd_seeded[1][2].eps = 1.0;
+    let runs = [
+        evaluate_from(family, &xd, &dd, &h, &j2, a),
+        evaluate_from(family, &xd, &dd_seeded, &h, &j2, a),
+        evaluate_from(family, &xd_seeded, &dd_seeded, &h, &j2, a),
+    ];
+    let bits = |e: &Evaluated<Dual64>| -> Vec<u64> {
+        (e.0.iter().chain(&e.4).chain(e.2.iter()))
+            .map(|v| v.re.to_bits())
+            .collect()
+    };
+    for (k, run) in runs.iter().enumerate().skip(1) {
+        assert_eq!(bits(run), bits(&runs[0]), "{name} {kinematics:?}: run {k}");
+    }
+    let zero_parts =
+        |v: &Vector3<f64>| v.map(|c| DualSVec64::<2>::new(c, Derivative::some(SVector::zeros())));
+    let xs: Vec<_> = x.iter().map(zero_parts).collect();
+    let ds: Vec<_> = d.iter().map(zero_parts).collect();
+    let hs: Vec<DualSVec64<2>> = (hist.iter().enumerate())
+        .map(|(i, v)| DualSVec64::<2>::seeded(*v, if i == 0 { 0 } else { 2 }))
+        .collect();
+    let wide = evaluate_from(family, &xs, &ds, &hs, &j2, a);
+    let wide_bits: Vec<u64> = (wide.0.iter().chain(&wide.4).chain(wide.2.iter()))
+        .map(|v| v.re.to_bits())
+        .collect();
+    assert_eq!(
+        wide_bits,
+        bits(&runs[0]),
+        "{name} {kinematics:?}: DualSVec64"
+    );
+    // Rev: the history an input; the displacements constants, then inputs; then the
+    // nodes' coordinates inputs too
+    let record = |(nodes, dofs): (bool, bool)| -> (Vec<u64>, Vec<u64>) {
+        tape::clear();
+        let rev = |input: bool| if input { Rev::input } else { Rev::constant };
+        let xr: Vec<Vector3<Rev>> = x.iter().map(|p| p.map(rev(nodes))).collect();
+        let dr: Vec<Vector3<Rev>> = d.iter().map(|v| v.map(rev(dofs))).collect();
+        let hr: Vec<Rev> = hist.iter().map(|v| Rev::input(*v)).collect();
+        let (f, _, c, _, hn) = evaluate_from(family, &xr, &dr, &hr, &j2, a);
+        let weights = (f.iter().chain(&hn).chain(c.iter()).enumerate())
+            .map(|(i, v)| (*v, 1.0 + 0.37 * i as f64));
+        let mut adjoint = Vec::new();
+        tape::sweep(weights, &mut adjoint);
+        let values = (f.iter().chain(&hn).chain(c.iter()))
+            .map(|v| v.value().to_bits())
+            .collect();
+        let adjoints = hr.iter().map(|v| v.adjoint(&adjoint).to_bits()).collect();
+        tape::clear();
+        (values, adjoints)
+    };
+    let plain = record((false, false));
+    for inputs in [(false, true), (true, true)] {
+        assert_eq!(
+            record(inputs),
+            plain,
+            "{name} {kinematics:?}: recording {inputs:?}"
+        );
+    }
+}
+
+#[test]
+fn constant_inputs_computed_in_f64_change_no_value_and_no_adjoint() {
+    for family in ElementFamily::solids() {
+        for kinematics in [Kinematics::Small, Kinematics::Large] {
+            // elements of several sizes: a ratio rounded two ways (a true quotient against
+            // a product by the reciprocal) agrees on many operands, differs on some
+            for size in [1.0, 0.7, 1.3, 2.9] {
+                constants_in_f64_change_nothing(family, kinematics, size);
+            }
+        }
+    }
 }
 
 #[test]
