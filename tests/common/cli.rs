@@ -13,3 +13,14 @@ pub fn fricsens() -> Command {
 pub fn scratch_path(name: &str) -> PathBuf {
     std::env::temp_dir().join(format!("fricsens-{name}-{}", std::process::id()))
 }
+
+/// Runs `cmd` and returns its output, failing with its standard error unless it succeeded.
+pub fn succeeds(cmd: &mut Command) -> std::process::Output {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}

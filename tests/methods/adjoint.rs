@@ -521,27 +521,22 @@ fn the_adjoints_one_sided_derivatives_reach_sensitivity_json() {
 /// every other one 0.
 #[test]
 fn adjoint_field_derivatives_are_drawn_on_the_mesh() {
-    use crate::common::{fricsens, scratch_path};
+    use crate::common::{fricsens, scratch_path, succeeds};
     use vtkio::model::{Attribute, DataSet};
     let dir = scratch_path("adjoint-vtk");
     let _ = std::fs::remove_dir_all(&dir);
-    let out = fricsens()
-        .args(["sensitivity", "leaf-spring-coarse", "--method", "adjoint"])
-        .args([
-            "--param",
-            "upper.sigma_y[*]",
-            "--param",
-            "leaves.mu[*]",
-            "--vtk",
-        ])
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeeds(
+        fricsens()
+            .args(["sensitivity", "leaf-spring-coarse", "--method", "adjoint"])
+            .args([
+                "--param",
+                "upper.sigma_y[*]",
+                "--param",
+                "leaves.mu[*]",
+                "--vtk",
+            ])
+            .arg("--out")
+            .arg(&dir),
     );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("sensitivity.json")).unwrap())
