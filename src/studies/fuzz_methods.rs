@@ -363,8 +363,10 @@ pub struct Campaign {
 }
 
 impl Campaign {
-    /// The campaign of `checks`.
+    /// The campaign of `checks`, each method's primal analysis allowed `time_limit` seconds
+    /// (an infinite one is none, as [`crate::solver::RunOptions`] takes it).
     pub fn of(checks: Vec<MethodsCheck>, time_limit: Option<f64>) -> Self {
+        let time_limit = time_limit.filter(|s| s.is_finite());
         let compared: Vec<&MethodsCheck> = checks.iter().filter(|c| c.skipped.is_none()).collect();
         let worst = (compared.iter()).max_by(|a, b| a.worst.total_cmp(&b.worst));
         Campaign {

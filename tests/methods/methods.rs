@@ -1,7 +1,7 @@
 //! The sensitivity methods' defaults: DDM with the default settings is the exact derivative of
 //! the discrete incremental solution, to the solver's accuracy.
 
-use crate::common::{fricsens, params, scratch_path};
+use crate::common::{fricsens, params, scratch_path, succeeds};
 
 use fricsens::scene::{builtin, builtin_list, Scene};
 use fricsens::sensitivity::{
@@ -382,6 +382,32 @@ fn every_method_stops_at_its_time_limit() {
         };
         assert!(run_sensitivity(&model, &ps, &free).is_ok(), "{method:?}");
     }
+}
+
+/// `fuzz --methods --time-limit inf` is a campaign without a limit, and its report says so:
+/// no "inf s" in methods.md, no limit in methods.json.
+#[test]
+fn an_infinite_time_limit_is_no_limit() {
+    let dir = scratch_path("cli-time-limit-inf");
+    let campaign = [
+        "fuzz",
+        "--methods",
+        "--seed",
+        "0",
+        "--time-limit",
+        "inf",
+        "--out",
+    ];
+    succeeds(fricsens().args(campaign).arg(&dir));
+    let md = std::fs::read_to_string(dir.join("methods.md")).unwrap();
+    assert!(
+        md.contains("DDM against the adjoint on 1 scenes") && !md.contains("time limit"),
+        "{md}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("methods.json")).unwrap()).unwrap();
+    assert_eq!(json["time_limit"], serde_json::Value::Null, "{json}");
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// `--time-limit` on the command line: `fricsens run` stops with an error naming the
