@@ -2,7 +2,7 @@
 //! sizes per scene, each in its own child process), the power-law fits against synthetic
 //! laws (oracle), and bad input. The study itself is `fricsens scaling` (tens of minutes).
 
-use crate::common::{fricsens, scratch_path};
+use crate::common::{fricsens, scratch_path, succeeds};
 
 use fricsens::studies::scaling::{fit_all, Measurement, ScalingScene, Study, QUANTITIES};
 use std::path::PathBuf;
@@ -11,16 +11,7 @@ use std::path::PathBuf;
 fn quick_study_writes_csv_svg_and_markdown_with_finite_exponents() {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("scaling-quick");
     let _ = std::fs::remove_dir_all(&dir);
-    let out = fricsens()
-        .args(["scaling", "--quick", "--out"])
-        .arg(&dir)
-        .output()
-        .expect("fricsens runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeds(fricsens().args(["scaling", "--quick", "--out"]).arg(&dir));
 
     // CSV: a header and two sizes per scene, each with its own peak memory
     let csv = std::fs::read_to_string(dir.join("scaling.csv")).unwrap();
@@ -68,12 +59,7 @@ fn quick_study_writes_csv_svg_and_markdown_with_finite_exponents() {
 
     // --rewrite reproduces the markdown from the record alone
     std::fs::remove_file(dir.join("scaling.md")).unwrap();
-    let out = fricsens()
-        .args(["scaling", "--rewrite", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(out.status.success());
+    succeeds(fricsens().args(["scaling", "--rewrite", "--out"]).arg(&dir));
     assert_eq!(std::fs::read_to_string(dir.join("scaling.md")).unwrap(), md);
 }
 
