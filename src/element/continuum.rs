@@ -83,7 +83,7 @@
 //! | `r`, `Fbar`, `Cbar`, `Ebar` | F-bar factor `(J0/J)^(1/3)`, modified `F`, `C`, Green strain |
 //! | `q_A`, `q0_A`, `v_a` | `F^-T g_A`, `F0^-T gbar_A`, `d ln r / dd_a` |
 use crate::material::{strain_to_voigt, stress_to_voigt, Branch, MaterialLaw, Tangent, Voigt};
-use crate::scalar::{det3, inv3, mat_mat, mat_vec, re, tr_mat_mat, Scalar};
+use crate::scalar::{det3, inv3, mat_mat, mat_vec, re, re_vec, tr_mat_mat, Scalar};
 use nalgebra::{Matrix3, Vector3};
 
 /// Most nodes of any registered family (hex20).
@@ -307,6 +307,21 @@ pub(crate) struct Solid<'t> {
     pub(crate) fbar: bool,
 }
 
+/// The real parts of `v` (at most `N`), the rest zero.
+fn values<S: Scalar, const N: usize>(v: &[Vector3<S>]) -> [Vector3<f64>; N] {
+    let mut out = [Vector3::zeros(); N];
+    for (p, q) in out.iter_mut().zip(v) {
+        *p = re_vec(q);
+    }
+    out
+}
+
+/// [`values`] where every component of `v` is a constant ([`Scalar::is_constant`]): the
+/// inputs a kernel may compute with in `f64`.
+fn values_if_constant<S: Scalar, const N: usize>(v: &[Vector3<S>]) -> Option<[Vector3<f64>; N]> {
+    (v.iter().all(|p| p.iter().all(S::is_constant))).then(|| values(v))
+}
+
 /// `H = grad_X u = sum_A d_A g_A^T` at a Gauss point over the pairs of generalised
 /// displacements `dofs` and gradients `grads` (the enhanced part included where given; F-bar's
 /// element average too). Each entry is its own sum in the pairs' order, so the order of the
@@ -351,14 +366,11 @@ impl Solid<'_> {
                 got: x.len(),
             });
         }
-        let plain =
-            (S::DIFFERENTIATES && x.iter().all(|p| p.iter().all(S::is_constant))).then(|| {
-                let mut plain = [Vector3::<f64>::zeros(); MAX_NODES];
-                for (p, v) in plain.iter_mut().zip(x) {
-                    *p = v.map(re);
-                }
-                plain
-            });
+        let plain = if S::DIFFERENTIATES {
+            values_if_constant(x)
+        } else {
+            None
+        };
         Ok(RefNodes { x, plain })
     }
 
@@ -581,23 +593,15 @@ impl Solid<'_> {
         // with constant displacements and reference nodes (a recording's element whose
         // history alone is an input; a dual pseudo-load in a material or friction
         // parameter), the kinematics in `f64`, the same values to the bit
-        let plain = (x_ref.plain.is_some()
-            && (input.dofs.iter()).all(|v| v.iter().all(S::is_constant)))
-        .then(|| {
-            let mut d = [Vector3::<f64>::zeros(); MAX_GEN];
-            for (p, v) in d.iter_mut().zip(input.dofs) {
-                *p = v.map(re);
-            }
-            d
-        });
+        let plain: Option<[Vector3<f64>; MAX_GEN]> = match x_ref.plain {
+            Some(_) => values_if_constant(input.dofs),
+            None => None,
+        };
         for gp in 0..self.rule.len() {
             self.reference_geometry(x_ref, gp, &centre, &mut geo)?;
             let (f, strain) = match &plain {
                 Some(dofs) => {
-                    let mut grads = [Vector3::<f64>::zeros(); MAX_GEN];
-                    for (p, g) in grads.iter_mut().zip(&geo.grads[..n_gen]) {
-                        *p = g.map(re);
-                    }
+                    let grads: [Vector3<f64>; MAX_GEN] = values(&geo.grads[..n_gen]);
                     let h = displacement_gradient(&dofs[..n_gen], &grads[..n_gen]);
                     let f = h + Matrix3::identity();
                     let strain = strain_measure(&h, large);

@@ -374,6 +374,39 @@ fn constants_in_f64_change_nothing(family: ElementFamily, kinematics: Kinematics
     for (k, run) in runs.iter().enumerate().skip(1) {
         assert_eq!(bits(run), bits(&runs[0]), "{name} {kinematics:?}: run {k}");
     }
+    // and no derivative dropped by a shortcut: each run's derivative parts less the run
+    // before's are the derivative in the seed it adds, against central differences of the
+    // f64 evaluation
+    let fd = FiniteDifferences {
+        family,
+        x: &x,
+        d: &d,
+        hist: &hist,
+        material: &j2,
+        a,
+    };
+    let parts = |e: &Evaluated<Dual64>| -> Vec<f64> {
+        (e.0.iter().chain(&e.4).chain(e.2.iter()))
+            .map(|v| v.eps)
+            .collect()
+    };
+    let (p0, p1, p2) = (parts(&runs[0]), parts(&runs[1]), parts(&runs[2]));
+    let minus =
+        |a: &[f64], b: &[f64]| -> Vec<f64> { a.iter().zip(b).map(|(a, b)| a - b).collect() };
+    let label = format!("{name} {kinematics:?} size {size}");
+    close_to_differences(
+        &p0,
+        &fd.central(Seed::History),
+        &format!("{label}: history"),
+    );
+    let p1_0 = minus(&p1, &p0);
+    close_to_differences(
+        &p1_0,
+        &fd.central(Seed::Dof),
+        &format!("{label}: displacement"),
+    );
+    let p2_1 = minus(&p2, &p1);
+    close_to_differences(&p2_1, &fd.central(Seed::Node), &format!("{label}: node"));
     let zero_parts =
         |v: &Vector3<f64>| v.map(|c| DualSVec64::<2>::new(c, Derivative::some(SVector::zeros())));
     let xs: Vec<_> = x.iter().map(zero_parts).collect();
@@ -390,9 +423,25 @@ fn constants_in_f64_change_nothing(family: ElementFamily, kinematics: Kinematics
         bits(&runs[0]),
         "{name} {kinematics:?}: DualSVec64"
     );
+    // a displacement seeded in the second part: the same values, and that part the
+    // displacement's derivative (the first still the history's)
+    let mut ds_seeded = ds.clone();
+    ds_seeded[0][1] = DualSVec64::<2>::seeded(d[0][1], 1);
+    let wide = evaluate_from(family, &xs, &ds_seeded, &hs, &j2, a);
+    let wide_values = || wide.0.iter().chain(&wide.4).chain(wide.2.iter());
+    let wide_bits: Vec<u64> = wide_values().map(|v| v.re.to_bits()).collect();
+    assert_eq!(
+        wide_bits,
+        bits(&runs[0]),
+        "{name} {kinematics:?}: DualSVec64 seeded"
+    );
+    for (k, seed) in [Seed::History, Seed::Dof].into_iter().enumerate() {
+        let part: Vec<f64> = wide_values().map(|v| v.part(k)).collect();
+        close_to_differences(&part, &fd.central(seed), &format!("{label}: part {k}"));
+    }
     // Rev: the history an input; the displacements constants, then inputs; then the
     // nodes' coordinates inputs too
-    let record = |(nodes, dofs): (bool, bool)| -> (Vec<u64>, Vec<u64>) {
+    let record = |(nodes, dofs): (bool, bool)| -> ((Vec<u64>, Vec<u64>), [f64; 2]) {
         tape::clear();
         let rev = |input: bool| if input { Rev::input } else { Rev::constant };
         let xr: Vec<Vector3<Rev>> = x.iter().map(|p| p.map(rev(nodes))).collect();
@@ -407,15 +456,83 @@ fn constants_in_f64_change_nothing(family: ElementFamily, kinematics: Kinematics
             .map(|v| v.value().to_bits())
             .collect();
         let adjoints = hr.iter().map(|v| v.adjoint(&adjoint).to_bits()).collect();
+        let others = [dr[0][1].adjoint(&adjoint), xr[1][2].adjoint(&adjoint)];
         tape::clear();
-        (values, adjoints)
+        ((values, adjoints), others)
     };
-    let plain = record((false, false));
+    let (plain, _) = record((false, false));
     for inputs in [(false, true), (true, true)] {
-        assert_eq!(
-            record(inputs),
-            plain,
-            "{name} {kinematics:?}: recording {inputs:?}"
+        let (same, _) = record(inputs);
+        assert_eq!(same, plain, "{name} {kinematics:?}: recording {inputs:?}");
+    }
+    // the displacement's and the coordinate's adjoints: the weighted sum's derivatives
+    let (_, [dof, node]) = record((true, true));
+    let weighted = |seed: Seed| -> f64 {
+        (fd.central(seed).iter().enumerate())
+            .map(|(i, v)| v * (1.0 + 0.37 * i as f64))
+            .sum()
+    };
+    for (adjoint, seed) in [(dof, Seed::Dof), (node, Seed::Node)] {
+        close_to_differences(
+            &[adjoint],
+            &[weighted(seed)],
+            &format!("{label}: Rev {seed:?}"),
+        );
+    }
+}
+
+/// The input a derivative is taken in: the history's first scalar, the first node's `y`
+/// displacement, the second node's `z` coordinate.
+#[derive(Clone, Copy, Debug)]
+enum Seed {
+    History,
+    Dof,
+    Node,
+}
+
+/// Central differences of an element's `f64` evaluation (force, new history, Cauchy
+/// stress) in one input.
+struct FiniteDifferences<'a, M: MaterialLaw> {
+    family: ElementFamily,
+    x: &'a [Vector3<f64>],
+    d: &'a [Vector3<f64>],
+    hist: &'a [f64],
+    material: &'a M,
+    a: (Kinematics, bool, bool),
+}
+
+impl<M: MaterialLaw> FiniteDifferences<'_, M> {
+    fn central(&self, seed: Seed) -> Vec<f64> {
+        let at = |step: f64| -> Vec<f64> {
+            let (mut x, mut d, mut h) = (self.x.to_vec(), self.d.to_vec(), self.hist.to_vec());
+            match seed {
+                Seed::History => h[0] += step,
+                Seed::Dof => d[0][1] += step,
+                Seed::Node => x[1][2] += step,
+            }
+            let e = evaluate_from(self.family, &x, &d, &h, self.material, self.a);
+            e.0.iter().chain(&e.4).chain(e.2.iter()).copied().collect()
+        };
+        let step = 1e-6;
+        let (up, down) = (at(step), at(-step));
+        up.iter()
+            .zip(&down)
+            .map(|(u, w)| (u - w) / (2.0 * step))
+            .collect()
+    }
+}
+
+/// `derivatives` agree with central `differences` to 1e-5 of the largest of them: a step of
+/// 1e-6 leaves a truncation error of about 1e-12 and a round-off of about 1e-10 relative
+/// (J2's return map converges to its own tolerance, so a little more); a derivative a
+/// shortcut dropped is off by its own size.
+fn close_to_differences(derivatives: &[f64], differences: &[f64], what: &str) {
+    let scale = differences.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(scale > 0.0, "{what}: no derivative to compare");
+    for (i, (a, b)) in derivatives.iter().zip(differences).enumerate() {
+        assert!(
+            (a - b).abs() <= 1e-5 * scale,
+            "{what}: output {i}: {a} against the differences' {b} (scale {scale})"
         );
     }
 }
