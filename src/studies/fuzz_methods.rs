@@ -528,4 +528,25 @@ mod tests {
             "{md}"
         );
     }
+
+    /// An infinite time limit is none, as the analysis takes it: no "inf s" in the summary
+    /// and no limit in methods.json; a finite one is kept.
+    #[test]
+    fn an_infinite_time_limit_is_none() {
+        for limit in [None, Some(f64::INFINITY)] {
+            let campaign = Campaign::of(Vec::new(), limit);
+            assert_eq!(campaign.time_limit, None, "{limit:?}");
+            let md = campaign.markdown();
+            assert!(
+                !md.contains("time limit") && !md.contains("out of time"),
+                "{md}"
+            );
+            let json = serde_json::to_value(&campaign).unwrap();
+            assert_eq!(json.get("time_limit"), Some(&serde_json::Value::Null));
+        }
+        assert_eq!(
+            Campaign::of(Vec::new(), Some(120.0)).time_limit,
+            Some(120.0)
+        );
+    }
 }

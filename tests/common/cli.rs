@@ -14,12 +14,13 @@ pub fn scratch_path(name: &str) -> PathBuf {
     std::env::temp_dir().join(format!("fricsens-{name}-{}", std::process::id()))
 }
 
-/// Runs `cmd` and returns its output, failing with its standard error unless it succeeded.
+/// Runs `cmd` and returns its output, failing with the command and its standard error
+/// unless it succeeded.
 pub fn succeeds(cmd: &mut Command) -> std::process::Output {
     let out = cmd.output().unwrap();
     assert!(
         out.status.success(),
-        "{}",
+        "{cmd:?}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
     out

@@ -2,17 +2,11 @@
 //! sensitivity --shard K/N`) and merged (`fricsens merge`) gives the unsharded run's
 //! sensitivities bit for bit; shares that do not make one sweep are refused, naming why.
 
-use crate::common::{fricsens, scratch_path};
+use crate::common::{fricsens, scratch_path, succeeds};
 use std::path::Path;
 
 fn run(args: &[&str]) -> std::process::Output {
-    let out = fricsens().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "fricsens {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
+    succeeds(fricsens().args(args))
 }
 
 fn increments(dir: &Path) -> serde_json::Value {

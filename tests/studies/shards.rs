@@ -4,19 +4,12 @@
 //! and their counts. Shares of different runs, a missing and a doubled share are refused,
 //! naming what is wrong.
 
-use crate::common::{fricsens, scratch_path};
+use crate::common::{fricsens, scratch_path, succeeds};
 use std::path::{Path, PathBuf};
 
 /// Run `fricsens ARGS`, which must succeed.
 fn run<S: AsRef<str>>(args: &[S]) {
-    let args: Vec<&str> = args.iter().map(|a| a.as_ref()).collect();
-    let out = fricsens().args(&args).output().expect("fricsens runs");
-    assert!(
-        out.status.success(),
-        "fricsens {}: {}",
-        args.join(" "),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeds(fricsens().args(args.iter().map(|a| a.as_ref())));
 }
 
 /// Run `fricsens ARGS`, which must fail; its stderr.
