@@ -350,6 +350,141 @@ fn strain_measure<S: Scalar>(h: &Matrix3<S>, large: bool) -> Matrix3<S> {
     }
 }
 
+/// F-bar's element averages ([`fbar_average`]): `q0_A = F0^-T gbar_A` (large kinematics;
+/// `gbar_A` under small) for the volume-averaged gradients `gbar_A`, `J0 = det F0` (1 under
+/// small), and `tr H0`.
+struct FbarAverage<T> {
+    q0: [Vector3<T>; MAX_NODES],
+    j0: T,
+    tr_h0: T,
+}
+
+impl FbarAverage<f64> {
+    fn lift<S: Scalar>(&self) -> FbarAverage<S> {
+        FbarAverage {
+            q0: self.q0.map(|v| v.map(S::lift)),
+            j0: S::lift(self.j0),
+            tr_h0: S::lift(self.tr_h0),
+        }
+    }
+}
+
+/// F-bar's element averages over the Gauss points' gradients `grads` and volume weights
+/// `weights`, with the displacements `dofs` (`nn` nodes). Generic over the scalar: a
+/// differentiating evaluation with constant inputs computes it in `f64`.
+fn fbar_average<T: Scalar>(
+    dofs: &[Vector3<T>],
+    grads: &[[Vector3<T>; MAX_NODES]],
+    weights: &[T],
+    nn: usize,
+    large: bool,
+) -> Result<FbarAverage<T>, ElementFailure> {
+    let mut volume0 = T::zero();
+    let mut gbar = [Vector3::<T>::zeros(); MAX_NODES];
+    for (g_gp, w) in grads.iter().zip(weights) {
+        volume0 += *w;
+        for (gb, g) in gbar.iter_mut().zip(&g_gp[..nn]) {
+            *gb += g * *w;
+        }
+    }
+    let inv_v0 = volume0.recip();
+    for gb in gbar[..nn].iter_mut() {
+        *gb *= inv_v0;
+    }
+    let h0 = displacement_gradient(dofs, &gbar[..nn]);
+    let f0 = h0 + Matrix3::identity();
+    let (q0, j0) = if large {
+        match inv3(&f0) {
+            Some((f0inv, j0)) if re(j0) > 0.0 => {
+                let t = f0inv.transpose();
+                (gbar.map(|g| mat_vec(&t, &g)), j0)
+            }
+            other => {
+                return Err(ElementFailure::Inverted {
+                    gauss_point: usize::MAX,
+                    det_f: other.map(|v| re(v.1)).unwrap_or(0.0),
+                })
+            }
+        }
+    } else {
+        (gbar, T::one())
+    };
+    Ok(FbarAverage {
+        q0,
+        j0,
+        tr_h0: h0.trace(),
+    })
+}
+
+/// F-bar's kinematics at a Gauss point ([`fbar_point`]): `Fbar = r F` with
+/// `r = (J0 / det F)^(1/3)`, `Cbar = Fbar^T Fbar`, and the strain the material sees.
+struct FbarPoint<T> {
+    fbar: Matrix3<T>,
+    cbar: Matrix3<T>,
+    r: T,
+    strain: Matrix3<T>,
+}
+
+impl FbarPoint<f64> {
+    fn lift<S: Scalar>(&self) -> FbarPoint<S> {
+        FbarPoint {
+            fbar: self.fbar.map(S::lift),
+            cbar: self.cbar.map(S::lift),
+            r: S::lift(self.r),
+            strain: self.strain.map(S::lift),
+        }
+    }
+}
+
+/// `F` at a Gauss point with gradients `g`, and its F-bar kinematics (`None` where `F` is
+/// inverted or singular under large kinematics); `q` takes `q_A = F^-T g_A` (large), `g_A`
+/// (small). Generic over the scalar, as [`fbar_average`].
+fn fbar_point<T: Scalar>(
+    dofs: &[Vector3<T>],
+    g: &[Vector3<T>],
+    average: &FbarAverage<T>,
+    large: bool,
+    q: &mut [Vector3<T>],
+) -> (Matrix3<T>, Option<FbarPoint<T>>) {
+    let h = displacement_gradient(dofs, g);
+    let f = h + Matrix3::identity();
+    if !large {
+        q.copy_from_slice(g);
+        let eps = (h + h.transpose()) * T::lift(0.5);
+        let strain = eps + Matrix3::from_diagonal_element((average.tr_h0 - h.trace()) / 3.0);
+        let point = FbarPoint {
+            fbar: Matrix3::identity(),
+            cbar: Matrix3::identity(),
+            r: T::one(),
+            strain,
+        };
+        return (f, Some(point));
+    }
+    let (finv, det) = match inv3(&f) {
+        Some(x) if re(x.1) > 0.0 => x,
+        _ => return (f, None),
+    };
+    let t = finv.transpose();
+    for (qa, ga) in q.iter_mut().zip(g) {
+        *qa = mat_vec(&t, ga);
+    }
+    // `* recip()`, not `/`: a dual quotient multiplies by the reciprocal, and the real part
+    // of a dual evaluation must equal the f64 evaluation bit for bit
+    let r = (average.j0 * det.recip()).cbrt();
+    let fbar = f * r;
+    let cbar = tr_mat_mat(&fbar, &fbar);
+    let strain = (cbar - Matrix3::identity()) * T::lift(0.5);
+    (
+        f,
+        Some(FbarPoint {
+            fbar,
+            cbar,
+            r,
+            strain,
+        }),
+    )
+}
+
 impl Solid<'_> {
     /// Number of generalised nodes: the nodes and, with incompatible modes, three more.
     pub(crate) fn generalised_nodes(&self) -> usize {
@@ -714,38 +849,32 @@ impl Solid<'_> {
             weights[gp] = geo.weight;
         }
         let (grads, weights) = (&grads[..ng], &weights[..ng]);
-        let mut volume0 = S::zero();
-        let mut gbar = [Vector3::<S>::zeros(); MAX_NODES];
-        for (g_gp, w) in grads.iter().zip(weights) {
-            volume0 += *w;
-            for (gb, g) in gbar.iter_mut().zip(&g_gp[..nn]) {
-                *gb += g * *w;
-            }
-        }
-        let inv_v0 = volume0.recip();
-        for gb in gbar[..nn].iter_mut() {
-            *gb *= inv_v0;
-        }
-        let h0 = displacement_gradient(input.dofs, &gbar[..nn]);
-        let f0 = h0 + Matrix3::identity();
-        // q0_A = F0^-T gbar_A (large), gbar_A (small); J0
-        let (q0, j0) = if large {
-            match inv3(&f0) {
-                Some((f0inv, j0)) if re(j0) > 0.0 => {
-                    let t = f0inv.transpose();
-                    (gbar.map(|g| mat_vec(&t, &g)), j0)
-                }
-                other => {
-                    return Err(ElementFailure::Inverted {
-                        gauss_point: usize::MAX,
-                        det_f: other.map(|v| re(v.1)).unwrap_or(0.0),
-                    })
-                }
-            }
-        } else {
-            (gbar, S::one())
+        // with constant displacements and reference nodes, F-bar's kinematics in `f64` (as
+        // the standard formulation's): the same values to the bit, lifted
+        let dofs64: Option<[Vector3<f64>; MAX_NODES]> = match x_ref.plain {
+            Some(_) => values_if_constant(input.dofs),
+            None => None,
         };
-        let tr_h0 = h0.trace();
+        let plain = match dofs64 {
+            Some(dofs) => {
+                let mut g64 = [[Vector3::<f64>::zeros(); MAX_NODES]; MAX_GAUSS];
+                for (o, g) in g64.iter_mut().zip(grads) {
+                    *o = values(&g[..nn]);
+                }
+                let mut w64 = [0.0; MAX_GAUSS];
+                for (o, w) in w64.iter_mut().zip(weights) {
+                    *o = re(*w);
+                }
+                let average = fbar_average(&dofs[..nn], &g64[..ng], &w64[..ng], nn, large)?;
+                Some((dofs, g64, average))
+            }
+            None => None,
+        };
+        let average: FbarAverage<S> = match &plain {
+            Some((.., average)) => average.lift(),
+            None => fbar_average(input.dofs, grads, weights, nn, large)?,
+        };
+        let (q0, j0) = (&average.q0, average.j0);
         let mut cauchy = Matrix3::<S>::zeros();
         let mut volume = S::zero();
         out.min_det_f = f64::INFINITY;
@@ -766,37 +895,31 @@ impl Solid<'_> {
         let mut gsg = [[S::zero(); 3 * MAX_NODES]; 3];
         for (gp, (g_gp, &w)) in grads.iter().zip(weights).enumerate() {
             let g_gp = &g_gp[..nn];
-            let h = displacement_gradient(input.dofs, g_gp);
-            let f = h + Matrix3::identity();
+            let (f, point) = match &plain {
+                Some((dofs, g64, average)) => {
+                    let mut q64 = [Vector3::<f64>::zeros(); MAX_NODES];
+                    let (f, point) =
+                        fbar_point(&dofs[..nn], &g64[gp][..nn], average, large, &mut q64[..nn]);
+                    for (o, v) in q.iter_mut().zip(&q64[..nn]) {
+                        *o = v.map(S::lift);
+                    }
+                    (f.map(S::lift), point.map(|p| p.lift()))
+                }
+                None => fbar_point(input.dofs, g_gp, &average, large, &mut q[..nn]),
+            };
             let det_f = det_f_of(&f, large, out);
             out.min_det_f = out.min_det_f.min(re(det_f));
-            // F-bar kinematics
-            let (fbar, cbar, r, strain) = if large {
-                let (finv, det) = match inv3(&f) {
-                    Some(x) if re(x.1) > 0.0 => x,
-                    _ => {
-                        return Err(ElementFailure::Inverted {
-                            gauss_point: gp,
-                            det_f: re(det_f),
-                        })
-                    }
-                };
-                let t = finv.transpose();
-                for (qa, g) in q.iter_mut().zip(g_gp) {
-                    *qa = mat_vec(&t, g);
-                }
-                // `* recip()`, not `/`: a dual quotient multiplies by the reciprocal, and the
-                // real part of a dual evaluation must equal the f64 evaluation bit for bit
-                let r = (j0 * det.recip()).cbrt();
-                let fbar = f * r;
-                let cbar = tr_mat_mat(&fbar, &fbar);
-                let strain = (cbar - Matrix3::identity()) * S::lift(0.5);
-                (fbar, cbar, r, strain)
-            } else {
-                q[..nn].copy_from_slice(g_gp);
-                let eps = (h + h.transpose()) * S::lift(0.5);
-                let strain = eps + Matrix3::from_diagonal_element((tr_h0 - h.trace()) / 3.0);
-                (Matrix3::identity(), Matrix3::identity(), S::one(), strain)
+            let Some(FbarPoint {
+                fbar,
+                cbar,
+                r,
+                strain,
+            }) = point
+            else {
+                return Err(ElementFailure::Inverted {
+                    gauss_point: gp,
+                    det_f: re(det_f),
+                });
             };
             let resp = material_point(input, out, gp, &strain)?;
             let sv = stress_to_voigt(&resp.stress);
