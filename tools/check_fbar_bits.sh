@@ -4,9 +4,10 @@
 # scenes that do (`fricsens fuzz --show SEED`: J2, SVK and Neo-Hookean F-bar hex8, large and
 # small kinematics, plane strain and 3D), for the F-bar body's E, nu, length.x (a shape
 # parameter: the reference nodes then carry derivatives) and sigma_y where it has one, and
-# compares every sensitivity.csv byte for byte.
+# compares every sensitivity.csv byte for byte. A von Mises stress response of the F-bar
+# body's first element is added to each scene. Needs Python 3.11 (tomllib).
 #
-# usage: tools/check_fbar_bits.sh BASE_BINARY NEW_BINARY [SEED ...]
+# usage: tools/check_fbar_bits.sh BASE_BINARY NEW_BINARY [SEED ...]   (paths to the binaries)
 #   the default seeds: 63 62 95 100 98 80 32 127 135 147
 set -euo pipefail
 base=$(realpath "${1:?base binary}")
@@ -19,16 +20,23 @@ ok=1
 for s in "${seeds[@]}"; do
   scene="$out/seed-$s.toml"
   "$new" fuzz --show "$s" > "$scene"
-  read -r -a params <<< "$(python3 - "$scene" <<'PY'
+  # the F-bar body's parameters, and a stress response on its first element appended to
+  # the scene (the Cauchy stress's volume reads det F: the kernel's want_cauchy path)
+  params_line=$(python3 - "$scene" <<'PY'
 import sys, tomllib
-scene = tomllib.load(open(sys.argv[1], "rb"))
+path = sys.argv[1]
+scene = tomllib.load(open(path, "rb"))
 body = next((b for b in scene["bodies"] if b.get("formulation") == "f-bar"), None)
 if body is None:
-    sys.exit(f"{sys.argv[1]}: no F-bar body")
+    sys.exit(f"{path}: no F-bar body")
+with open(path, "a") as f:
+    f.write(f'\n[[responses]]\nkind = "stress"\nname = "fbar-stress"\nbody = "{body["name"]}"\n'
+            'element = 0\nmeasure = "von-mises"\n')
 names = ["E", "nu", "length.x"] + (["sigma_y"] if "sigma_y" in body["material"] else [])
 print(" ".join(f"--param {body['name']}.{n}" for n in names))
 PY
-)"
+)
+  read -r -a params <<< "$params_line"
   for method in ddm adjoint; do
     extra=()
     [ $method = adjoint ] && extra=(--at all)

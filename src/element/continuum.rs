@@ -416,8 +416,10 @@ fn fbar_average<T: Scalar>(
     })
 }
 
-/// F-bar's kinematics at a Gauss point ([`fbar_point`]): `Fbar = r F` with
-/// `r = (J0 / det F)^(1/3)`, `Cbar = Fbar^T Fbar`, and the strain the material sees.
+/// F-bar's kinematics at a Gauss point ([`fbar_point`]): under large kinematics
+/// `Fbar = r F` with `r = (J0 / det F)^(1/3)`, `Cbar = Fbar^T Fbar` and the strain
+/// `(Cbar - I) / 2`; under small, `Fbar = Cbar = I`, `r = 1` and the strain
+/// `sym H + (tr H0 - tr H) I / 3` (B-bar's).
 struct FbarPoint<T> {
     fbar: Matrix3<T>,
     cbar: Matrix3<T>,
@@ -436,33 +438,31 @@ impl FbarPoint<f64> {
     }
 }
 
-/// `F` at a Gauss point with gradients `g`, and its F-bar kinematics (`None` where `F` is
-/// inverted or singular under large kinematics); `q` takes `q_A = F^-T g_A` (large), `g_A`
-/// (small). Generic over the scalar, as [`fbar_average`].
+/// F-bar's kinematics at a Gauss point with gradients `g`, displacement gradient `h` and
+/// `F = I + h` (`None` where `F` is inverted or singular under large kinematics); `q` takes
+/// `q_A = F^-T g_A` (large), `g_A` (small). Generic over the scalar, as [`fbar_average`].
 fn fbar_point<T: Scalar>(
-    dofs: &[Vector3<T>],
+    h: &Matrix3<T>,
+    f: &Matrix3<T>,
     g: &[Vector3<T>],
     average: &FbarAverage<T>,
     large: bool,
     q: &mut [Vector3<T>],
-) -> (Matrix3<T>, Option<FbarPoint<T>>) {
-    let h = displacement_gradient(dofs, g);
-    let f = h + Matrix3::identity();
+) -> Option<FbarPoint<T>> {
     if !large {
         q.copy_from_slice(g);
         let eps = (h + h.transpose()) * T::lift(0.5);
         let strain = eps + Matrix3::from_diagonal_element((average.tr_h0 - h.trace()) / 3.0);
-        let point = FbarPoint {
+        return Some(FbarPoint {
             fbar: Matrix3::identity(),
             cbar: Matrix3::identity(),
             r: T::one(),
             strain,
-        };
-        return (f, Some(point));
+        });
     }
-    let (finv, det) = match inv3(&f) {
+    let (finv, det) = match inv3(f) {
         Some(x) if re(x.1) > 0.0 => x,
-        _ => return (f, None),
+        _ => return None,
     };
     let t = finv.transpose();
     for (qa, ga) in q.iter_mut().zip(g) {
@@ -474,15 +474,12 @@ fn fbar_point<T: Scalar>(
     let fbar = f * r;
     let cbar = tr_mat_mat(&fbar, &fbar);
     let strain = (cbar - Matrix3::identity()) * T::lift(0.5);
-    (
-        f,
-        Some(FbarPoint {
-            fbar,
-            cbar,
-            r,
-            strain,
-        }),
-    )
+    Some(FbarPoint {
+        fbar,
+        cbar,
+        r,
+        strain,
+    })
 }
 
 impl Solid<'_> {
@@ -895,19 +892,30 @@ impl Solid<'_> {
         let mut gsg = [[S::zero(); 3 * MAX_NODES]; 3];
         for (gp, (g_gp, &w)) in grads.iter().zip(weights).enumerate() {
             let g_gp = &g_gp[..nn];
-            let (f, point) = match &plain {
+            // F, then det F (a recording's tape as it always was: det F before the F-bar
+            // kinematics), then those kinematics
+            let (det_f, point) = match &plain {
                 Some((dofs, g64, average)) => {
+                    let h = displacement_gradient(&dofs[..nn], &g64[gp][..nn]);
+                    let f = h + Matrix3::identity();
+                    let det_f = det_f_of(&f.map(S::lift), large, out);
                     let mut q64 = [Vector3::<f64>::zeros(); MAX_NODES];
-                    let (f, point) =
-                        fbar_point(&dofs[..nn], &g64[gp][..nn], average, large, &mut q64[..nn]);
+                    let point = fbar_point(&h, &f, &g64[gp][..nn], average, large, &mut q64[..nn]);
                     for (o, v) in q.iter_mut().zip(&q64[..nn]) {
                         *o = v.map(S::lift);
                     }
-                    (f.map(S::lift), point.map(|p| p.lift()))
+                    (det_f, point.map(|p| p.lift()))
                 }
-                None => fbar_point(input.dofs, g_gp, &average, large, &mut q[..nn]),
+                None => {
+                    let h = displacement_gradient(input.dofs, g_gp);
+                    let f = h + Matrix3::identity();
+                    let det_f = det_f_of(&f, large, out);
+                    (
+                        det_f,
+                        fbar_point(&h, &f, g_gp, &average, large, &mut q[..nn]),
+                    )
+                }
             };
-            let det_f = det_f_of(&f, large, out);
             out.min_det_f = out.min_det_f.min(re(det_f));
             let Some(FbarPoint {
                 fbar,

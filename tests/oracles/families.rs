@@ -326,11 +326,12 @@ fn recording_is_the_force_and_its_derivative<M: MaterialLaw>(
 }
 
 /// Where the reference nodes carry no derivative, an evaluation computes the geometry in
-/// `f64` and lifts it; where the displacements carry none either, the kinematics too (not
-/// F-bar's). Neither shortcut may change a value or an adjoint: from a plastic history,
+/// `f64` and lifts it; where the displacements carry none either, the kinematics too (F-bar's
+/// as well). Neither shortcut may change a value or an adjoint: from a plastic history,
 /// every family's J2 evaluation in `Dual64` gives the same force, history and stress real
 /// parts to the bit with its history seeded alone (both shortcuts), with a displacement
-/// seeded too (the geometry's alone) and with a node's coordinate seeded too (neither); so
+/// seeded too (the geometry's alone), with a node's coordinate seeded too (neither) and with
+/// a node's coordinate seeded alone (neither: a shape parameter's pseudo-load); so
 /// does one in `DualSVec64<2>` whose nodes and displacements hold derivative parts that are
 /// all zero (constants, both shortcuts); and a recording with the displacements constant
 /// (an element whose history alone is an input, as the adjoint records an elastic element
@@ -406,6 +407,16 @@ fn constants_in_f64_change_nothing(family: ElementFamily, kinematics: Kinematics
         let what = format!("{label}: {seed:?}");
         close_to_differences(&added, &fd.central(seed), &groups, &what);
     }
+    // the node seeded alone, the displacements and the history constants
+    let h_plain: Vec<Dual64> = hist.iter().map(|v| Dual64::from(*v)).collect();
+    let node_alone = evaluate_from(family, &xd_seeded, &dd, &h_plain, &j2, a);
+    assert_eq!(
+        bits(&node_alone),
+        bits(&runs[0]),
+        "{name} {kinematics:?}: node alone"
+    );
+    let what = format!("{label}: node alone");
+    close_to_differences(&parts(&node_alone), &fd.central(Seed::Node), &groups, &what);
     let zero_parts =
         |v: &Vector3<f64>| v.map(|c| DualSVec64::<2>::new(c, Derivative::some(SVector::zeros())));
     let xs: Vec<_> = x.iter().map(zero_parts).collect();
