@@ -372,6 +372,7 @@ impl FbarAverage<f64> {
 /// F-bar's element averages over the Gauss points' gradients `grads` and volume weights
 /// `weights`, with the displacements `dofs` (`nn` nodes). Generic over the scalar: a
 /// differentiating evaluation with constant inputs computes it in `f64`.
+#[inline(always)]
 fn fbar_average<T: Scalar>(
     dofs: &[Vector3<T>],
     grads: &[[Vector3<T>; MAX_NODES]],
@@ -441,6 +442,7 @@ impl FbarPoint<f64> {
 /// F-bar's kinematics at a Gauss point with gradients `g`, displacement gradient `h` and
 /// `F = I + h` (`None` where `F` is inverted or singular under large kinematics); `q` takes
 /// `q_A = F^-T g_A` (large), `g_A` (small). Generic over the scalar, as [`fbar_average`].
+#[inline(always)]
 fn fbar_point<T: Scalar>(
     h: &Matrix3<T>,
     f: &Matrix3<T>,
