@@ -83,7 +83,7 @@
 //! | `r`, `Fbar`, `Cbar`, `Ebar` | F-bar factor `(J0/J)^(1/3)`, modified `F`, `C`, Green strain |
 //! | `q_A`, `q0_A`, `v_a` | `F^-T g_A`, `F0^-T gbar_A`, `d ln r / dd_a` |
 use crate::material::{strain_to_voigt, stress_to_voigt, Branch, MaterialLaw, Tangent, Voigt};
-use crate::scalar::{det3, inv3, mat_mat, mat_vec, re, re_vec, tr_mat_mat, Scalar};
+use crate::scalar::{det3, inv3, lift_vec, mat_mat, mat_vec, re, re_vec, tr_mat_mat, Scalar};
 use nalgebra::{Matrix3, Vector3};
 
 /// Most nodes of any registered family (hex20).
@@ -362,7 +362,7 @@ struct FbarAverage<T> {
 impl FbarAverage<f64> {
     fn lift<S: Scalar>(&self) -> FbarAverage<S> {
         FbarAverage {
-            q0: self.q0.map(|v| v.map(S::lift)),
+            q0: self.q0.map(|v| lift_vec(&v)),
             j0: S::lift(self.j0),
             tr_h0: S::lift(self.tr_h0),
         }
@@ -568,7 +568,7 @@ impl Solid<'_> {
                 let mut g = GaussGeometry::<f64>::default();
                 let det = self.nodal_geometry(&plain[..n], gp, &mut g)?;
                 for (o, v) in geo.grads.iter_mut().zip(&g.grads).take(n) {
-                    *o = v.map(S::lift);
+                    *o = lift_vec(v);
                 }
                 geo.weight = S::lift(g.weight);
                 S::lift(det)
@@ -727,10 +727,7 @@ impl Solid<'_> {
         // with constant displacements and reference nodes (a recording's element whose
         // history alone is an input; a dual pseudo-load in a material or friction
         // parameter), the kinematics in `f64`, the same values to the bit
-        let plain: Option<[Vector3<f64>; MAX_GEN]> = match x_ref.plain {
-            Some(_) => values_if_constant(input.dofs),
-            None => None,
-        };
+        let plain: Option<[Vector3<f64>; MAX_GEN]> = x_ref.constant_dofs(input.dofs);
         for gp in 0..self.rule.len() {
             self.reference_geometry(x_ref, gp, &centre, &mut geo)?;
             let (f, strain) = match &plain {
@@ -850,11 +847,7 @@ impl Solid<'_> {
         let (grads, weights) = (&grads[..ng], &weights[..ng]);
         // with constant displacements and reference nodes, F-bar's kinematics in `f64` (as
         // the standard formulation's): the same values to the bit, lifted
-        let dofs64: Option<[Vector3<f64>; MAX_NODES]> = match x_ref.plain {
-            Some(_) => values_if_constant(input.dofs),
-            None => None,
-        };
-        let plain = match dofs64 {
+        let plain = match x_ref.constant_dofs::<MAX_NODES>(input.dofs) {
             Some(dofs) => {
                 let mut g64 = [[Vector3::<f64>::zeros(); MAX_NODES]; MAX_GAUSS];
                 for (o, g) in g64.iter_mut().zip(grads) {
@@ -892,6 +885,8 @@ impl Solid<'_> {
         let mut q_row = [S::zero(); 3 * MAX_NODES];
         let mut q0_row = [S::zero(); 3 * MAX_NODES];
         let mut gsg = [[S::zero(); 3 * MAX_NODES]; 3];
+        // the shortcut's q_A in f64, before they are lifted into `q`
+        let mut q64 = [Vector3::<f64>::zeros(); MAX_NODES];
         for (gp, (g_gp, &w)) in grads.iter().zip(weights).enumerate() {
             let g_gp = &g_gp[..nn];
             // F, then det F (a recording's tape as it always was: det F before the F-bar
@@ -901,10 +896,9 @@ impl Solid<'_> {
                     let h = displacement_gradient(&dofs[..nn], &g64[gp][..nn]);
                     let f = h + Matrix3::identity();
                     let det_f = det_f_of(&f.map(S::lift), large, out);
-                    let mut q64 = [Vector3::<f64>::zeros(); MAX_NODES];
                     let point = fbar_point(&h, &f, &g64[gp][..nn], average, large, &mut q64[..nn]);
                     for (o, v) in q.iter_mut().zip(&q64[..nn]) {
-                        *o = v.map(S::lift);
+                        *o = lift_vec(v);
                     }
                     (det_f, point.map(|p| p.lift()))
                 }
@@ -1068,6 +1062,14 @@ struct RefNodes<'x, S: Scalar> {
     x: &'x [Vector3<S>],
     /// Their values, where none carries a derivative (never for `f64`, which needs no copy).
     plain: Option<[Vector3<f64>; MAX_NODES]>,
+}
+
+impl<S: Scalar> RefNodes<'_, S> {
+    /// The values of the displacements `dofs` where they and the reference nodes carry no
+    /// derivative: the element's kinematics may then be computed in `f64` and lifted.
+    fn constant_dofs<const N: usize>(&self, dofs: &[Vector3<S>]) -> Option<[Vector3<f64>; N]> {
+        self.plain.and_then(|_| values_if_constant(dofs))
+    }
 }
 
 /// Reference geometry at one Gauss point: generalised gradients and the volume weight.
