@@ -92,6 +92,17 @@ pub enum ParameterError {
         /// The parameter name.
         name: String,
     },
+    /// A field parameter's range (`[A..B]`) selects none of the field's members.
+    #[error("parameter '{name}': the range selects none of the field's {count} members{numbered}")]
+    EmptyRange {
+        /// The parameter name.
+        name: String,
+        /// The field's members (elements of the body, hitting nodes of the pair, nodes of
+        /// the set).
+        count: usize,
+        /// ` (numbered A to B)`, the smallest and largest member, or empty for none.
+        numbered: String,
+    },
     /// A field parameter's element or node is not on what it names.
     #[error("parameter '{name}': {what} {number} is not in '{on}'")]
     NotOn {
@@ -346,8 +357,23 @@ impl Parameter {
             return Ok(vec![Self::by_name(model, name)?]);
         };
         let members = field_members(model, name, base)?;
-        (members.into_iter())
+        let selected: Vec<usize> = members
+            .iter()
+            .copied()
             .filter(|m| range.contains(m))
+            .collect();
+        // an empty selection would ask the sensitivity solves for no column at all
+        if selected.is_empty() {
+            return Err(ParameterError::EmptyRange {
+                name: name.to_string(),
+                count: members.len(),
+                numbered: match (members.iter().min(), members.iter().max()) {
+                    (Some(a), Some(b)) => format!(" (numbered {a} to {b})"),
+                    _ => String::new(),
+                },
+            });
+        }
+        (selected.into_iter())
             .map(|m| Self::by_name(model, &format!("{base}[{m}]")))
             .collect()
     }

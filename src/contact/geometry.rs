@@ -155,7 +155,7 @@ const STEP_TOLERANCE: f64 = 1e-13;
 /// Converged when the dimensionless residual `|r_α| / ((|x − x̄| + h) h)` is below this.
 const RESIDUAL_TOLERANCE: f64 = 1e-15;
 /// Relative tolerance of area-type degeneracy checks (relative to `h²`).
-const AREA_TOLERANCE: f64 = 1e-10;
+pub(crate) const AREA_TOLERANCE: f64 = 1e-10;
 /// Relative tolerance of distance ties in the segment search (relative to distance + size).
 const TIE_TOLERANCE: f64 = 1e-10;
 

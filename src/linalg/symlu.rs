@@ -522,6 +522,10 @@ impl SymbolicSymLu {
         assert!(lu.factored, "solve before a successful factorization");
         let n = self.n;
         let k = rhs.ncols();
+        // no column, nothing to solve (the panels below slice a buffer of n k values)
+        if k == 0 {
+            return;
+        }
         let ns = self.begin.len() - 1;
         let mut y = vec![0.0; n * k];
         for c in 0..k {

@@ -1353,3 +1353,28 @@ fn a_solver_without_its_fixed_unknowns_solves_the_whole_system() {
     unmarked_solver.solve_in_place(&mut z2).unwrap();
     assert!(rel_err(&z2, &dense_solve(&dense, &b[..nt])) < 1e-12);
 }
+
+/// A solve of no column is a no-op for every factorization (an empty list of design
+/// parameters asked DDM and SDM for one, and the supernodal LU's panels sliced past an empty
+/// buffer: a panic found by an audit of bad input).
+#[test]
+fn a_solve_of_no_column_does_nothing() {
+    let (a, _) = poisson_2d(6, 0.0);
+    for kind in [
+        FactorKind::Lu,
+        FactorKind::LuColamd,
+        FactorKind::Llt,
+        FactorKind::Ldlt,
+    ] {
+        let opts = SolverOptions {
+            kind,
+            ..SolverOptions::default()
+        };
+        let mut solver = LinearSolver::with_options(a.pattern().clone(), opts).unwrap();
+        solver.factor(&a).unwrap();
+        let mut none: Vec<f64> = Vec::new();
+        solver.solve_multi_in_place(&mut none, 0).unwrap();
+        solver.solve_transpose_multi_in_place(&mut none, 0).unwrap();
+        assert!(none.is_empty(), "{kind:?}");
+    }
+}

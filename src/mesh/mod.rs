@@ -34,7 +34,9 @@ use std::collections::{BTreeMap, HashMap};
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Zone {
-    /// Fraction of the axis length this zone covers (the fractions of an axis add up to one).
+    /// Fraction of the axis length this zone covers: the zones' fractions are weights, each
+    /// zone covering its fraction over their sum (fractions that add up to one are taken as
+    /// given; `0.3` alone is the whole axis).
     pub fraction: f64,
     /// Number of elements in the zone.
     pub elements: usize,
@@ -53,7 +55,7 @@ fn one() -> f64 {
 pub struct Axis {
     /// Length of the block along this axis.
     pub length: f64,
-    /// Zones, whose fractions add up to one.
+    /// Zones, whose fractions are taken over their sum ([`Zone::fraction`]).
     pub zones: Vec<Zone>,
 }
 

@@ -85,6 +85,14 @@ pub enum ShapeMapError {
         /// `axis` or `direction`.
         what: &'static str,
     },
+    /// A rotation's or scale's centre with a non-finite coordinate.
+    #[error("shape map '{map}': the centre must be finite, got {centre:?}")]
+    Centre {
+        /// The map.
+        map: String,
+        /// The centre given.
+        centre: [f64; 3],
+    },
     /// A scale about a zero (or non-finite) reference size.
     #[error("shape map '{map}': a scale needs a positive finite reference value, got {value}")]
     Reference {
@@ -133,9 +141,20 @@ fn unit(map: &str, v: [f64; 3], what: &'static str) -> Result<[f64; 3], ShapeMap
     Ok([v[0] / n, v[1] / n, v[2] / n])
 }
 
+fn finite_centre(map: &str, centre: [f64; 3]) -> Result<[f64; 3], ShapeMapError> {
+    if centre.iter().all(|c| c.is_finite()) {
+        Ok(centre)
+    } else {
+        Err(ShapeMapError::Centre {
+            map: map.to_string(),
+            centre,
+        })
+    }
+}
+
 impl ShapeMap {
-    /// A map of `nodes`, checked (axes and directions finite and non-zero and normalised, a
-    /// scale's reference positive, a velocity per node); its value starts at `reference`.
+    /// A map of `nodes`, checked (axes and directions finite and non-zero and normalised,
+    /// centres finite, a scale's reference positive, a velocity per node); its value starts at `reference`.
     pub fn new(
         name: &str,
         nodes: Vec<usize>,
@@ -153,10 +172,11 @@ impl ShapeMap {
                 MapKind::Translate { direction }
             }
             MapKind::Rotate { centre, axis } => MapKind::Rotate {
-                centre,
+                centre: finite_centre(name, centre)?,
                 axis: unit(name, axis, "axis")?,
             },
             MapKind::Scale { centre, axis } => {
+                finite_centre(name, centre)?;
                 if !(reference.is_finite() && reference > 0.0) {
                     return Err(ShapeMapError::Reference {
                         map: name.to_string(),

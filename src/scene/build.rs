@@ -214,14 +214,28 @@ impl Scene {
             } => {
                 let b = body()?;
                 let moved = node_set(surface, &format!("{at}.map.surface"))?;
+                // the motion's direction, or its centre and axis, checked once
+                enum Checked {
+                    Along(nalgebra::Vector3<f64>),
+                    Radial(nalgebra::Vector3<f64>, Option<nalgebra::Vector3<f64>>),
+                }
+                let checked = match motion {
+                    SurfaceMotion::Translate { direction: d } => {
+                        Checked::Along(direction(*d, &format!("{at}.map.motion.direction"))?)
+                    }
+                    SurfaceMotion::Radial { centre, axis } => Checked::Radial(
+                        vec3(*centre, &format!("{at}.map.motion.centre"))?,
+                        axis.map(|a| direction(a, &format!("{at}.map.motion.axis")))
+                            .transpose()?,
+                    ),
+                };
                 let mut prescribed = Vec::with_capacity(moved.len());
                 for &n in &moved {
-                    let v = match motion {
-                        SurfaceMotion::Translate { direction } => *direction,
-                        SurfaceMotion::Radial { centre, axis } => {
-                            let mut r = x[n] - nalgebra::Vector3::from(*centre);
+                    let v = match &checked {
+                        Checked::Along(d) => (*d).into(),
+                        Checked::Radial(c, axis) => {
+                            let mut r = x[n] - c;
                             if let Some(a) = axis {
-                                let a = direction(*a, &format!("{at}.map.motion.axis"))?;
                                 r -= a * a.dot(&r);
                             }
                             let len = r.norm();
@@ -281,6 +295,7 @@ impl Scene {
                 finite(origin, &format!("{at}.origin[{c}]"))?;
                 n = n.saturating_mul(check_axis(axis, origin, &format!("{at}.{label}"))?);
             }
+            check_aspect(&axes, &at)?;
             total_elements = total_elements.saturating_add(n);
             if total_elements > MAX_ELEMENTS {
                 return Err(invalid(
@@ -542,6 +557,13 @@ impl Scene {
         let mut responses = Vec::new();
         let mut history_refs: Vec<(usize, usize, usize, usize, usize)> = Vec::new();
         for (i, r) in self.responses.iter().enumerate() {
+            // the tables' columns and the sensitivity commands name a response by its name
+            if self.responses[..i].iter().any(|o| o.name() == r.name()) {
+                return Err(invalid(
+                    &format!("responses[{i}].name"),
+                    format!("a response named '{}' already exists", r.name()),
+                ));
+            }
             let field = format!("responses[{i}].set");
             let kind = match r {
                 ResponseSpec::Reaction {
@@ -898,6 +920,43 @@ fn check_axis(axis: &Axis, origin: f64, at: &str) -> Result<usize, SceneError> {
     Ok(n)
 }
 
+/// Checks a block's grading against its thinnest element faces: a block's elements take
+/// every combination of the axes' element sizes, so its thinnest face along axis `c` has the
+/// sides `min_c` and `max_a`, the largest element size along another axis `a`. Such a face
+/// (`min_c max_a / 4` at its centre against the contact geometry's area tolerance times its
+/// diagonal squared, [`crate::contact::geometry::AREA_TOLERANCE`]) is a degenerate segment to
+/// the contact search below `min_c / max_a = 4 AREA_TOLERANCE`, and its elements collapsed:
+/// refused (a zone `ratio` of 1e12 made one). The axes are checked ([`check_axis`]) before.
+fn check_aspect(axes: &[&Axis; 3], at: &str) -> Result<(), SceneError> {
+    let sizes = |a: &Axis| {
+        let t = a.fractions();
+        let d = t.windows(2).map(|w| (w[1] - w[0]) * a.length);
+        d.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        })
+    };
+    let each = axes.map(sizes);
+    let floor = 4.0 * crate::contact::geometry::AREA_TOLERANCE;
+    for c in 0..3 {
+        let (thinnest, _) = each[c];
+        let across = (0..3)
+            .filter(|&a| a != c)
+            .fold(0.0f64, |m, a| m.max(each[a].1));
+        if thinnest < floor * across {
+            let axis = axes[c];
+            let uniform = axis.zones.len() == 1 && axis.zones[0].ratio == 1.0;
+            let label = ["x", "y", "z"][c];
+            return Err(invalid(
+                &format!("{at}.{label}.{}", if uniform { "length" } else { "zones" }),
+                format!(
+                    "elements {thinnest:.3e} thin along {label} against {across:.3e} across, below {floor:e} of it: their faces are degenerate to the contact search and their Jacobians collapsed"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Factor `c_T` of the default tangential penalty (see [`setup::TANGENTIAL_STIFFNESS_FACTOR`]).
 pub const TANGENTIAL_STIFFNESS_FACTOR: f64 = setup::TANGENTIAL_STIFFNESS_FACTOR;
 
@@ -1152,6 +1211,27 @@ impl Scene {
             } else {
                 (hitting, area, layer, candidates)
             };
+            // a node meets a target through one pair: a second pair of the same node and
+            // target holds the contact twice (two Lagrange multipliers of one constraint make
+            // the tangent singular; two penalties double the stiffness). The nodes compared
+            // are those that can reach the target (above).
+            for ((cj, o), earlier) in self.contacts[..ci].iter().enumerate().zip(&out) {
+                let earlier: &ContactPair = earlier;
+                if o.target != c.target {
+                    continue;
+                }
+                let theirs: std::collections::BTreeSet<usize> =
+                    earlier.hitting.iter().copied().collect();
+                if let Some(n) = hitting.iter().find(|n| theirs.contains(n)) {
+                    return Err(invalid(
+                        &format!("{at}.hitting"),
+                        format!(
+                            "node {n} of '{}' already meets the same target through contacts[{cj}] ('{}'): a hitting node meets a target through one pair",
+                            c.hitting, o.name
+                        ),
+                    ));
+                }
+            }
             if let Some(f) = &c.friction {
                 check_law(f, &format!("{at}.friction"))?;
             }

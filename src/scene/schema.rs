@@ -112,7 +112,11 @@ struct BodyToml {
     name: String,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     element: Option<crate::element::Shape>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "exact::opt_vec3"
+    )]
     origin: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     x: Option<Axis>,
@@ -238,6 +242,7 @@ pub struct FreeNodeSpec {
     /// Name; the node forms the node set of that name.
     pub name: String,
     /// Reference position.
+    #[serde(deserialize_with = "exact::vec3")]
     pub x: [f64; 3],
 }
 
@@ -251,6 +256,7 @@ pub struct SpringSpec {
     #[serde(default)]
     pub b: Option<String>,
     /// Row-major 3x3 stiffness.
+    #[serde(deserialize_with = "exact::mat3")]
     pub stiffness: [[f64; 3]; 3],
 }
 
@@ -268,7 +274,7 @@ pub struct PrescribedSpec {
     #[serde(default)]
     pub value: f64,
     /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
-    #[serde(default = "ramp")]
+    #[serde(default = "ramp", deserialize_with = "exact::pairs")]
     pub amplitude: Vec<(f64, f64)>,
 }
 
@@ -290,7 +296,7 @@ pub struct LoadSpec {
     /// Total force over the set.
     pub value: f64,
     /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
-    #[serde(default = "ramp")]
+    #[serde(default = "ramp", deserialize_with = "exact::pairs")]
     pub amplitude: Vec<(f64, f64)>,
 }
 
@@ -307,7 +313,7 @@ pub struct PressureSpec {
     /// Pressure (force per reference area).
     pub value: f64,
     /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
-    #[serde(default = "ramp")]
+    #[serde(default = "ramp", deserialize_with = "exact::pairs")]
     pub amplitude: Vec<(f64, f64)>,
 }
 
@@ -336,21 +342,29 @@ pub enum MapSpec {
     /// `X = X0 + (b - b_ref) d`.
     Translate {
         /// `d`.
+        #[serde(deserialize_with = "exact::vec3")]
         direction: [f64; 3],
     },
     /// Rotation by `b - b_ref` radians about the axis through `centre`.
     Rotate {
         /// A point of the axis.
+        #[serde(deserialize_with = "exact::vec3")]
         centre: [f64; 3],
         /// Axis direction.
+        #[serde(deserialize_with = "exact::vec3")]
         axis: [f64; 3],
     },
     /// Scale by `b / b_ref` about `centre`, or about the axis through it.
     Scale {
         /// Centre (a point of the axis).
+        #[serde(deserialize_with = "exact::vec3")]
         centre: [f64; 3],
         /// Axis direction (a scale about the point without it).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
+        #[serde(
+            default,
+            skip_serializing_if = "Option::is_none",
+            deserialize_with = "exact::opt_vec3"
+        )]
         axis: Option<[f64; 3]>,
     },
     /// A morph to a second mesh of the same topology: `X = X_A + b (X_B - X_A)`, node `k` of
@@ -390,14 +404,20 @@ pub enum SurfaceMotion {
     /// when given): a sphere's or a cylinder's radius grows by `b`.
     Radial {
         /// Centre (a point of the axis).
+        #[serde(deserialize_with = "exact::vec3")]
         centre: [f64; 3],
         /// Axis direction.
-        #[serde(default, skip_serializing_if = "Option::is_none")]
+        #[serde(
+            default,
+            skip_serializing_if = "Option::is_none",
+            deserialize_with = "exact::opt_vec3"
+        )]
         axis: Option<[f64; 3]>,
     },
     /// By a constant vector.
     Translate {
         /// The vector.
+        #[serde(deserialize_with = "exact::vec3")]
         direction: [f64; 3],
     },
 }
@@ -424,15 +444,19 @@ pub enum RigidSpec {
     /// one).
     Plane {
         /// A point of the plane.
+        #[serde(deserialize_with = "exact::vec3")]
         point: [f64; 3],
         /// Normal, pointing out of the rigid body (any nonzero length; normalised on use).
+        #[serde(deserialize_with = "exact::vec3")]
         normal: [f64; 3],
     },
     /// Cylinder (contact on its outside).
     Cylinder {
         /// A point of the axis.
+        #[serde(deserialize_with = "exact::vec3")]
         axis_point: [f64; 3],
         /// Direction of the axis (any nonzero length).
+        #[serde(deserialize_with = "exact::vec3")]
         axis: [f64; 3],
         /// Radius (a length).
         radius: f64,
@@ -440,8 +464,10 @@ pub enum RigidSpec {
     /// Box with rounded edges and corners.
     RoundedBox {
         /// Centre.
+        #[serde(deserialize_with = "exact::vec3")]
         center: [f64; 3],
         /// Half extents of the whole (rounded) box along x, y, z.
+        #[serde(deserialize_with = "exact::vec3")]
         half_extents: [f64; 3],
         /// Radius of the rounded edges and corners (`<= min(half_extents)`).
         radius: f64,
@@ -464,7 +490,7 @@ pub struct MotionSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub force: Option<f64>,
     /// Amplitude as `(time, value)` pairs (default the ramp 0 -> 1 over t = 0..1).
-    #[serde(default = "ramp")]
+    #[serde(default = "ramp", deserialize_with = "exact::pairs")]
     pub amplitude: Vec<(f64, f64)>,
 }
 
@@ -1032,5 +1058,47 @@ impl Scene {
             scene: self.name.clone(),
             why: e.to_string(),
         })
+    }
+}
+
+/// Fixed-size arrays read with their length checked. Read as `[f64; 3]` or `(f64, f64)`, a
+/// longer TOML array gives its first values and the rest is dropped without a word
+/// (`origin = [0, 0, 0, 7]` was taken as the origin, a spring's fourth stiffness row and an
+/// amplitude point `[0, 0, 9]` were ignored); these read the whole array and refuse one of
+/// another length, the parser's error naming the line.
+mod exact {
+    use serde::de::{Deserialize, Deserializer, Error};
+
+    fn fixed<E: Error, const N: usize>(v: Vec<f64>) -> Result<[f64; N], E> {
+        let n = v.len();
+        v.try_into()
+            .map_err(|_| E::invalid_length(n, &format!("an array of {N} numbers").as_str()))
+    }
+
+    /// `[x, y, z]`.
+    pub fn vec3<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+        fixed(Vec::<f64>::deserialize(d)?)
+    }
+
+    /// An optional `[x, y, z]`.
+    pub fn opt_vec3<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D::Error> {
+        Option::<Vec<f64>>::deserialize(d)?.map(fixed).transpose()
+    }
+
+    /// Three rows of three.
+    pub fn mat3<'de, D: Deserializer<'de>>(d: D) -> Result<[[f64; 3]; 3], D::Error> {
+        let rows = Vec::<Vec<f64>>::deserialize(d)?;
+        let n = rows.len();
+        let rows: Vec<[f64; 3]> = rows.into_iter().map(fixed).collect::<Result<_, _>>()?;
+        rows.try_into()
+            .map_err(|_| D::Error::invalid_length(n, &"an array of 3 rows of 3 numbers"))
+    }
+
+    /// `(time, value)` points, `[[t, v], ...]`.
+    pub fn pairs<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(f64, f64)>, D::Error> {
+        let points = Vec::<Vec<f64>>::deserialize(d)?;
+        (points.into_iter())
+            .map(|p| fixed::<D::Error, 2>(p).map(|[t, v]| (t, v)))
+            .collect()
     }
 }

@@ -248,7 +248,7 @@ impl Solver<'_> {
             active_set_solves: 0,
         };
         let predicted = if self.extrapolate(run, &mut z_try, t) {
-            Some(false)
+            Ok(false)
         } else {
             self.predict(
                 &run.z,
@@ -263,7 +263,7 @@ impl Solver<'_> {
         // estimates of augmented-Lagrangian pairs updated between passes
         let hist_inc = run.hist.clone();
         let attempt = match predicted {
-            Some(factored) => self
+            Ok(factored) => self
                 .attempt(
                     &mut z_try,
                     &hist_inc,
@@ -278,7 +278,7 @@ impl Solver<'_> {
                     }
                     f || factored
                 }),
-            None => Err(AttemptFailure::Diverged("predictor failed")),
+            Err(why) => Err(why),
         };
         let mut trial = Trial {
             t,

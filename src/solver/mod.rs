@@ -230,6 +230,15 @@ pub enum ModelError {
         /// The component (0, 1, 2 for x, y, z).
         component: usize,
     },
+    /// A nodal load on a node no element, spring or contact pair holds: its force would go
+    /// straight to a reaction, the node never moving.
+    #[error("load '{load}': node {node} is held by no element, spring or contact pair: its force would go to a reaction and the node would not move")]
+    LoadOnNothing {
+        /// The load's name.
+        load: String,
+        /// The node.
+        node: usize,
+    },
     /// A body whose element shape does not take its formulation (a model made in code; a
     /// scene file's is refused when it is built).
     #[error("body '{body}': {source}")]

@@ -15,6 +15,8 @@ pub(super) type At<'a> = (&'a [f64], &'a [f64], f64);
 pub(super) enum AttemptFailure {
     Element(AssemblyFailure),
     Diverged(&'static str),
+    /// The tangent could not be factored; what [`Solver::zero_rows`] finds (may be empty).
+    Singular(String),
     /// Newton cycles: the same contact states come back without progress (the diagnosis).
     Cycle(String),
     /// [`RunOptions::time_limit`] passed: the run stops.
@@ -26,6 +28,8 @@ impl std::fmt::Display for AttemptFailure {
         match self {
             AttemptFailure::Element(e) => write!(f, "{e}"),
             AttemptFailure::Diverged(s) => write!(f, "{s}"),
+            AttemptFailure::Singular(why) if why.is_empty() => write!(f, "singular tangent"),
+            AttemptFailure::Singular(why) => write!(f, "singular tangent: {why}"),
             AttemptFailure::Cycle(s) => write!(f, "{s}"),
             AttemptFailure::TimeLimit => write!(f, "time limit"),
         }
@@ -108,8 +112,9 @@ impl Solver<'_> {
     /// last converged state, `K dz_f = -(R_f(z_n, t) + K_fc dz_c)`, instead of starting Newton
     /// from a state in which only the prescribed nodes have moved (which distorts the elements
     /// next to them and provokes spurious yielding, inversion and cutbacks). Returns whether it
-    /// factored (it counts as a Newton iteration), or `None` when the linearised step itself
-    /// fails (the caller cuts back).
+    /// factored (it counts as a Newton iteration), or why the linearised step itself fails
+    /// (the caller cuts back): a singular tangent with what [`Solver::zero_rows`] finds, else
+    /// "predictor failed".
     pub(super) fn predict(
         &mut self,
         z_old: &[f64],
@@ -118,7 +123,8 @@ impl Solver<'_> {
         t: f64,
         eval: &mut Evaluation<f64>,
         cost: &mut PrimalCost,
-    ) -> Result<Option<bool>, LinalgError> {
+    ) -> Result<Result<bool, AttemptFailure>, LinalgError> {
+        const FAILED: AttemptFailure = AttemptFailure::Diverged("predictor failed");
         let n = z_old.len();
         let mut dzc = vec![0.0; n];
         let mut moved = false;
@@ -129,11 +135,11 @@ impl Solver<'_> {
             }
         }
         if !moved {
-            return Ok(Some(false));
+            return Ok(Ok(false));
         }
         let assembled = self.assemble((z_old, hist, t), None, eval, cost);
         if assembled.is_err() {
-            return Ok(None);
+            return Ok(Err(FAILED));
         }
         let mut kdzc = vec![0.0; n];
         self.matrix.mul_vec(&dzc, &mut kdzc)?;
@@ -150,18 +156,105 @@ impl Solver<'_> {
         // increment that converges without a Newton step reports it as its last
         self.factored_choice.clone_from(&eval.contact.choice);
         self.factored_branches.clone_from(&eval.branches);
-        if self.factor_and_solve(&mut dz, cost).is_err() {
-            return Ok(None);
+        match self.factor_and_solve(&mut dz, cost) {
+            Err(singular @ AttemptFailure::Singular(_)) => return Ok(Err(singular)),
+            Err(_) => return Ok(Err(FAILED)),
+            Ok(()) => {}
         }
         if dz.iter().any(|v| !v.is_finite()) {
-            return Ok(None);
+            return Ok(Err(FAILED));
         }
         for d in 0..n {
             if !self.constrained[d] {
                 z_new[d] = z_old[d] + dz[d];
             }
         }
-        Ok(Some(true))
+        Ok(Ok(true))
+    }
+
+    /// Why the tangent (identity rows of the prescribed unknowns applied) is singular, where
+    /// it can be said: the unknowns Newton solves for whose row is zero, at most five, each
+    /// named (a node nothing holds in some direction, such as one on a spring of zero
+    /// stiffness; the multiplier of a closed Lagrange node prescribed in every component);
+    /// empty where no row is zero (rows that depend on each other).
+    pub(super) fn zero_rows(&self) -> String {
+        let pattern = self.matrix.pattern();
+        let (cp, ri, vals) = (pattern.col_ptr(), pattern.row_idx(), self.matrix.values());
+        let n = self.matrix.n();
+        // over the unknowns Newton solves for: the prescribed ones' identity rows and
+        // columns left out
+        let free = |d: usize| !self.constrained[d];
+        let mut largest = vec![0.0f64; n];
+        for j in (0..n).filter(|&j| free(j)) {
+            for k in cp[j]..cp[j + 1] {
+                largest[ri[k]] = largest[ri[k]].max(vals[k].abs());
+            }
+        }
+        let scale = (0..n)
+            .filter(|&d| free(d))
+            .fold(0.0f64, |m, d| m.max(largest[d]));
+        // zero to round-off against the tangent's largest entry
+        let zero: Vec<usize> = (0..n)
+            .filter(|&d| free(d) && largest[d] <= 1e-14 * scale)
+            .collect();
+        if zero.is_empty() {
+            return String::new();
+        }
+        let named: Vec<String> = zero
+            .iter()
+            .take(5)
+            .map(|&d| self.describe_unknown(d))
+            .collect();
+        format!(
+            "{} unknown(s) with a zero row, nothing holding them: {}{}",
+            zero.len(),
+            named.join(", "),
+            if zero.len() > 5 { ", ..." } else { "" }
+        )
+    }
+
+    /// Unknown `d` in words: a node's component, an element's incompatible modes, a pair's
+    /// multiplier at a hitting node, or a force-pushed rigid target's translation.
+    pub(super) fn describe_unknown(&self, d: usize) -> String {
+        let dofs = &self.assembler.dofs;
+        let layout = &self.assembler.contact;
+        if d < dofs.n_nodal {
+            return format!("node {} {}", d / 3, ["x", "y", "z"][d % 3]);
+        }
+        if d >= dofs.first_lambda && d < dofs.first_target {
+            if let Some(p) = (0..layout.lambda.len())
+                .rev()
+                .find(|&p| layout.lambda[p] <= d)
+            {
+                let pair = &self.model.contacts[p];
+                let i = d - layout.lambda[p];
+                if let Some(node) = pair.hitting.get(i) {
+                    return format!(
+                        "the contact multiplier of pair '{}' at hitting node {node}",
+                        pair.name
+                    );
+                }
+            }
+        }
+        for (p, targets) in layout.target.iter().enumerate() {
+            if let Some(k) = targets.iter().position(|&t| t == Some(d)) {
+                return format!(
+                    "the translation of the force-pushed target of pair '{}' (its motion[{k}])",
+                    self.model.contacts[p].name
+                );
+            }
+        }
+        if d < dofs.first_lambda {
+            // the element whose internal unknowns start last at or before `d` (their order
+            // follows the bodies, not the element numbers)
+            let owner = (dofs.element_internal.iter().enumerate())
+                .filter_map(|(e, f)| f.filter(|&f| f <= d).map(|f| (f, e)))
+                .max();
+            if let Some((_, e)) = owner {
+                return format!("an incompatible mode of element {e}");
+            }
+        }
+        format!("unknown {d}")
     }
 
     /// Apply the identity rows of the prescribed unknowns to the assembled tangent, factor it
@@ -176,7 +269,7 @@ impl Solver<'_> {
             .expect("a flag per unknown");
         let t1 = Instant::now();
         if self.linear.factor(&self.matrix).is_err() {
-            return Err(AttemptFailure::Diverged("singular tangent"));
+            return Err(AttemptFailure::Singular(self.zero_rows()));
         }
         cost.factorizations += 1;
         cost.factor_seconds += t1.elapsed().as_secs_f64();

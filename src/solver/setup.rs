@@ -206,6 +206,17 @@ fn constrained_unknowns(model: &Model, assembler: &Assembler) -> Result<Vec<bool
             }
         }
     }
+    for load in &model.loads {
+        for (&node, &w) in load.nodes.iter().zip(&load.weights) {
+            let d = node_dof(node, load.component);
+            if w != 0.0 && d < assembler.dofs.n_nodal && !touched[d] {
+                return Err(ModelError::LoadOnNothing {
+                    load: load.name.clone(),
+                    node,
+                });
+            }
+        }
+    }
     for (d, t) in touched.iter().enumerate() {
         if !t {
             constrained[d] = true;

@@ -156,6 +156,26 @@ fn field_names_resolve_or_say_what_is_wrong() {
     // a range keeps the members it holds
     let range = Parameter::expand(&model, &format!("upper.E[{}..{}]", e, e + 3)).unwrap();
     assert_eq!(range.len(), 3);
+    // and one that holds none, empty, reversed or beyond the body, is an error naming the
+    // field's members (it asked the sensitivity solves for no column: a panic in the solver)
+    let n_upper = model.mesh.group_elements(model.bodies[0].group).len();
+    for bad in [
+        format!("upper.E[{e}..{e}]"),
+        format!("upper.E[{}..{e}]", e + 3),
+        format!("upper.E[{other}..{}]", other + 2),
+        "upper.E[1000000..2000000]".to_string(),
+    ] {
+        match Parameter::expand(&model, &bad) {
+            Err(ParameterError::EmptyRange {
+                count, numbered, ..
+            }) => {
+                assert_eq!(count, n_upper, "{bad}");
+                let last = e + n_upper - 1;
+                assert_eq!(numbered, format!(" (numbered {e} to {last})"), "{bad}");
+            }
+            r => panic!("{bad}: {r:?}"),
+        }
+    }
     // setting a member moves it alone
     let mut m = model.clone();
     m.set_param(p.targets[0], 2.0 * p.value);

@@ -245,3 +245,54 @@ fn a_penalty_law_follows_the_design_area_ddm_equals_central_fdm() {
     // noise, measured below 1e-7 in this file's other comparisons
     assert!(worst < 1e-6, "{worst:.2e}");
 }
+
+/// A centre or direction with a non-finite coordinate is an error naming the map and what
+/// is wrong (found by an audit of bad input: a NaN centre passed, and the run failed later
+/// on a tangential stiffness of NaN, or in a contact projection).
+#[test]
+fn a_non_finite_centre_or_direction_is_an_error_naming_the_map() {
+    for bad in [f64::NAN, f64::INFINITY] {
+        for mut map in maps() {
+            let name = map.name.clone();
+            let v = [bad, 0.0, 0.0];
+            let needle = match &mut map.map {
+                MapSpec::Translate { direction } => {
+                    *direction = v;
+                    "direction"
+                }
+                MapSpec::Rotate { centre, .. } | MapSpec::Scale { centre, .. } => {
+                    *centre = v;
+                    "centre"
+                }
+                MapSpec::Boundary { motion, .. } => match motion {
+                    SurfaceMotion::Translate { direction } => {
+                        *direction = v;
+                        "map.motion.direction"
+                    }
+                    SurfaceMotion::Radial { centre, .. } => {
+                        *centre = v;
+                        "map.motion.centre"
+                    }
+                },
+                other => panic!("a map the test does not edit: {other:?}"),
+            };
+            let err = match scene(map).build() {
+                Ok(_) => panic!("{name}: a non-finite {needle} ({bad}) was accepted"),
+                Err(e) => e.to_string(),
+            };
+            assert!(err.contains(needle), "{name}: {err}");
+            assert!(err.contains("shapes[0]"), "{name}: {err}");
+        }
+    }
+    // a boundary translated along no direction
+    let mut map = (maps().into_iter())
+        .find(|m| m.name == "height")
+        .expect("the boundary translated map");
+    if let MapSpec::Boundary { motion, .. } = &mut map.map {
+        *motion = SurfaceMotion::Translate {
+            direction: [0.0; 3],
+        };
+    }
+    let err = scene(map).build().unwrap_err().to_string();
+    assert!(err.contains("map.motion.direction"), "{err}");
+}

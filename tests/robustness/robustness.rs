@@ -627,6 +627,13 @@ fn unknown_study_parameters_are_rejected() {
         ("klarbring-2dof", "plane.motion[0]"),
         ("klarbring-2dof", "plane.motion[3]"),
         ("klarbring-2dof", "plane.mu0"),
+        // ranges of a field that select none of its members: they asked the sensitivity
+        // solves for no column, and DDM and SDM panicked in the linear solver
+        ("contact-patch", "upper.E[0..1]"),
+        ("contact-patch", "lower.E[5..5]"),
+        ("contact-patch", "lower.E[3..1]"),
+        ("contact-patch", "lower.E[1000000..2000000]"),
+        ("contact-patch", "interface.mu[0..1]"),
     ] {
         let text = edited(scene, |s| s.study.params = vec!["mu".into(), p.into()]);
         rejects(
@@ -634,6 +641,86 @@ fn unknown_study_parameters_are_rejected() {
             &["field `study.params[1]`:", &format!("parameter '{p}'")],
         );
     }
+}
+
+#[test]
+fn a_node_meets_a_target_through_one_pair() {
+    // the pair copied under another name: two constraints of each node on one target
+    let text = edited("contact-patch", |s| {
+        let mut c = s.contacts[0].clone();
+        c.name = "again".into();
+        s.contacts.push(c);
+    });
+    rejects(
+        &text,
+        &[
+            "field `contacts[1].hitting`:",
+            "already meets the same target through contacts[0] ('interface')",
+        ],
+    );
+}
+
+#[test]
+fn arrays_of_fixed_length_refuse_other_lengths() {
+    // serde took the first values of a longer array and dropped the rest without a word
+    for (from, to, field, length) in [
+        (
+            "origin = [0.0, 0.0, 0.0]",
+            "origin = [0.0, 0.0, 0.0, 7.0]",
+            "field `bodies[0].origin`",
+            "invalid length 4, expected an array of 3 numbers",
+        ),
+        (
+            "origin = [0.0, 0.0, 0.0]",
+            "origin = [0.0]",
+            "field `bodies[0].origin`",
+            "invalid length 1, expected an array of 3 numbers",
+        ),
+        (
+            "amplitude = [[0.0, 0.0], ",
+            "amplitude = [[0.0, 0.0, 9.0], ",
+            "field `prescribed[0].amplitude`",
+            "invalid length 3, expected an array of 2 numbers",
+        ),
+    ] {
+        let text = replaced("contact-patch", from, to);
+        rejects(&text, &[field, length]);
+    }
+}
+
+/// An empty list of parameters, through the library: every method runs the primal and
+/// gives no derivative (DDM and SDM panicked in the linear solver's solve of no column).
+#[test]
+fn no_parameter_at_all_is_a_primal_run_with_no_derivative() {
+    let model = builtin("contact-patch").unwrap().build().unwrap();
+    for method in [Method::Ddm, Method::Sdm, Method::Fdm, Method::Adjoint] {
+        let settings = Settings {
+            method,
+            ..Settings::default()
+        };
+        let (res, sens) =
+            run_sensitivity(&model, &[], &settings).unwrap_or_else(|e| panic!("{method:?}: {e}"));
+        assert!(res.times.len() > 1, "{method:?}");
+        assert!(
+            sens.increments
+                .iter()
+                .all(|i| i.derivatives.iter().all(|d| d.is_empty())),
+            "{method:?}"
+        );
+    }
+}
+
+#[test]
+fn responses_need_distinct_names() {
+    let text = edited("contact-patch", |s| {
+        let r = s.responses[0].clone();
+        s.responses.push(r);
+    });
+    let i = builtin("contact-patch").unwrap().responses.len();
+    rejects(
+        &text,
+        &[&format!("field `responses[{i}].name`:"), "already exists"],
+    );
 }
 
 /// Found by hand reading `Parameter::by_name`: `PAIR.motion[K]` with K past the pair's rigid
@@ -786,12 +873,57 @@ fn lengths_fractions_and_ratios_must_be_positive() {
         &text,
         &["field `bodies[0].x.zones`:", "zero or non-finite size"],
     );
-    // faces of zero area in f64 (10^-200 x 10^-200) cannot share a load by area
+    // faces of zero area in f64 (10^-200 x 10^-200) cannot share a load by area (the block
+    // 10^-200 in every direction: one thin in two directions alone is refused as degenerate
+    // before, below)
     let text = edited("contact-patch", |s| {
         s.bodies[1].block_mut().unwrap().x.length = 1e-200;
+        s.bodies[1].block_mut().unwrap().y.length = 1e-200;
         s.bodies[1].block_mut().unwrap().z.length = 1e-200;
     });
     rejects(&text, &["field `loads[0].set`:", "have area 0"]);
+    // element faces whose sides are in a ratio below 4e-10 (a quad's centre Jacobian, a
+    // quarter of its sides' product, against the contact geometry's area tolerance, 1e-10
+    // of its diagonal squared) are degenerate: a zone ratio of 1e12, a block 1e-200 thick
+    let text = edited("contact-patch", |s| {
+        s.bodies[0].block_mut().unwrap().x.zones[0].elements = 4;
+        s.bodies[0].block_mut().unwrap().x.zones[0].ratio = 1e12;
+    });
+    rejects(
+        &text,
+        &["field `bodies[0].x.zones`:", "below 4e-10", "degenerate"],
+    );
+    let text = edited("contact-patch", |s| {
+        s.bodies[1].block_mut().unwrap().z.length = 1e-200;
+    });
+    rejects(&text, &["field `bodies[1].z.length`:", "degenerate"]);
+    // and a block whose thinnest faces lie a little above it builds (its z elements, uniform,
+    // 1e-9 of the longest element across)
+    let text = edited("contact-patch", |s| {
+        let b = s.bodies[0].block_mut().unwrap();
+        let across = |a: &fricsens::mesh::Axis| {
+            let t = a.fractions();
+            t.windows(2)
+                .fold(0.0f64, |m, w| m.max((w[1] - w[0]) * a.length))
+        };
+        let longest = across(&b.x).max(across(&b.y));
+        let nz: usize = b.z.zones.iter().map(|z| z.elements).sum();
+        b.z.length = 1e-9 * longest * nz as f64;
+    });
+    parse_build(&text, "case.toml").expect("a block 1e-9 thin builds");
+    // a grading steep along one axis whose faces are not thin: x graded over twelve orders
+    // (1e-12 of the axis) on a block whose y and z elements are as small, every face's sides
+    // within a ratio of 1e-6
+    let text = edited("contact-patch", |s| {
+        let b = s.bodies[0].block_mut().unwrap();
+        b.x.zones[0].elements = 2;
+        b.x.zones[0].ratio = 1e12;
+        b.y.length = 1e-6 * b.x.length;
+        b.z.length = 1e-6 * b.x.length;
+    });
+    if let Err(e) = parse_build(&text, "case.toml") {
+        assert!(!e.to_string().contains("degenerate"), "{e}");
+    }
     // rigid surfaces
     let text = edited("klarbring-2dof", |s| {
         if let TargetSpec::Rigid { surface, .. } = &mut s.contacts[0].target {
