@@ -77,6 +77,12 @@ impl Axis {
         self.zones.iter().map(|z| z.elements).sum()
     }
 
+    /// The elements' sizes along the axis, in order (`elements` values).
+    pub fn element_sizes(&self) -> Vec<f64> {
+        let t = self.fractions();
+        t.windows(2).map(|w| (w[1] - w[0]) * self.length).collect()
+    }
+
     /// Node positions as fractions of the length, from 0 to 1 (`elements + 1` values).
     pub fn fractions(&self) -> Vec<f64> {
         let total: f64 = self.zones.iter().map(|z| z.fraction).sum();

@@ -153,8 +153,9 @@ fn finite_centre(map: &str, centre: [f64; 3]) -> Result<[f64; 3], ShapeMapError>
 }
 
 impl ShapeMap {
-    /// A map of `nodes`, checked (axes and directions finite and non-zero and normalised,
-    /// centres finite, a scale's reference positive, a velocity per node); its value starts at `reference`.
+    /// A map of `nodes`, checked (axes finite, non-zero and normalised; a translation's
+    /// direction finite; centres finite; a scale's reference positive; a velocity per node);
+    /// its value starts at `reference`.
     pub fn new(
         name: &str,
         nodes: Vec<usize>,

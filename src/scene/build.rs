@@ -295,7 +295,7 @@ impl Scene {
                 finite(origin, &format!("{at}.origin[{c}]"))?;
                 n = n.saturating_mul(check_axis(axis, origin, &format!("{at}.{label}"))?);
             }
-            check_aspect(&axes, &at)?;
+            check_aspect(&axes, block.element, &at)?;
             total_elements = total_elements.saturating_add(n);
             if total_elements > MAX_ELEMENTS {
                 return Err(invalid(
@@ -922,21 +922,21 @@ fn check_axis(axis: &Axis, origin: f64, at: &str) -> Result<usize, SceneError> {
 
 /// Checks a block's grading against its thinnest element faces: a block's elements take
 /// every combination of the axes' element sizes, so its thinnest face along axis `c` has the
-/// sides `min_c` and `max_a`, the largest element size along another axis `a`. Such a face
-/// (`min_c max_a / 4` at its centre against the contact geometry's area tolerance times its
-/// diagonal squared, [`crate::contact::geometry::AREA_TOLERANCE`]) is a degenerate segment to
-/// the contact search below `min_c / max_a = 4 AREA_TOLERANCE`, and its elements collapsed:
-/// refused (a zone `ratio` of 1e12 made one). The axes are checked ([`check_axis`]) before.
-fn check_aspect(axes: &[&Axis; 3], at: &str) -> Result<(), SceneError> {
-    let sizes = |a: &Axis| {
-        let t = a.fractions();
-        let d = t.windows(2).map(|w| (w[1] - w[0]) * a.length);
-        d.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
+/// sides `min_c` and `max_a`, the largest element size along another axis `a`. The contact
+/// geometry refuses a face whose centre Jacobian is below
+/// [`crate::contact::geometry::AREA_TOLERANCE`] times its diagonal squared: a quad's is a
+/// quarter of its sides' product, a right triangle's the product, so a block of hexahedra is
+/// refused below `min_c / max_a = 4 AREA_TOLERANCE` and one with triangular faces (tetrahedra,
+/// wedges) below `AREA_TOLERANCE`, its elements collapsed too (a zone `ratio` of 1e12 made
+/// one). The axes are checked ([`check_axis`]) before.
+fn check_aspect(axes: &[&Axis; 3], shape: Shape, at: &str) -> Result<(), SceneError> {
+    let each = axes.map(|a| {
+        (a.element_sizes().into_iter()).fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
             (lo.min(v), hi.max(v))
         })
-    };
-    let each = axes.map(sizes);
-    let floor = 4.0 * crate::contact::geometry::AREA_TOLERANCE;
+    });
+    let quads = matches!(shape, Shape::Hex8 | Shape::Hex20);
+    let floor = if quads { 4.0 } else { 1.0 } * crate::contact::geometry::AREA_TOLERANCE;
     for c in 0..3 {
         let (thinnest, _) = each[c];
         let across = (0..3)
@@ -1211,13 +1211,16 @@ impl Scene {
             } else {
                 (hitting, area, layer, candidates)
             };
-            // a node meets a target through one pair: a second pair of the same node and
-            // target holds the contact twice (two Lagrange multipliers of one constraint make
-            // the tangent singular; two penalties double the stiffness). The nodes compared
-            // are those that can reach the target (above).
+            // a node meets a target through one Lagrange pair: two multipliers of the same
+            // node and target impose one constraint twice and make the tangent singular (a
+            // pair copied under another name). Penalty and augmented-Lagrangian pairs may
+            // share a node (a surface split into two face sets along an edge: each pair
+            // takes its faces' share of the node's area). The nodes compared are those that
+            // can reach the target (above).
             for ((cj, o), earlier) in self.contacts[..ci].iter().enumerate().zip(&out) {
                 let earlier: &ContactPair = earlier;
-                if o.target != c.target {
+                let lagrange = |law: &NormalLaw| matches!(law, NormalLaw::Lagrange);
+                if o.target != c.target || !(lagrange(&o.normal) && lagrange(&c.normal)) {
                     continue;
                 }
                 let theirs: std::collections::BTreeSet<usize> =
@@ -1226,7 +1229,7 @@ impl Scene {
                     return Err(invalid(
                         &format!("{at}.hitting"),
                         format!(
-                            "node {n} of '{}' already meets the same target through contacts[{cj}] ('{}'): a hitting node meets a target through one pair",
+                            "node {n} of '{}' already meets the same target through contacts[{cj}] ('{}'), both with Lagrange multipliers: one constraint imposed twice makes the tangent singular",
                             c.hitting, o.name
                         ),
                     ));

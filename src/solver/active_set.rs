@@ -418,14 +418,14 @@ impl Solver<'_> {
     }
 
     /// The pair of flat hitting node `i`.
-    fn pair_of(&self, i: usize) -> usize {
+    pub(super) fn pair_of(&self, i: usize) -> usize {
         (self.assembler.contact.flat.iter())
             .rposition(|&f| f <= i)
             .unwrap_or(0)
     }
 
     /// `pair 'name' node n` of flat hitting node `i`.
-    fn hitting_node_words(&self, i: usize) -> String {
+    pub(super) fn hitting_node_words(&self, i: usize) -> String {
         let p = self.pair_of(i);
         let pair = &self.model.contacts[p];
         let first = self.assembler.contact.flat[p];

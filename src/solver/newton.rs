@@ -175,8 +175,9 @@ impl Solver<'_> {
     /// Why the tangent (identity rows of the prescribed unknowns applied) is singular, where
     /// it can be said: the unknowns Newton solves for whose row is zero, at most five, each
     /// named (a node nothing holds in some direction, such as one on a spring of zero
-    /// stiffness; the multiplier of a closed Lagrange node prescribed in every component);
-    /// empty where no row is zero (rows that depend on each other).
+    /// stiffness; the multiplier of a closed Lagrange node prescribed in every component), or
+    /// those whose row holds a non-finite entry; empty where neither (rows that depend on
+    /// each other).
     pub(super) fn zero_rows(&self) -> String {
         let pattern = self.matrix.pattern();
         let (cp, ri, vals) = (pattern.col_ptr(), pattern.row_idx(), self.matrix.values());
@@ -185,10 +186,29 @@ impl Solver<'_> {
         // columns left out
         let free = |d: usize| !self.constrained[d];
         let mut largest = vec![0.0f64; n];
+        let mut non_finite = Vec::new();
         for j in (0..n).filter(|&j| free(j)) {
             for k in cp[j]..cp[j + 1] {
-                largest[ri[k]] = largest[ri[k]].max(vals[k].abs());
+                let i = ri[k];
+                if !vals[k].is_finite() && free(i) {
+                    non_finite.push(i);
+                }
+                largest[i] = largest[i].max(vals[k].abs());
             }
+        }
+        if !non_finite.is_empty() {
+            // not a row nothing holds: say where the tangent is not a number
+            non_finite.sort_unstable();
+            non_finite.dedup();
+            let named: Vec<String> = (non_finite.iter().take(5))
+                .map(|&d| self.describe_unknown(d))
+                .collect();
+            return format!(
+                "non-finite entries in the rows of {} unknown(s): {}{}",
+                non_finite.len(),
+                named.join(", "),
+                if non_finite.len() > 5 { ", ..." } else { "" }
+            );
         }
         let scale = (0..n)
             .filter(|&d| free(d))
@@ -221,20 +241,10 @@ impl Solver<'_> {
         if d < dofs.n_nodal {
             return format!("node {} {}", d / 3, ["x", "y", "z"][d % 3]);
         }
-        if d >= dofs.first_lambda && d < dofs.first_target {
-            if let Some(p) = (0..layout.lambda.len())
-                .rev()
-                .find(|&p| layout.lambda[p] <= d)
-            {
-                let pair = &self.model.contacts[p];
-                let i = d - layout.lambda[p];
-                if let Some(node) = pair.hitting.get(i) {
-                    return format!(
-                        "the contact multiplier of pair '{}' at hitting node {node}",
-                        pair.name
-                    );
-                }
-            }
+        // every pair has a multiplier per hitting node, in the flat order of the hitting nodes
+        if d >= dofs.first_lambda && d < dofs.first_lambda + layout.n_hitting {
+            let words = self.hitting_node_words(d - dofs.first_lambda);
+            return format!("the contact multiplier of {words}");
         }
         for (p, targets) in layout.target.iter().enumerate() {
             if let Some(k) = targets.iter().position(|&t| t == Some(d)) {

@@ -352,12 +352,7 @@ pub fn generate(seed: u64) -> Scene {
     // smallest element size of the base near its top
     let h = [&x, &y, &z]
         .iter()
-        .map(|a| {
-            let t = a.fractions();
-            t.windows(2)
-                .map(|w| (w[1] - w[0]) * a.length)
-                .fold(f64::INFINITY, f64::min)
-        })
+        .map(|a| a.element_sizes().into_iter().fold(f64::INFINITY, f64::min))
         .fold(f64::INFINITY, f64::min);
     let origin = [-lx / 2.0, -ly, if three_d { -lz / 2.0 } else { 0.0 }];
     let base = BlockSpec {

@@ -898,14 +898,22 @@ fn lengths_fractions_and_ratios_must_be_positive() {
     });
     rejects(&text, &["field `bodies[1].z.length`:", "degenerate"]);
     // and a block whose thinnest faces lie a little above it builds (its z elements, uniform,
-    // 1e-9 of the longest element across)
+    // 1e-9 of the longest element across); a tetrahedral block's triangular faces are
+    // refused only below 1e-10, and one at 2e-10 builds
+    let text = edited("contact-patch", |s| {
+        // the shape's own formulation (the scene's hex8 have incompatible modes)
+        s.bodies[0].formulation = None;
+        let b = s.bodies[0].block_mut().unwrap();
+        b.element = fricsens::element::Shape::Tet4;
+        let across = |a: &fricsens::mesh::Axis| a.element_sizes().into_iter().fold(0.0, f64::max);
+        let longest = across(&b.x).max(across(&b.y));
+        let nz: usize = b.z.zones.iter().map(|z| z.elements).sum();
+        b.z.length = 2e-10 * longest * nz as f64;
+    });
+    parse_build(&text, "case.toml").expect("a tetrahedral block 2e-10 thin builds");
     let text = edited("contact-patch", |s| {
         let b = s.bodies[0].block_mut().unwrap();
-        let across = |a: &fricsens::mesh::Axis| {
-            let t = a.fractions();
-            t.windows(2)
-                .fold(0.0f64, |m, w| m.max((w[1] - w[0]) * a.length))
-        };
+        let across = |a: &fricsens::mesh::Axis| a.element_sizes().into_iter().fold(0.0, f64::max);
         let longest = across(&b.x).max(across(&b.y));
         let nz: usize = b.z.zones.iter().map(|z| z.elements).sum();
         b.z.length = 1e-9 * longest * nz as f64;
