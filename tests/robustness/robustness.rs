@@ -897,28 +897,31 @@ fn lengths_fractions_and_ratios_must_be_positive() {
         s.bodies[1].block_mut().unwrap().z.length = 1e-200;
     });
     rejects(&text, &["field `bodies[1].z.length`:", "degenerate"]);
-    // and a block whose thinnest faces lie a little above it builds (its z elements, uniform,
-    // 1e-9 of the longest element across); a tetrahedral block's triangular faces are
-    // refused only below 1e-10, and one at 2e-10 builds
-    let text = edited("contact-patch", |s| {
-        // the shape's own formulation (the scene's hex8 have incompatible modes)
-        s.bodies[0].formulation = None;
-        let b = s.bodies[0].block_mut().unwrap();
-        b.element = fricsens::element::Shape::Tet4;
-        let across = |a: &fricsens::mesh::Axis| a.element_sizes().into_iter().fold(0.0, f64::max);
-        let longest = across(&b.x).max(across(&b.y));
-        let nz: usize = b.z.zones.iter().map(|z| z.elements).sum();
-        b.z.length = 2e-10 * longest * nz as f64;
-    });
-    parse_build(&text, "case.toml").expect("a tetrahedral block 2e-10 thin builds");
-    let text = edited("contact-patch", |s| {
-        let b = s.bodies[0].block_mut().unwrap();
-        let across = |a: &fricsens::mesh::Axis| a.element_sizes().into_iter().fold(0.0, f64::max);
-        let longest = across(&b.x).max(across(&b.y));
-        let nz: usize = b.z.zones.iter().map(|z| z.elements).sum();
-        b.z.length = 1e-9 * longest * nz as f64;
-    });
-    parse_build(&text, "case.toml").expect("a block 1e-9 thin builds");
+    // and blocks whose thinnest faces lie a little above it build: the lower block's z
+    // elements, uniform, `ratio` of its longest element across, with hexahedra at 1e-9 and
+    // tetrahedra, whose triangular faces are refused only below 1e-10, at 2e-10
+    let thin = |shape: Option<fricsens::element::Shape>, ratio: f64| {
+        edited("contact-patch", |s| {
+            if let Some(shape) = shape {
+                // the shape's own formulation (the scene's hex8 have incompatible modes)
+                s.bodies[0].formulation = None;
+                s.bodies[0].block_mut().unwrap().element = shape;
+            }
+            let b = s.bodies[0].block_mut().unwrap();
+            let across =
+                |a: &fricsens::mesh::Axis| a.element_sizes().into_iter().fold(0.0, f64::max);
+            let longest = across(&b.x).max(across(&b.y));
+            let nz: usize = b.z.zones.iter().map(|z| z.elements).sum();
+            b.z.length = ratio * longest * nz as f64;
+        })
+    };
+    parse_build(&thin(None, 1e-9), "case.toml").expect("a block 1e-9 thin builds");
+    rejects(
+        &thin(None, 2e-10),
+        &["field `bodies[0].z.length`:", "below 4e-10"],
+    );
+    let tet = Some(fricsens::element::Shape::Tet4);
+    parse_build(&thin(tet, 2e-10), "case.toml").expect("a tetrahedral block 2e-10 thin builds");
     // a grading steep along one axis whose faces are not thin: x graded over twelve orders
     // (1e-12 of the axis) on a block whose y and z elements are as small, every face's sides
     // within a ratio of 1e-6
